@@ -1,0 +1,112 @@
+//! Angle types that carry their reference axis, so conventions cannot be mixed up silently.
+//!
+//! * [`SensorAngle`]: an axial angle (period 180°) in the focal plane, measured from +x (increasing
+//!   column) toward +y (increasing row, i.e. down on a displayed image), wrapped to [0°, 180°).
+//!   AoP/AoLP images, the polarizer pass axes of the mosaic and the demosaic output all use it.
+//! * [`CompassAzimuth`]: a direction on the horizon, degrees from north, clockwise seen from above,
+//!   wrapped to [0°, 360°).
+
+/// Axial angle in the sensor plane, degrees from +x (columns) toward +y (rows, down), in [0, 180).
+///
+/// ```
+/// use psns::angle::SensorAngle;
+/// assert_eq!(SensorAngle::from_deg(-30.0).deg(), 150.0);
+/// assert_eq!(SensorAngle::from_deg(180.0).deg(), 0.0);
+/// // from a Stokes pair: AoLP = ½ atan2(S2, S1)
+/// let a = SensorAngle::from_stokes(0.0, 1.0);
+/// assert!((a.deg() - 45.0).abs() < 1e-12);
+/// // axial difference is at most 90°
+/// assert!((SensorAngle::from_deg(179.0).diff(SensorAngle::from_deg(1.0)) - 2.0).abs() < 1e-12);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, PartialOrd)]
+pub struct SensorAngle(f64);
+
+impl SensorAngle {
+    /// Wraps any angle in degrees to [0, 180).
+    #[inline]
+    pub fn from_deg(deg: f64) -> Self {
+        let mut a = deg.rem_euclid(180.0);
+        if a >= 180.0 {
+            a = 0.0; // rem_euclid can round up to the modulus
+        }
+        SensorAngle(a)
+    }
+
+    /// Angle of linear polarization of a sensor-frame Stokes pair, ½ atan2(S2, S1).
+    #[inline]
+    pub fn from_stokes(s1: f64, s2: f64) -> Self {
+        Self::from_deg(0.5 * s2.atan2(s1).to_degrees())
+    }
+
+    /// Degrees in [0, 180).
+    #[inline]
+    pub fn deg(self) -> f64 {
+        self.0
+    }
+
+    /// Radians in [0, π).
+    #[inline]
+    pub fn rad(self) -> f64 {
+        self.0.to_radians()
+    }
+
+    /// Smallest axial difference |a − b| mod 180, in [0, 90].
+    #[inline]
+    pub fn diff(self, other: SensorAngle) -> f64 {
+        let d = (self.0 - other.0).rem_euclid(180.0);
+        d.min(180.0 - d)
+    }
+}
+
+/// Compass azimuth: degrees from north, clockwise seen from above, in [0, 360).
+///
+/// ```
+/// use psns::angle::CompassAzimuth;
+/// assert_eq!(CompassAzimuth::from_deg(-90.0).deg(), 270.0);
+/// // unit vector in ENU (x east, y north): azimuth 90° points east
+/// let (e, n) = CompassAzimuth::from_deg(90.0).east_north();
+/// assert!((e - 1.0).abs() < 1e-12 && n.abs() < 1e-12);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, PartialOrd)]
+pub struct CompassAzimuth(f64);
+
+impl CompassAzimuth {
+    /// Wraps any angle in degrees to [0, 360).
+    #[inline]
+    pub fn from_deg(deg: f64) -> Self {
+        let mut a = deg.rem_euclid(360.0);
+        if a >= 360.0 {
+            a = 0.0;
+        }
+        CompassAzimuth(a)
+    }
+
+    /// Degrees in [0, 360).
+    #[inline]
+    pub fn deg(self) -> f64 {
+        self.0
+    }
+
+    /// (east, north) components of the horizontal unit vector: (sin A, cos A).
+    #[inline]
+    pub fn east_north(self) -> (f64, f64) {
+        let a = self.0.to_radians();
+        (a.sin(), a.cos())
+    }
+}
+
+/// Wraps an axial angle in degrees to (−90, 90], the convention of the spec's reference tables.
+///
+/// ```
+/// assert_eq!(psns::angle::wrap_pm90(-90.0), 90.0);
+/// assert_eq!(psns::angle::wrap_pm90(100.0), -80.0);
+/// ```
+#[inline]
+pub fn wrap_pm90(deg: f64) -> f64 {
+    let a = SensorAngle::from_deg(deg).deg(); // [0, 180)
+    if a > 90.0 {
+        a - 180.0
+    } else {
+        a
+    }
+}

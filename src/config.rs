@@ -1,0 +1,1 @@
+//! Scene configuration (to be written).

@@ -1,0 +1,1 @@
+//! Demosaic methods (to be written).

@@ -1,0 +1,111 @@
+//! The library's one error type.
+//!
+//! Bad input names the value and the allowed range; the binary maps [`Error::is_usage`] errors to
+//! exit code 2.
+
+use std::fmt;
+
+/// Everything the library can fail with.
+#[derive(Debug)]
+pub enum Error {
+    /// A parameter outside its allowed range, e.g. `turbidity = 12 is out of range (allowed 1..10)`.
+    OutOfRange {
+        /// Parameter name as the user wrote it (CLI option or config key).
+        name: String,
+        /// The offending value, formatted.
+        value: String,
+        /// The allowed range or set, e.g. `1..10`.
+        allowed: String,
+    },
+    /// Input that cannot be interpreted (malformed CSV line, bad quaternion, unknown name).
+    Invalid(String),
+    /// A damaged or unreadable data stream / file format.
+    Format(String),
+    /// An I/O error, with what was being done.
+    Io {
+        /// What the library was doing, e.g. `writing out/li.npy`.
+        context: String,
+        /// The underlying error.
+        source: std::io::Error,
+    },
+}
+
+/// Result with the library's error.
+pub type Result<T> = std::result::Result<T, Error>;
+
+impl Error {
+    /// An out-of-range error for a number.
+    pub fn range(name: &str, value: f64, allowed: &str) -> Self {
+        Error::OutOfRange {
+            name: name.to_string(),
+            value: format!("{value}"),
+            allowed: allowed.to_string(),
+        }
+    }
+
+    /// Wraps an I/O error with context.
+    pub fn io(context: impl Into<String>, source: std::io::Error) -> Self {
+        Error::Io {
+            context: context.into(),
+            source,
+        }
+    }
+
+    /// True for errors caused by the user's input (exit code 2 in the binary).
+    pub fn is_usage(&self) -> bool {
+        matches!(self, Error::OutOfRange { .. } | Error::Invalid(_))
+    }
+
+    /// True when the error is a closed pipe downstream (the program should end quietly).
+    pub fn is_broken_pipe(&self) -> bool {
+        matches!(self, Error::Io { source, .. } if source.kind() == std::io::ErrorKind::BrokenPipe)
+    }
+}
+
+impl fmt::Display for Error {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Error::OutOfRange {
+                name,
+                value,
+                allowed,
+            } => write!(f, "{name} = {value} is out of range (allowed {allowed})"),
+            Error::Invalid(m) => write!(f, "{m}"),
+            Error::Format(m) => write!(f, "{m}"),
+            Error::Io { context, source } => write!(f, "{context}: {source}"),
+        }
+    }
+}
+
+impl std::error::Error for Error {
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            Error::Io { source, .. } => Some(source),
+            _ => None,
+        }
+    }
+}
+
+/// Checks that `value` is finite and within `[lo, hi]`.
+///
+/// ```
+/// assert!(psns::error::check_range("turbidity", 4.0, 1.0, 10.0).is_ok());
+/// let e = psns::error::check_range("turbidity", 12.0, 1.0, 10.0).unwrap_err();
+/// assert_eq!(e.to_string(), "turbidity = 12 is out of range (allowed 1..10)");
+/// ```
+pub fn check_range(name: &str, value: f64, lo: f64, hi: f64) -> Result<f64> {
+    if value.is_finite() && value >= lo && value <= hi {
+        Ok(value)
+    } else {
+        Err(Error::range(name, value, &format!("{lo}..{hi}")))
+    }
+}
+
+/// Checks that `value` is finite and strictly positive.
+pub fn check_positive(name: &str, value: f64) -> Result<f64> {
+    if value.is_finite() && value > 0.0 {
+        Ok(value)
+    } else {
+        Err(Error::range(name, value, "a finite number > 0"))
+    }
+}

@@ -1,0 +1,90 @@
+//! A plain row-major image buffer: row 0 at the top, `data[row * width + col]`.
+
+/// Row-major image, rows top to bottom, no padding.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Image<T> {
+    /// Number of columns.
+    pub width: usize,
+    /// Number of rows.
+    pub height: usize,
+    /// Pixels, `data[row * width + col]`.
+    pub data: Vec<T>,
+}
+
+impl<T: Clone + Default> Image<T> {
+    /// A `width` x `height` image filled with `T::default()`.
+    pub fn new(width: usize, height: usize) -> Self {
+        Image {
+            width,
+            height,
+            data: vec![T::default(); width * height],
+        }
+    }
+}
+
+impl<T> Image<T> {
+    /// Wraps a buffer; panics if its length is not `width * height`.
+    pub fn from_vec(width: usize, height: usize, data: Vec<T>) -> Self {
+        assert_eq!(
+            data.len(),
+            width * height,
+            "buffer size does not match image size"
+        );
+        Image {
+            width,
+            height,
+            data,
+        }
+    }
+
+    /// The pixel at (row, col).
+    #[inline]
+    pub fn get(&self, row: usize, col: usize) -> &T {
+        &self.data[row * self.width + col]
+    }
+
+    /// Mutable pixel at (row, col).
+    #[inline]
+    pub fn get_mut(&mut self, row: usize, col: usize) -> &mut T {
+        &mut self.data[row * self.width + col]
+    }
+
+    /// One row as a slice.
+    #[inline]
+    pub fn row(&self, row: usize) -> &[T] {
+        &self.data[row * self.width..(row + 1) * self.width]
+    }
+}
+
+/// Sensor-frame Stokes planes (S0, S1, S2) at every pixel centre, same size.
+///
+/// Angles of S1/S2 are referred to the sensor frame: +x = columns, +y = rows (down), so
+/// AoLP = ½ atan2(S2, S1) is measured from +x toward +y.
+#[derive(Clone, Debug, PartialEq)]
+pub struct StokesImage {
+    /// Total intensity.
+    pub s0: Image<f32>,
+    /// 0°/90° difference.
+    pub s1: Image<f32>,
+    /// 45°/135° difference.
+    pub s2: Image<f32>,
+}
+
+impl StokesImage {
+    /// Zero Stokes planes of the given size.
+    pub fn zeros(width: usize, height: usize) -> Self {
+        StokesImage {
+            s0: Image::new(width, height),
+            s1: Image::new(width, height),
+            s2: Image::new(width, height),
+        }
+    }
+    /// Columns.
+    pub fn width(&self) -> usize {
+        self.s0.width
+    }
+    /// Rows.
+    pub fn height(&self) -> usize {
+        self.s0.height
+    }
+}

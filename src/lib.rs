@@ -1,0 +1,30 @@
+//! # psns — Polarized Skylight Navigation Simulator
+//!
+//! A hardware-in-the-loop emulator of the Sony IMX250MZR division-of-focal-plane polarization
+//! camera looking at a clear sky, after Liang & Bai, "Polarized Skylight Navigation Simulation
+//! Dataset" (PSNS), extended down to the sensor.
+//!
+//! Chain: [`sun`] → [`sky`] (Hosek–Wilkie radiance, Berry AOP, Wang/PSNS DOP, Rayleigh) →
+//! [`camera`] (pinhole, attitude, sensor-frame AOP) → [`render`] (ideal images) → [`sensor`]
+//! (raw mosaic) → [`demosaic`]/[`stokes`] → [`stream`].
+//!
+//! Conventions (see `docs/conventions.md`): ENU world frame, compass azimuths, sensor angles
+//! from +x (columns) toward +y (rows, down), row-major images with row 0 at the top.
+
+#![warn(missing_docs)]
+
+pub mod angle;
+pub mod camera;
+pub mod config;
+pub mod demosaic;
+pub mod error;
+pub mod image;
+pub mod io;
+pub mod render;
+pub mod sensor;
+pub mod sky;
+pub mod stokes;
+pub mod stream;
+pub mod sun;
+
+pub use error::{Error, Result};

@@ -1,0 +1,1 @@
+//! Ideal images (to be written).

@@ -1,0 +1,3 @@
+//! IMX250MZR sensor emulation (to be written).
+
+pub mod mosaic;

@@ -1,0 +1,1 @@
+//! berry (to be written)

@@ -1,0 +1,1 @@
+//! clouds (to be written)

@@ -1,0 +1,1 @@
+//! dop (to be written)

@@ -1,0 +1,1 @@
+//! rayleigh (to be written)

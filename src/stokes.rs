@@ -1,0 +1,1 @@
+//! Stokes parameters from polarizer channels (to be written).

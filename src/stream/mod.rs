@@ -1,0 +1,1 @@
+//! Raw frame stream (to be written).
