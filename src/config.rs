@@ -1,1 +1,202 @@
-//! Scene configuration (to be written).
+//! Scene configuration: sun, sky, camera (and, for raw frames, the sensor), as one serde struct.
+//!
+//! The same structure is read from `--config FILE` (TOML or JSON), overridden by command-line
+//! options, and written back as `scene.json`, so any run can be reproduced from its `scene.json`.
+//! Fields under `derived` are outputs (resolved sun position, timings, counts); they are ignored on
+//! input.
+
+use crate::camera::{Attitude, Camera, Intrinsics};
+use crate::error::{check_range, Error, Result};
+use crate::sky::{Sky, SkyParams};
+use crate::sun::{self, Place, Refraction, SunPosition};
+use serde::{Deserialize, Serialize};
+use std::path::Path;
+
+/// How the sun position is given: directly, or from a UTC time and a place.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SunConfig {
+    /// Sun zenith angle θ_s in degrees (direct input).
+    pub zenith_deg: Option<f64>,
+    /// Sun altitude (elevation) in degrees, 90 − θ_s (direct input, alternative to zenith).
+    pub altitude_deg: Option<f64>,
+    /// Compass azimuth A_s in degrees (direct input).
+    pub azimuth_deg: Option<f64>,
+    /// UTC time, ISO 8601 (e.g. `2003-10-17T19:30:30Z`): use SPA with `place`.
+    pub time: Option<String>,
+    /// Observer place for SPA.
+    pub place: Option<Place>,
+    /// ΔT in seconds for SPA (`None`: the crate's estimate).
+    pub delta_t_s: Option<f64>,
+    /// Refraction for SPA (`None`: geometric position, the default).
+    pub refraction: Option<Refraction>,
+}
+
+/// Default direct sun: zenith 50°, azimuth 200° (the project's default scene).
+pub const DEFAULT_SUN: SunPosition = SunPosition {
+    zenith_deg: 50.0,
+    azimuth_deg: 200.0,
+};
+
+impl SunConfig {
+    /// Resolves the sun position. Does not check the zenith range (a timed sequence may have the sun
+    /// below the horizon); [`Sky::new`] rejects that for a render.
+    pub fn resolve(&self) -> Result<SunPosition> {
+        if let Some(t) = &self.time {
+            if self.zenith_deg.is_some() || self.altitude_deg.is_some() || self.azimuth_deg.is_some()
+            {
+                return Err(Error::Invalid(
+                    "give the sun either as --time/--lat/--lon or as --sun-zenith/--sun-altitude/--sun-azimuth, not both"
+                        .into(),
+                ));
+            }
+            let place = self.place.ok_or_else(|| {
+                Error::Invalid("--time needs --lat and --lon (the observer's place)".into())
+            })?;
+            let t = sun::parse_time(t)?;
+            return sun::spa(&t, &place, self.delta_t_s, self.refraction);
+        }
+        if self.zenith_deg.is_some() && self.altitude_deg.is_some() {
+            return Err(Error::Invalid(
+                "give either --sun-zenith or --sun-altitude, not both".into(),
+            ));
+        }
+        let zenith = match (self.zenith_deg, self.altitude_deg) {
+            (Some(z), _) => check_range("sun-zenith", z, -90.0, 180.0)?,
+            (None, Some(a)) => 90.0 - check_range("sun-altitude", a, -90.0, 90.0)?,
+            (None, None) => DEFAULT_SUN.zenith_deg,
+        };
+        let az = match self.azimuth_deg {
+            Some(a) => check_range("sun-azimuth", a, -360.0, 720.0)?,
+            None => DEFAULT_SUN.azimuth_deg,
+        };
+        Ok(SunPosition::new(zenith, az))
+    }
+}
+
+/// Camera: intrinsics and attitude.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct CameraConfig {
+    /// Pinhole intrinsics.
+    pub intrinsics: Intrinsics,
+    /// Attitude (default: zenith-looking, zero yaw in the solar frame).
+    pub attitude: Attitude,
+}
+
+/// Values computed during a run, written to `scene.json` for the record and ignored on input.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Derived {
+    /// Resolved sun position.
+    pub sun: Option<SunPosition>,
+    /// Anything else the command wants to record (timings, counts, kappa).
+    #[serde(flatten)]
+    pub extra: serde_json::Map<String, serde_json::Value>,
+}
+
+/// A full scene.
+#[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct SceneConfig {
+    /// Sun position.
+    pub sun: SunConfig,
+    /// Sky model parameters.
+    pub sky: SkyParams,
+    /// Camera.
+    pub camera: CameraConfig,
+    /// Outputs of the run that wrote this file (ignored on input).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub derived: Option<Derived>,
+}
+
+impl SceneConfig {
+    /// Reads a TOML (`.toml`) or JSON (anything else that starts with `{`) scene file.
+    pub fn load(path: &Path) -> Result<Self> {
+        let text = std::fs::read_to_string(path)
+            .map_err(|e| Error::io(format!("reading config {}", path.display()), e))?;
+        let mut cfg: SceneConfig = if text.trim_start().starts_with('{') {
+            serde_json::from_str(&text).map_err(|e| {
+                Error::Invalid(format!("config {} is not a valid scene: {e}", path.display()))
+            })?
+        } else {
+            toml::from_str(&text).map_err(|e| {
+                Error::Invalid(format!("config {} is not a valid scene: {e}", path.display()))
+            })?
+        };
+        cfg.derived = None;
+        Ok(cfg)
+    }
+
+    /// Resolves the sun, validates everything and builds the sky and the posed camera.
+    pub fn build(&self) -> Result<(Sky, Camera)> {
+        let sun = self.sun.resolve()?;
+        let sky = Sky::new(sun, &self.sky)?;
+        let cam = Camera::new(self.camera.intrinsics, &self.camera.attitude, sun.azimuth_deg)?;
+        Ok((sky, cam))
+    }
+
+    /// Pretty JSON of this scene.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).expect("scene serializes")
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn json_round_trip() {
+        let mut c = SceneConfig::default();
+        c.sun.zenith_deg = Some(30.0);
+        c.camera.attitude = Attitude::enu(10.0, 5.0, -2.0);
+        c.derived = Some(Derived {
+            sun: Some(SunPosition::new(30.0, 200.0)),
+            ..Default::default()
+        });
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("scene.json");
+        std::fs::write(&p, c.to_json()).unwrap();
+        let back = SceneConfig::load(&p).unwrap();
+        c.derived = None;
+        assert_eq!(back, c);
+    }
+
+    #[test]
+    fn toml_scene_and_unknown_key() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("s.toml");
+        std::fs::write(
+            &p,
+            "[sun]\nzenith_deg = 40\nazimuth_deg = 10\n[sky]\nturbidity = 3\n[camera.attitude]\nkind = \"euler\"\nframe = \"enu\"\nyaw_deg = 5\npitch_deg = 0\nroll_deg = 0\n",
+        )
+        .unwrap();
+        let c = SceneConfig::load(&p).unwrap();
+        assert_eq!(c.sky.turbidity, 3.0);
+        assert_eq!(c.sun.resolve().unwrap(), SunPosition::new(40.0, 10.0));
+        std::fs::write(&p, "[sky]\nturbidty = 3\n").unwrap();
+        let e = SceneConfig::load(&p).unwrap_err().to_string();
+        assert!(e.contains("turbidty"), "{e}");
+    }
+
+    #[test]
+    fn sun_altitude_and_conflicts() {
+        let s = SunConfig {
+            altitude_deg: Some(40.0),
+            ..Default::default()
+        };
+        assert_eq!(s.resolve().unwrap().zenith_deg, 50.0);
+        let s = SunConfig {
+            altitude_deg: Some(40.0),
+            zenith_deg: Some(50.0),
+            ..Default::default()
+        };
+        assert!(s.resolve().is_err());
+        let s = SunConfig {
+            time: Some("2003-10-17T19:30:30Z".into()),
+            ..Default::default()
+        };
+        assert!(s.resolve().unwrap_err().to_string().contains("--lat"));
+    }
+}

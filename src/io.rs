@@ -1,1 +1,338 @@
-//! File output helpers (to be written).
+//! File formats at the edge of the library: `.npy` arrays, 8/16-bit PNG, 16-bit TIFF, and
+//! atomic file writes (write to a temporary name in the same directory, then rename, so a reader
+//! never sees a partial file and a failed run leaves nothing behind).
+
+use crate::error::{Error, Result};
+use crate::image::Image;
+use std::fs::File;
+use std::io::{BufWriter, Read, Write};
+use std::path::{Path, PathBuf};
+
+/// Writes a file atomically: `body` writes into a temporary file next to `path`, which is renamed
+/// over `path` only if `body` succeeds.
+pub fn write_atomic<F>(path: &Path, body: F) -> Result<()>
+where
+    F: FnOnce(&mut BufWriter<File>) -> Result<()>,
+{
+    let dir = path.parent().filter(|p| !p.as_os_str().is_empty());
+    let name = path
+        .file_name()
+        .ok_or_else(|| Error::Invalid(format!("output path {} has no file name", path.display())))?;
+    let tmp: PathBuf = dir.unwrap_or(Path::new(".")).join(format!(
+        ".{}.tmp-{}",
+        name.to_string_lossy(),
+        std::process::id()
+    ));
+    let ctx = || format!("writing {}", path.display());
+    let result = (|| {
+        let f = File::create(&tmp).map_err(|e| Error::io(ctx(), e))?;
+        let mut w = BufWriter::with_capacity(1 << 20, f);
+        body(&mut w)?;
+        w.flush().map_err(|e| Error::io(ctx(), e))?;
+        Ok(())
+    })();
+    match result {
+        Ok(()) => std::fs::rename(&tmp, path).map_err(|e| Error::io(ctx(), e)),
+        Err(e) => {
+            let _ = std::fs::remove_file(&tmp);
+            Err(e)
+        }
+    }
+}
+
+fn io_err(path: &Path) -> impl Fn(std::io::Error) -> Error + '_ {
+    move |e| Error::io(format!("writing {}", path.display()), e)
+}
+
+/// Element types that `.npy` files can hold here.
+pub trait NpyElement: Copy {
+    /// numpy dtype descriptor, e.g. `<f4`.
+    const DESCR: &'static str;
+    /// Little-endian bytes of one element.
+    fn write_le(self, out: &mut Vec<u8>);
+}
+impl NpyElement for f32 {
+    const DESCR: &'static str = "<f4";
+    fn write_le(self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&self.to_le_bytes());
+    }
+}
+impl NpyElement for f64 {
+    const DESCR: &'static str = "<f8";
+    fn write_le(self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&self.to_le_bytes());
+    }
+}
+impl NpyElement for u16 {
+    const DESCR: &'static str = "<u2";
+    fn write_le(self, out: &mut Vec<u8>) {
+        out.extend_from_slice(&self.to_le_bytes());
+    }
+}
+impl NpyElement for u8 {
+    const DESCR: &'static str = "|u1";
+    fn write_le(self, out: &mut Vec<u8>) {
+        out.push(self);
+    }
+}
+
+/// Encodes an image as an NPY v1.0 file (C order, shape (rows, columns)).
+///
+/// ```
+/// let img = psns::image::Image::from_vec(3, 2, vec![0f32; 6]);
+/// let b = psns::io::npy_bytes(&img);
+/// assert_eq!(&b[..6], b"\x93NUMPY");
+/// assert_eq!((b.len() - 24) % 64, 0); // header padded to 64 bytes, 6 f32 of data
+/// ```
+pub fn npy_bytes<T: NpyElement>(img: &Image<T>) -> Vec<u8> {
+    let dict = format!(
+        "{{'descr': '{}', 'fortran_order': False, 'shape': ({}, {}), }}",
+        T::DESCR,
+        img.height,
+        img.width
+    );
+    // magic(6) + version(2) + len(2) + dict + pad + '\n' is a multiple of 64
+    let unpadded = 10 + dict.len() + 1;
+    let pad = (64 - unpadded % 64) % 64;
+    let hlen = dict.len() + pad + 1;
+    let mut out = Vec::with_capacity(10 + hlen + img.data.len() * 4);
+    out.extend_from_slice(b"\x93NUMPY\x01\x00");
+    out.extend_from_slice(&(hlen as u16).to_le_bytes());
+    out.extend_from_slice(dict.as_bytes());
+    out.extend(std::iter::repeat_n(b' ', pad));
+    out.push(b'\n');
+    for &v in &img.data {
+        v.write_le(&mut out);
+    }
+    out
+}
+
+/// Writes an image as `.npy` (atomically).
+pub fn write_npy<T: NpyElement>(path: &Path, img: &Image<T>) -> Result<()> {
+    let bytes = npy_bytes(img);
+    write_atomic(path, |w| w.write_all(&bytes).map_err(io_err(path)))
+}
+
+/// Reads a 2-D little-endian `<f4` `.npy` file (as written by [`write_npy`]).
+pub fn read_npy_f32(path: &Path) -> Result<Image<f32>> {
+    let mut b = Vec::new();
+    File::open(path)
+        .and_then(|mut f| f.read_to_end(&mut b))
+        .map_err(|e| Error::io(format!("reading {}", path.display()), e))?;
+    let bad = |m: &str| Error::Format(format!("{}: not a 2-D <f4 npy file ({m})", path.display()));
+    if b.len() < 10 || &b[..6] != b"\x93NUMPY" {
+        return Err(bad("magic"));
+    }
+    let hlen = u16::from_le_bytes([b[8], b[9]]) as usize;
+    let header = std::str::from_utf8(b.get(10..10 + hlen).ok_or_else(|| bad("header"))?)
+        .map_err(|_| bad("header"))?;
+    if !header.contains("'<f4'") || header.contains("'fortran_order': True") {
+        return Err(bad("dtype"));
+    }
+    let shape = header
+        .split("'shape': (")
+        .nth(1)
+        .and_then(|s| s.split(')').next())
+        .ok_or_else(|| bad("shape"))?;
+    let dims: Vec<usize> = shape
+        .split(',')
+        .filter(|s| !s.trim().is_empty())
+        .map(|s| s.trim().parse().map_err(|_| bad("shape")))
+        .collect::<Result<_>>()?;
+    if dims.len() != 2 {
+        return Err(bad("shape"));
+    }
+    let data = &b[10 + hlen..];
+    if data.len() != dims[0] * dims[1] * 4 {
+        return Err(bad("size"));
+    }
+    let v = data
+        .chunks_exact(4)
+        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]))
+        .collect();
+    Ok(Image::from_vec(dims[1], dims[0], v))
+}
+
+fn png_encoder<'a>(
+    w: &'a mut BufWriter<File>,
+    width: usize,
+    height: usize,
+    color: png::ColorType,
+    depth: png::BitDepth,
+) -> png::Encoder<'a, &'a mut BufWriter<File>> {
+    let mut enc = png::Encoder::new(w, width as u32, height as u32);
+    enc.set_color(color);
+    enc.set_depth(depth);
+    enc.set_compression(png::Compression::Fast);
+    enc
+}
+
+fn png_write(
+    path: &Path,
+    width: usize,
+    height: usize,
+    color: png::ColorType,
+    depth: png::BitDepth,
+    bytes: &[u8],
+) -> Result<()> {
+    let perr = |e: png::EncodingError| Error::Format(format!("writing {}: {e}", path.display()));
+    write_atomic(path, |w| {
+        let mut wr = png_encoder(w, width, height, color, depth)
+            .write_header()
+            .map_err(perr)?;
+        wr.write_image_data(bytes).map_err(perr)?;
+        wr.finish().map_err(perr)
+    })
+}
+
+/// Writes an 8-bit greyscale PNG.
+pub fn write_png_gray8(path: &Path, img: &Image<u8>) -> Result<()> {
+    png_write(
+        path,
+        img.width,
+        img.height,
+        png::ColorType::Grayscale,
+        png::BitDepth::Eight,
+        &img.data,
+    )
+}
+
+/// Writes a 16-bit greyscale PNG (values as given, big-endian in the file as PNG requires).
+pub fn write_png_gray16(path: &Path, img: &Image<u16>) -> Result<()> {
+    let bytes: Vec<u8> = img.data.iter().flat_map(|v| v.to_be_bytes()).collect();
+    png_write(
+        path,
+        img.width,
+        img.height,
+        png::ColorType::Grayscale,
+        png::BitDepth::Sixteen,
+        &bytes,
+    )
+}
+
+/// Writes an 8-bit RGB PNG from `[r, g, b]` pixels.
+pub fn write_png_rgb8(path: &Path, img: &Image<[u8; 3]>) -> Result<()> {
+    let bytes: Vec<u8> = img.data.iter().flatten().copied().collect();
+    png_write(
+        path,
+        img.width,
+        img.height,
+        png::ColorType::Rgb,
+        png::BitDepth::Eight,
+        &bytes,
+    )
+}
+
+/// A greyscale image read from PNG or TIFF: values and their bit depth (8 or 16).
+#[derive(Clone, Debug)]
+pub struct GrayImage {
+    /// Pixel values.
+    pub image: Image<u16>,
+    /// 8 or 16.
+    pub bits: u8,
+}
+
+/// Reads an 8- or 16-bit greyscale PNG.
+pub fn read_png_gray(path: &Path) -> Result<GrayImage> {
+    let f = File::open(path).map_err(|e| Error::io(format!("reading {}", path.display()), e))?;
+    let fmt = |m: String| Error::Format(format!("{}: {m}", path.display()));
+    let dec = png::Decoder::new(std::io::BufReader::new(f));
+    let mut reader = dec.read_info().map_err(|e| fmt(e.to_string()))?;
+    let mut buf = vec![0; reader.output_buffer_size().unwrap_or(0)];
+    let info = reader.next_frame(&mut buf).map_err(|e| fmt(e.to_string()))?;
+    if info.color_type != png::ColorType::Grayscale {
+        return Err(fmt(format!(
+            "expected a greyscale raw mosaic, found {:?}",
+            info.color_type
+        )));
+    }
+    let (w, h) = (info.width as usize, info.height as usize);
+    let (data, bits) = match info.bit_depth {
+        png::BitDepth::Eight => (buf[..w * h].iter().map(|&v| v as u16).collect(), 8),
+        png::BitDepth::Sixteen => (
+            buf[..w * h * 2]
+                .chunks_exact(2)
+                .map(|c| u16::from_be_bytes([c[0], c[1]]))
+                .collect(),
+            16,
+        ),
+        d => return Err(fmt(format!("unsupported bit depth {d:?}"))),
+    };
+    Ok(GrayImage {
+        image: Image::from_vec(w, h, data),
+        bits,
+    })
+}
+
+/// Writes a 16-bit greyscale TIFF.
+pub fn write_tiff_u16(path: &Path, img: &Image<u16>) -> Result<()> {
+    let terr = |e: tiff::TiffError| Error::Format(format!("writing {}: {e}", path.display()));
+    write_atomic(path, |w| {
+        let mut enc = tiff::encoder::TiffEncoder::new(w).map_err(terr)?;
+        enc.write_image::<tiff::encoder::colortype::Gray16>(
+            img.width as u32,
+            img.height as u32,
+            &img.data,
+        )
+        .map_err(terr)
+    })
+}
+
+/// Reads a 16- or 8-bit greyscale TIFF.
+pub fn read_tiff_gray(path: &Path) -> Result<GrayImage> {
+    let f = File::open(path).map_err(|e| Error::io(format!("reading {}", path.display()), e))?;
+    let fmt = |m: String| Error::Format(format!("{}: {m}", path.display()));
+    let mut dec =
+        tiff::decoder::Decoder::new(std::io::BufReader::new(f)).map_err(|e| fmt(e.to_string()))?;
+    let (w, h) = dec.dimensions().map_err(|e| fmt(e.to_string()))?;
+    let img = dec.read_image().map_err(|e| fmt(e.to_string()))?;
+    let (data, bits) = match img {
+        tiff::decoder::DecodingResult::U16(v) => (v, 16),
+        tiff::decoder::DecodingResult::U8(v) => (v.into_iter().map(u16::from).collect(), 8),
+        _ => return Err(fmt("expected an 8- or 16-bit greyscale TIFF".into())),
+    };
+    if data.len() != (w * h) as usize {
+        return Err(fmt("expected a single-channel image".into()));
+    }
+    Ok(GrayImage {
+        image: Image::from_vec(w as usize, h as usize, data),
+        bits,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn npy_round_trip_and_png16() {
+        let dir = tempfile::tempdir().unwrap();
+        let img = Image::from_vec(3, 2, vec![1.0f32, 2.0, 3.5, -4.0, 0.0, 1e-7]);
+        let p = dir.path().join("a.npy");
+        write_npy(&p, &img).unwrap();
+        assert_eq!(read_npy_f32(&p).unwrap(), img);
+        let g = Image::from_vec(2, 2, vec![0u16, 1, 4095, 65535]);
+        let p = dir.path().join("a.png");
+        write_png_gray16(&p, &g).unwrap();
+        let r = read_png_gray(&p).unwrap();
+        assert_eq!((r.image, r.bits), (g.clone(), 16));
+        let p = dir.path().join("a.tiff");
+        write_tiff_u16(&p, &g).unwrap();
+        assert_eq!(read_tiff_gray(&p).unwrap().image, g);
+        // no temporary files left behind
+        let names: Vec<_> = std::fs::read_dir(dir.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().into_string().unwrap())
+            .collect();
+        assert!(names.iter().all(|n| !n.contains(".tmp-")), "{names:?}");
+    }
+
+    #[test]
+    fn failed_atomic_write_leaves_nothing() {
+        let dir = tempfile::tempdir().unwrap();
+        let p = dir.path().join("x.bin");
+        let r = write_atomic(&p, |_| Err(Error::Invalid("boom".into())));
+        assert!(r.is_err());
+        assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+    }
+}

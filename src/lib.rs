@@ -14,10 +14,12 @@
 #![warn(missing_docs)]
 
 pub mod angle;
+pub mod app;
 pub mod camera;
 pub mod config;
 pub mod demosaic;
 pub mod error;
+pub mod figures;
 pub mod image;
 pub mod io;
 pub mod render;
@@ -26,5 +28,7 @@ pub mod sky;
 pub mod stokes;
 pub mod stream;
 pub mod sun;
+pub mod vis;
 
 pub use error::{Error, Result};
+

@@ -1,1 +1,241 @@
-//! Ideal images (to be written).
+//! Ideal images in the sensor frame (the PSNS paper's Fig. 10 a–g): LI, DOP and AOP per pixel, the
+//! sensor-frame Stokes planes, and the four polarizer-direction images of eq. (24).
+//!
+//! Each pixel samples the sky along its own ray (`sky.md` §7): d_n = (C_n^c)ᵀ d_c/|d_c|; the
+//! E-vector is rotated into the camera frame and projected on the focal plane,
+//! AOP_s = atan2(e_c,y, e_c,x) mod 180° (from +x = columns toward +y = rows, down). Pixels that look
+//! at or below the horizon are invalid: LI = DOP = AOP = 0 and mask 0 (never NaN).
+
+use crate::camera::Camera;
+use crate::image::{Image, StokesImage};
+use crate::sky::hosek::{HosekWilkie, SUN_RADIUS_RAD};
+use crate::sky::Sky;
+use glam::DVec3;
+use rayon::prelude::*;
+
+/// The sky as seen by one pixel, in the sensor frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct PixelSky {
+    /// Radiance LI, W m⁻² sr⁻¹ nm⁻¹.
+    pub li: f64,
+    /// Degree of polarization, [0, 1].
+    pub dop: f64,
+    /// cos 2·AOP_s and sin 2·AOP_s (both 0 where DOP = 0 or invalid).
+    pub cos2: f64,
+    /// See `cos2`.
+    pub sin2: f64,
+    /// False for ground pixels.
+    pub valid: bool,
+}
+
+impl PixelSky {
+    /// AOP_s in degrees, [0, 180) (0 where undefined).
+    pub fn aop_deg(&self) -> f64 {
+        if self.cos2 == 0.0 && self.sin2 == 0.0 {
+            0.0
+        } else {
+            crate::angle::SensorAngle::from_deg(0.5 * self.sin2.atan2(self.cos2).to_degrees()).deg()
+        }
+    }
+    /// Sensor-frame Stokes (S0, S1, S2) in radiance units.
+    pub fn stokes(&self) -> [f64; 3] {
+        let p = self.li * self.dop;
+        [self.li, p * self.cos2, p * self.sin2]
+    }
+}
+
+/// Samples the sky for the ray through the 0-based sub-pixel position (col, row).
+#[inline]
+pub fn pixel_sky(sky: &Sky, cam: &Camera, col: f64, row: f64) -> PixelSky {
+    let d = cam.pixel_direction(col, row);
+    let s = sky.sample(d);
+    if !s.valid {
+        return PixelSky::default();
+    }
+    let e = cam.enu_to_camera * s.e;
+    let n2 = e.x * e.x + e.y * e.y;
+    let (cos2, sin2) = if s.dop > 0.0 && n2 > 0.0 {
+        ((e.x * e.x - e.y * e.y) / n2, 2.0 * e.x * e.y / n2)
+    } else {
+        (0.0, 0.0)
+    };
+    PixelSky {
+        li: s.radiance,
+        dop: s.dop,
+        cos2,
+        sin2,
+        valid: true,
+    }
+}
+
+/// LI, DOP, AOP and validity images.
+#[derive(Clone, Debug)]
+pub struct IdealImages {
+    /// Radiance, W m⁻² sr⁻¹ nm⁻¹.
+    pub li: Image<f32>,
+    /// DOP in [0, 1].
+    pub dop: Image<f32>,
+    /// AOP_s in degrees, [0, 180), from +x toward +y.
+    pub aop_deg: Image<f32>,
+    /// 1 = sky, 0 = ground.
+    pub valid: Image<u8>,
+}
+
+fn rows_par<T: Send, F>(width: usize, height: usize, f: F) -> Vec<Vec<T>>
+where
+    F: Fn(usize, usize) -> T + Sync + Send,
+{
+    (0..height)
+        .into_par_iter()
+        .map(|r| (0..width).map(|c| f(r, c)).collect())
+        .collect()
+}
+
+/// Renders LI, DOP and AOP at every pixel centre.
+pub fn render_ideal(sky: &Sky, cam: &Camera) -> IdealImages {
+    let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
+    let rows = rows_par(w, h, |r, c| pixel_sky(sky, cam, c as f64, r as f64));
+    let mut out = IdealImages {
+        li: Image::new(w, h),
+        dop: Image::new(w, h),
+        aop_deg: Image::new(w, h),
+        valid: Image::new(w, h),
+    };
+    for (r, row) in rows.into_iter().enumerate() {
+        for (c, p) in row.into_iter().enumerate() {
+            let i = r * w + c;
+            out.li.data[i] = p.li as f32;
+            out.dop.data[i] = p.dop as f32;
+            out.aop_deg.data[i] = p.aop_deg() as f32;
+            out.valid.data[i] = p.valid as u8;
+        }
+    }
+    out
+}
+
+/// Options for the Stokes render.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct StokesOptions {
+    /// Add the unpolarized, limb-darkened solar disc (Hosek–Wilkie solar radiance), area-averaged
+    /// with 4 × 4 sub-samples within r_sun + 2 IFOV of the sun (`sky.md` §8).
+    pub sun_disc: bool,
+}
+
+/// Sensor-frame Stokes planes (radiance units) at every pixel centre, plus how many pixels see
+/// part of the sun disc.
+pub fn render_stokes(sky: &Sky, cam: &Camera, opts: StokesOptions) -> (StokesImage, usize) {
+    let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
+    let mut out = StokesImage::zeros(w, h);
+    out.s0
+        .data
+        .par_chunks_mut(w)
+        .zip(out.s1.data.par_chunks_mut(w))
+        .zip(out.s2.data.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(r, ((s0, s1), s2))| {
+            for c in 0..w {
+                let [a, b, d] = pixel_sky(sky, cam, c as f64, r as f64).stokes();
+                s0[c] = a as f32;
+                s1[c] = b as f32;
+                s2[c] = d as f32;
+            }
+        });
+    let n_sun = if opts.sun_disc {
+        add_sun_disc(sky, cam, &mut out)
+    } else {
+        0
+    };
+    (out, n_sun)
+}
+
+/// Adds the solar disc to S0 where it is in view; returns the number of pixels touched.
+fn add_sun_disc(sky: &Sky, cam: &Camera, st: &mut StokesImage) -> usize {
+    let p = sky.params();
+    let Ok(hw) = HosekWilkie::new(
+        p.turbidity,
+        p.albedo,
+        sky.sun().elevation_deg().to_radians(),
+        p.wavelength_nm,
+    ) else {
+        return 0;
+    };
+    let s_enu = sky.sun().vector();
+    let s_c = cam.enu_to_camera * s_enu;
+    let Some((sc, sr)) = cam.intrinsics.project(s_c) else {
+        return 0;
+    };
+    let ifov = 1.0 / cam.intrinsics.focal_px(); // rad per pixel on axis; off axis smaller
+    let reach = (SUN_RADIUS_RAD + 2.0 * ifov) / ifov; // pixels (generous off axis is harmless)
+    let (w, h) = (st.width() as f64, st.height() as f64);
+    let c0 = (sc - reach).floor().max(0.0);
+    let c1 = (sc + reach).ceil().min(w - 1.0);
+    let r0 = (sr - reach).floor().max(0.0);
+    let r1 = (sr + reach).ceil().min(h - 1.0);
+    if c0 > c1 || r0 > r1 {
+        return 0;
+    }
+    let mut touched = 0;
+    for r in r0 as usize..=r1 as usize {
+        for c in c0 as usize..=c1 as usize {
+            let mut acc = 0.0;
+            for sy in 0..4 {
+                for sx in 0..4 {
+                    let d: DVec3 = cam.pixel_direction(
+                        c as f64 - 0.375 + 0.25 * sx as f64,
+                        r as f64 - 0.375 + 0.25 * sy as f64,
+                    );
+                    let g = d.dot(s_enu).clamp(-1.0, 1.0).acos();
+                    acc += hw.sun_radiance(g);
+                }
+            }
+            if acc > 0.0 {
+                let i = r * st.width() + c;
+                st.s0.data[i] += (acc / 16.0) as f32;
+                touched += 1;
+            }
+        }
+    }
+    touched
+}
+
+/// The four polarizer-direction images LI(α) = ½ LI [1 + DOP cos 2(AOP − α)] (PSNS eq. (24)
+/// before κ), for α = 0°, 45°, 90°, 135°.
+pub fn polarizer_images(ideal: &IdealImages) -> [Image<f32>; 4] {
+    let (w, h) = (ideal.li.width, ideal.li.height);
+    let mut out: [Image<f32>; 4] = std::array::from_fn(|_| Image::new(w, h));
+    for (k, img) in out.iter_mut().enumerate() {
+        let a = (45.0 * k as f64).to_radians();
+        img.data
+            .par_iter_mut()
+            .enumerate()
+            .for_each(|(i, v)| {
+                let li = ideal.li.data[i] as f64;
+                let dop = ideal.dop.data[i] as f64;
+                let aop = (ideal.aop_deg.data[i] as f64).to_radians();
+                *v = (0.5 * li * (1.0 + dop * (2.0 * (aop - a)).cos())) as f32;
+            });
+    }
+    out
+}
+
+/// κ mapping the brightest value of the four polarizer images to `full_scale`, and the scaled,
+/// rounded images (eq. (24)).
+pub fn quantize_polarizer_images(imgs: &[Image<f32>; 4], full_scale: f64) -> (f64, [Image<u16>; 4]) {
+    let max = imgs
+        .iter()
+        .flat_map(|i| i.data.iter())
+        .fold(0.0f32, |m, &v| m.max(v)) as f64;
+    let kappa = if max > 0.0 { full_scale / max } else { 0.0 };
+    let q = std::array::from_fn(|k| {
+        let i = &imgs[k];
+        Image::from_vec(
+            i.width,
+            i.height,
+            i.data
+                .iter()
+                .map(|&v| (v as f64 * kappa).round().clamp(0.0, full_scale) as u16)
+                .collect(),
+        )
+    });
+    (kappa, q)
+}

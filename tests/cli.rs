@@ -1,0 +1,219 @@
+//! End-to-end tests of the `psns` binary: outputs, bad input (exit code 2, nothing written),
+//! and the reference values of sky.md through `psns sky` and `psns sun`.
+
+use std::io::Write;
+use std::path::Path;
+use std::process::{Command, Output, Stdio};
+
+fn psns(args: &[&str]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_psns"))
+        .args(args)
+        .output()
+        .expect("run psns")
+}
+
+fn psns_stdin(args: &[&str], input: &str) -> Output {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_psns"))
+        .args(args)
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    child.stdin.take().unwrap().write_all(input.as_bytes()).unwrap();
+    child.wait_with_output().unwrap()
+}
+
+fn stderr(o: &Output) -> String {
+    String::from_utf8_lossy(&o.stderr).into_owned()
+}
+
+/// A small camera with the default field of view (pitch scaled up).
+const SMALL: [&str; 6] = ["--width", "96", "--height", "80", "--pixel-pitch", "88"];
+
+#[test]
+fn render_writes_every_file_and_reproduces_from_scene_json() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("a");
+    let mut args = vec!["render", "--out", out.to_str().unwrap()];
+    args.extend(SMALL);
+    let o = psns(&args);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in [
+        "li.npy", "dop.npy", "aop.npy", "i0.png", "i45.png", "i90.png", "i135.png", "i0_16bit.png",
+        "i45_16bit.png", "i90_16bit.png", "i135_16bit.png", "li.png", "dop.png", "aop.png",
+        "scene.json",
+    ] {
+        assert!(out.join(f).is_file(), "missing {f}");
+    }
+    let li = psns::io::read_npy_f32(&out.join("li.npy")).unwrap();
+    assert_eq!((li.width, li.height), (96, 80));
+    let dop = psns::io::read_npy_f32(&out.join("dop.npy")).unwrap();
+    assert!(dop.data.iter().all(|v| (0.0..=1.0).contains(v)));
+    let aop = psns::io::read_npy_f32(&out.join("aop.npy")).unwrap();
+    assert!(aop.data.iter().all(|v| (0.0..180.0).contains(v)));
+    // brightest polarizer sample maps to full scale
+    let i16 = ["i0_16bit.png", "i45_16bit.png", "i90_16bit.png", "i135_16bit.png"]
+        .iter()
+        .map(|f| psns::io::read_png_gray(&out.join(f)).unwrap().image.data.into_iter().max().unwrap())
+        .max()
+        .unwrap();
+    assert_eq!(i16, 65535);
+    // same scene again from scene.json, into another directory: identical arrays
+    let out2 = dir.path().join("b");
+    let o = psns(&[
+        "render",
+        "--config",
+        out.join("scene.json").to_str().unwrap(),
+        "--out",
+        out2.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in ["li.npy", "dop.npy", "aop.npy", "i45.png"] {
+        assert_eq!(
+            std::fs::read(out.join(f)).unwrap(),
+            std::fs::read(out2.join(f)).unwrap(),
+            "{f} differs"
+        );
+    }
+}
+
+fn assert_rejected(args: &[&str], needle: &str, out: &Path) {
+    let o = psns(args);
+    assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+    assert!(stderr(&o).contains(needle), "{args:?}: stderr lacks '{needle}': {}", stderr(&o));
+    assert!(
+        !out.exists() || std::fs::read_dir(out).unwrap().next().is_none(),
+        "{args:?} wrote output"
+    );
+}
+
+#[test]
+fn bad_input_exits_2_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o");
+    let o = out.to_str().unwrap();
+    let cases: &[(&[&str], &str)] = &[
+        (&["--turbidity", "12"], "turbidity = 12"),
+        (&["--turbidity", "0.5"], "allowed 1..10"),
+        (&["--wavelength", "300"], "wavelength = 300"),
+        (&["--albedo", "1.5"], "albedo = 1.5"),
+        (&["--sun-zenith", "95"], "sun-zenith = 95"),
+        (&["--neutral-distance", "70"], "babinet = 70"),
+        (&["--focal-length", "0"], "focal-length = 0"),
+        (&["--pixel-pitch", "-3"], "pixel-pitch = -3"),
+        (&["--width", "0"], "width = 0"),
+        (&["--quaternion", "1,1,0,0"], "not a unit quaternion"),
+        (&["--quaternion", "1,0,0"], "expected 4"),
+        (&["--turbidity", "inf"], "not a finite number"),
+        (&["--yaw", "NaN"], "not a finite number"),
+        (&["--model", "mie"], "mie"),
+        (&["--bogus"], "--bogus"),
+    ];
+    for (extra, needle) in cases {
+        let mut args = vec!["render", "--out", o];
+        args.extend_from_slice(extra);
+        assert_rejected(&args, needle, &out);
+    }
+}
+
+/// sky.md §9 default-configuration table through `psns sky`.
+#[test]
+fn sky_command_matches_default_table() {
+    let input = "zenith_deg,azimuth_deg\n0,0\n30,200\n30,20\n45,110\n45,290\n60,200\n70,20\n80,110\n30,245\n";
+    let o = psns_stdin(&["sky"], input);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let text = String::from_utf8(o.stdout).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next().unwrap(),
+        "zenith_deg,azimuth_deg,gamma_deg,radiance,dop,aop_meridian_deg,aop_north_deg"
+    );
+    // gamma, L450, DOP, chi, AOP_m (AOP_m at the zenith = chi)
+    let expect = [
+        (50.000, 7.4140e-2, 0.15881, -70.000, -70.000),
+        (20.000, 1.4797e-1, 0.01831, 20.000, 0.000),
+        (80.000, 7.5182e-2, 0.49123, -70.000, 90.000),
+        (62.966, 9.4944e-2, 0.41589, -36.337, 33.663),
+        (62.966, 9.4944e-2, 0.41589, 76.337, -33.663),
+        (10.000, 3.6339e-1, 0.06307, 20.000, 0.000),
+        (120.000, 1.4437e-1, 0.35767, -70.000, 90.000),
+        (83.591, 1.7833e-1, 0.56946, -30.278, 39.722),
+        (34.156, 1.0461e-1, 0.10935, 65.521, 0.521),
+    ];
+    let axial = |a: f64, b: f64| {
+        let d = (a - b).rem_euclid(180.0);
+        d.min(180.0 - d)
+    };
+    for (line, e) in lines.zip(expect.iter()) {
+        let v: Vec<f64> = line.split(',').map(|s| s.parse().unwrap()).collect();
+        assert!((v[2] - e.0).abs() < 1e-3, "{line}");
+        assert!((v[3] / e.1 - 1.0).abs() < 1e-4, "{line}: radiance");
+        assert!((v[4] - e.2).abs() < 1e-5, "{line}: dop");
+        assert!(axial(v[5], e.4) < 1e-3, "{line}: aop_m");
+        assert!(axial(v[6], e.3) < 1e-3, "{line}: chi");
+    }
+}
+
+#[test]
+fn sky_command_reports_bad_line_numbers() {
+    let o = psns_stdin(&["sky"], "zenith_deg,azimuth_deg\n10,20\n10,abc\n");
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("line 3"), "{}", stderr(&o));
+    let o = psns_stdin(&["sky"], "zenith_deg,azimuth_deg\n10,20,30\n");
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("line 2") && stderr(&o).contains("3"), "{}", stderr(&o));
+    let o = psns_stdin(&["sky"], "az,zen\n");
+    assert_eq!(o.status.code(), Some(2));
+}
+
+#[test]
+fn sun_command_nrel_reference() {
+    let o = psns(&[
+        "sun", "--time", "2003-10-17T19:30:30Z", "--lat", "39.742476", "--lon", "-105.1786",
+        "--height", "1830.14", "--delta-t", "67", "--refraction", "--pressure", "820",
+        "--temperature", "11",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let t = String::from_utf8(o.stdout).unwrap();
+    let mut l = t.lines();
+    assert_eq!(l.next(), Some("zenith_deg,azimuth_deg"));
+    let v: Vec<f64> = l.next().unwrap().split(',').map(|s| s.parse().unwrap()).collect();
+    assert!((v[0] - 50.111622).abs() < 1e-5 && (v[1] - 194.340241).abs() < 1e-5, "{v:?}");
+    // night: still printed, zenith > 90
+    let o = psns(&["sun", "--time", "2003-10-17T08:00:00Z", "--lat", "39.74", "--lon", "-105.18"]);
+    assert!(o.status.success());
+    let t = String::from_utf8(o.stdout).unwrap();
+    let z: f64 = t.lines().nth(1).unwrap().split(',').next().unwrap().parse().unwrap();
+    assert!(z > 90.0);
+    let o = psns(&["sun", "--time", "yesterday", "--lat", "0", "--lon", "0"]);
+    assert_eq!(o.status.code(), Some(2));
+    let o = psns(&["sun", "--time", "2003-10-17T08:00:00Z", "--lat", "95", "--lon", "0"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("lat = 95"), "{}", stderr(&o));
+}
+
+#[test]
+fn closed_stdout_ends_quietly() {
+    // `psns sky | head -1` style: a reader that goes away must not cause an error message.
+    let mut input = String::from("zenith_deg,azimuth_deg\n");
+    for i in 0..200_000 {
+        input.push_str(&format!("{},{}\n", i % 80, i % 360));
+    }
+    let mut child = Command::new(env!("CARGO_BIN_EXE_psns"))
+        .arg("sky")
+        .stdin(Stdio::piped())
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut stdin = child.stdin.take().unwrap();
+    let writer = std::thread::spawn(move || {
+        let _ = stdin.write_all(input.as_bytes());
+    });
+    drop(child.stdout.take()); // close the read end at once
+    let o = child.wait_with_output().unwrap();
+    writer.join().unwrap();
+    assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+    assert!(stderr(&o).is_empty(), "{}", stderr(&o));
+}
