@@ -46,14 +46,24 @@ pub fn render_ideal_to_dir(cfg: &SceneConfig, dir: &Path) -> Result<RenderSummar
     let (kappa8, q8) = render::quantize_polarizer_images(&pol, 255.0);
     let (_, q16) = render::quantize_polarizer_images(&pol, 65535.0);
     for (k, a) in [0, 45, 90, 135].iter().enumerate() {
-        let g8 = Image::from_vec(q8[k].width, q8[k].height, q8[k].data.iter().map(|&v| v as u8).collect());
+        let g8 = Image::from_vec(
+            q8[k].width,
+            q8[k].height,
+            q8[k].data.iter().map(|&v| v as u8).collect(),
+        );
         io::write_png_gray8(&put(&format!("i{a}.png")), &g8)?;
         io::write_png_gray16(&put(&format!("i{a}_16bit.png")), &q16[k])?;
     }
     let white = vis::quantile(&ideal.li, 0.999);
     io::write_png_gray8(&put("li.png"), &vis::gray8(&ideal.li, white))?;
-    io::write_png_rgb8(&put("dop.png"), &vis::dop_rgb(&ideal.dop, Some(&ideal.valid)))?;
-    io::write_png_rgb8(&put("aop.png"), &vis::aop_rgb(&ideal.aop_deg, Some(&ideal.valid)))?;
+    io::write_png_rgb8(
+        &put("dop.png"),
+        &vis::dop_rgb(&ideal.dop, Some(&ideal.valid)),
+    )?;
+    io::write_png_rgb8(
+        &put("aop.png"),
+        &vis::aop_rgb(&ideal.aop_deg, Some(&ideal.valid)),
+    )?;
     let valid = ideal.valid.data.iter().filter(|&&v| v != 0).count();
     let mut out = cfg.clone();
     let mut derived = Derived {
@@ -62,9 +72,10 @@ pub fn render_ideal_to_dir(cfg: &SceneConfig, dir: &Path) -> Result<RenderSummar
     };
     derived.extra.insert("kappa_8bit".into(), kappa8.into());
     derived.extra.insert("sky_pixels".into(), valid.into());
-    derived
-        .extra
-        .insert("ground_pixels".into(), (ideal.valid.data.len() - valid).into());
+    derived.extra.insert(
+        "ground_pixels".into(),
+        (ideal.valid.data.len() - valid).into(),
+    );
     out.derived = Some(derived);
     let json = out.to_json();
     io::write_atomic(&put("scene.json"), |w| {
@@ -95,7 +106,11 @@ pub fn sky_csv(cfg: &SceneConfig, input: impl BufRead, mut output: impl Write) -
             )))
         }
         Some((_, Err(e))) => return Err(Error::io("reading stdin", e)),
-        None => return Err(Error::Invalid("empty input: expected a CSV header line".into())),
+        None => {
+            return Err(Error::Invalid(
+                "empty input: expected a CSV header line".into(),
+            ))
+        }
     }
     writeln!(
         output,
@@ -121,7 +136,10 @@ pub fn sky_csv(cfg: &SceneConfig, input: impl BufRead, mut output: impl Write) -
                 Error::Invalid(format!("line {ln}: {name} '{}' is not a number", s.trim()))
             })?;
             if !v.is_finite() {
-                return Err(Error::Invalid(format!("line {ln}: {name} '{}' is not finite", s.trim())));
+                return Err(Error::Invalid(format!(
+                    "line {ln}: {name} '{}' is not finite",
+                    s.trim()
+                )));
             }
             Ok(v)
         };

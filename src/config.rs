@@ -43,7 +43,9 @@ impl SunConfig {
     /// below the horizon); [`Sky::new`] rejects that for a render.
     pub fn resolve(&self) -> Result<SunPosition> {
         if let Some(t) = &self.time {
-            if self.zenith_deg.is_some() || self.altitude_deg.is_some() || self.azimuth_deg.is_some()
+            if self.zenith_deg.is_some()
+                || self.altitude_deg.is_some()
+                || self.azimuth_deg.is_some()
             {
                 return Err(Error::Invalid(
                     "give the sun either as --time/--lat/--lon or as --sun-zenith/--sun-altitude/--sun-azimuth, not both"
@@ -117,11 +119,17 @@ impl SceneConfig {
             .map_err(|e| Error::io(format!("reading config {}", path.display()), e))?;
         let mut cfg: SceneConfig = if text.trim_start().starts_with('{') {
             serde_json::from_str(&text).map_err(|e| {
-                Error::Invalid(format!("config {} is not a valid scene: {e}", path.display()))
+                Error::Invalid(format!(
+                    "config {} is not a valid scene: {e}",
+                    path.display()
+                ))
             })?
         } else {
             toml::from_str(&text).map_err(|e| {
-                Error::Invalid(format!("config {} is not a valid scene: {e}", path.display()))
+                Error::Invalid(format!(
+                    "config {} is not a valid scene: {e}",
+                    path.display()
+                ))
             })?
         };
         cfg.derived = None;
@@ -132,7 +140,11 @@ impl SceneConfig {
     pub fn build(&self) -> Result<(Sky, Camera)> {
         let sun = self.sun.resolve()?;
         let sky = Sky::new(sun, &self.sky)?;
-        let cam = Camera::new(self.camera.intrinsics, &self.camera.attitude, sun.azimuth_deg)?;
+        let cam = Camera::new(
+            self.camera.intrinsics,
+            &self.camera.attitude,
+            sun.azimuth_deg,
+        )?;
         Ok((sky, cam))
     }
 

@@ -32,7 +32,11 @@ pub fn sky_dome_panels(sky: &Sky, size: usize) -> Image<[u8; 3]> {
             if !s.valid {
                 return (0.0, 0.0, 0.0, 0);
             }
-            let chi = if s.dop > 0.0 { aop_chart_deg(v, s.e) } else { 0.0 };
+            let chi = if s.dop > 0.0 {
+                aop_chart_deg(v, s.e)
+            } else {
+                0.0
+            };
             (s.radiance as f32, s.dop as f32, chi as f32, 1)
         })
         .collect();
@@ -59,7 +63,11 @@ pub fn sky_dome_panels(sky: &Sky, size: usize) -> Image<[u8; 3]> {
 }
 
 /// Rows of all-sky panels, one row per sun position.
-pub fn sky_sweep(params: &SkyParams, suns: &[SunPosition], size: usize) -> crate::Result<Image<[u8; 3]>> {
+pub fn sky_sweep(
+    params: &SkyParams,
+    suns: &[SunPosition],
+    size: usize,
+) -> crate::Result<Image<[u8; 3]>> {
     let rows: Vec<Image<[u8; 3]>> = suns
         .iter()
         .map(|&s| Ok(sky_dome_panels(&Sky::new(s, params)?, size)))

@@ -15,9 +15,9 @@ where
     F: FnOnce(&mut BufWriter<File>) -> Result<()>,
 {
     let dir = path.parent().filter(|p| !p.as_os_str().is_empty());
-    let name = path
-        .file_name()
-        .ok_or_else(|| Error::Invalid(format!("output path {} has no file name", path.display())))?;
+    let name = path.file_name().ok_or_else(|| {
+        Error::Invalid(format!("output path {} has no file name", path.display()))
+    })?;
     let tmp: PathBuf = dir.unwrap_or(Path::new(".")).join(format!(
         ".{}.tmp-{}",
         name.to_string_lossy(),
@@ -239,7 +239,9 @@ pub fn read_png_gray(path: &Path) -> Result<GrayImage> {
     let dec = png::Decoder::new(std::io::BufReader::new(f));
     let mut reader = dec.read_info().map_err(|e| fmt(e.to_string()))?;
     let mut buf = vec![0; reader.output_buffer_size().unwrap_or(0)];
-    let info = reader.next_frame(&mut buf).map_err(|e| fmt(e.to_string()))?;
+    let info = reader
+        .next_frame(&mut buf)
+        .map_err(|e| fmt(e.to_string()))?;
     if info.color_type != png::ColorType::Grayscale {
         return Err(fmt(format!(
             "expected a greyscale raw mosaic, found {:?}",

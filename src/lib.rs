@@ -28,7 +28,7 @@ pub mod sky;
 pub mod stokes;
 pub mod stream;
 pub mod sun;
+pub mod trajectory;
 pub mod vis;
 
 pub use error::{Error, Result};
-

@@ -11,7 +11,11 @@ use std::path::PathBuf;
 use std::process::ExitCode;
 
 #[derive(Parser)]
-#[command(name = "psns", version, about = "Polarized skylight + IMX250MZR polarization camera emulator")]
+#[command(
+    name = "psns",
+    version,
+    about = "Polarized skylight + IMX250MZR polarization camera emulator"
+)]
 struct Cli {
     #[command(subcommand)]
     cmd: Cmd,
@@ -267,7 +271,11 @@ impl SceneArgs {
                 frame: frame_given.unwrap_or_default(),
                 wxyz: q,
             };
-        } else if self.yaw.is_some() || self.pitch.is_some() || self.roll.is_some() || frame_given.is_some() {
+        } else if self.yaw.is_some()
+            || self.pitch.is_some()
+            || self.roll.is_some()
+            || frame_given.is_some()
+        {
             let (mut f, mut y, mut p, mut r) = match cam.attitude {
                 Attitude::Euler {
                     frame,
@@ -370,8 +378,12 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             });
             let s = psns::sun::spa(&t, &place, a.delta_t, r)?;
             let mut out = std::io::stdout().lock();
-            writeln!(out, "zenith_deg,azimuth_deg\n{:.9},{:.9}", s.zenith_deg, s.azimuth_deg)
-                .context("writing to stdout")?;
+            writeln!(
+                out,
+                "zenith_deg,azimuth_deg\n{:.9},{:.9}",
+                s.zenith_deg, s.azimuth_deg
+            )
+            .context("writing to stdout")?;
         }
     }
     Ok(())

@@ -205,22 +205,22 @@ pub fn polarizer_images(ideal: &IdealImages) -> [Image<f32>; 4] {
     let mut out: [Image<f32>; 4] = std::array::from_fn(|_| Image::new(w, h));
     for (k, img) in out.iter_mut().enumerate() {
         let a = (45.0 * k as f64).to_radians();
-        img.data
-            .par_iter_mut()
-            .enumerate()
-            .for_each(|(i, v)| {
-                let li = ideal.li.data[i] as f64;
-                let dop = ideal.dop.data[i] as f64;
-                let aop = (ideal.aop_deg.data[i] as f64).to_radians();
-                *v = (0.5 * li * (1.0 + dop * (2.0 * (aop - a)).cos())) as f32;
-            });
+        img.data.par_iter_mut().enumerate().for_each(|(i, v)| {
+            let li = ideal.li.data[i] as f64;
+            let dop = ideal.dop.data[i] as f64;
+            let aop = (ideal.aop_deg.data[i] as f64).to_radians();
+            *v = (0.5 * li * (1.0 + dop * (2.0 * (aop - a)).cos())) as f32;
+        });
     }
     out
 }
 
 /// κ mapping the brightest value of the four polarizer images to `full_scale`, and the scaled,
 /// rounded images (eq. (24)).
-pub fn quantize_polarizer_images(imgs: &[Image<f32>; 4], full_scale: f64) -> (f64, [Image<u16>; 4]) {
+pub fn quantize_polarizer_images(
+    imgs: &[Image<f32>; 4],
+    full_scale: f64,
+) -> (f64, [Image<u16>; 4]) {
     let max = imgs
         .iter()
         .flat_map(|i| i.data.iter())

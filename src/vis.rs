@@ -18,7 +18,11 @@ const VIRIDIS: [[f64; 3]; 9] = [
 
 /// Viridis colour of `t` in [0, 1] (clamped), piecewise linear between 9 anchors.
 pub fn viridis(t: f64) -> [u8; 3] {
-    let t = if t.is_finite() { t.clamp(0.0, 1.0) } else { 0.0 } * 8.0;
+    let t = if t.is_finite() {
+        t.clamp(0.0, 1.0)
+    } else {
+        0.0
+    } * 8.0;
     let i = (t.floor() as usize).min(7);
     let f = t - i as f64;
     std::array::from_fn(|k| (VIRIDIS[i][k] * (1.0 - f) + VIRIDIS[i + 1][k] * f).round() as u8)
@@ -72,7 +76,11 @@ pub fn aolp_dolp_rgb(aop_deg: &Image<f32>, dop: &Image<f32>, dolp_full: f64) -> 
     Image::from_vec(aop_deg.width, aop_deg.height, data)
 }
 
-fn map_rgb(img: &Image<f32>, mask: Option<&Image<u8>>, f: impl Fn(f32) -> [u8; 3]) -> Image<[u8; 3]> {
+fn map_rgb(
+    img: &Image<f32>,
+    mask: Option<&Image<u8>>,
+    f: impl Fn(f32) -> [u8; 3],
+) -> Image<[u8; 3]> {
     let data = img
         .data
         .iter()
@@ -173,5 +181,9 @@ pub fn vstack(imgs: &[&Image<[u8; 3]>], gap: usize) -> Image<[u8; 3]> {
 
 /// Grey image to RGB.
 pub fn gray_rgb(img: &Image<u8>) -> Image<[u8; 3]> {
-    Image::from_vec(img.width, img.height, img.data.iter().map(|&v| [v, v, v]).collect())
+    Image::from_vec(
+        img.width,
+        img.height,
+        img.data.iter().map(|&v| [v, v, v]).collect(),
+    )
 }

@@ -20,7 +20,12 @@ fn psns_stdin(args: &[&str], input: &str) -> Output {
         .stderr(Stdio::piped())
         .spawn()
         .unwrap();
-    child.stdin.take().unwrap().write_all(input.as_bytes()).unwrap();
+    child
+        .stdin
+        .take()
+        .unwrap()
+        .write_all(input.as_bytes())
+        .unwrap();
     child.wait_with_output().unwrap()
 }
 
@@ -40,8 +45,20 @@ fn render_writes_every_file_and_reproduces_from_scene_json() {
     let o = psns(&args);
     assert!(o.status.success(), "{}", stderr(&o));
     for f in [
-        "li.npy", "dop.npy", "aop.npy", "i0.png", "i45.png", "i90.png", "i135.png", "i0_16bit.png",
-        "i45_16bit.png", "i90_16bit.png", "i135_16bit.png", "li.png", "dop.png", "aop.png",
+        "li.npy",
+        "dop.npy",
+        "aop.npy",
+        "i0.png",
+        "i45.png",
+        "i90.png",
+        "i135.png",
+        "i0_16bit.png",
+        "i45_16bit.png",
+        "i90_16bit.png",
+        "i135_16bit.png",
+        "li.png",
+        "dop.png",
+        "aop.png",
         "scene.json",
     ] {
         assert!(out.join(f).is_file(), "missing {f}");
@@ -53,11 +70,24 @@ fn render_writes_every_file_and_reproduces_from_scene_json() {
     let aop = psns::io::read_npy_f32(&out.join("aop.npy")).unwrap();
     assert!(aop.data.iter().all(|v| (0.0..180.0).contains(v)));
     // brightest polarizer sample maps to full scale
-    let i16 = ["i0_16bit.png", "i45_16bit.png", "i90_16bit.png", "i135_16bit.png"]
-        .iter()
-        .map(|f| psns::io::read_png_gray(&out.join(f)).unwrap().image.data.into_iter().max().unwrap())
-        .max()
-        .unwrap();
+    let i16 = [
+        "i0_16bit.png",
+        "i45_16bit.png",
+        "i90_16bit.png",
+        "i135_16bit.png",
+    ]
+    .iter()
+    .map(|f| {
+        psns::io::read_png_gray(&out.join(f))
+            .unwrap()
+            .image
+            .data
+            .into_iter()
+            .max()
+            .unwrap()
+    })
+    .max()
+    .unwrap();
     assert_eq!(i16, 65535);
     // same scene again from scene.json, into another directory: identical arrays
     let out2 = dir.path().join("b");
@@ -81,7 +111,11 @@ fn render_writes_every_file_and_reproduces_from_scene_json() {
 fn assert_rejected(args: &[&str], needle: &str, out: &Path) {
     let o = psns(args);
     assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
-    assert!(stderr(&o).contains(needle), "{args:?}: stderr lacks '{needle}': {}", stderr(&o));
+    assert!(
+        stderr(&o).contains(needle),
+        "{args:?}: stderr lacks '{needle}': {}",
+        stderr(&o)
+    );
     assert!(
         !out.exists() || std::fs::read_dir(out).unwrap().next().is_none(),
         "{args:?} wrote output"
@@ -162,7 +196,11 @@ fn sky_command_reports_bad_line_numbers() {
     assert!(stderr(&o).contains("line 3"), "{}", stderr(&o));
     let o = psns_stdin(&["sky"], "zenith_deg,azimuth_deg\n10,20,30\n");
     assert_eq!(o.status.code(), Some(2));
-    assert!(stderr(&o).contains("line 2") && stderr(&o).contains("3"), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("line 2") && stderr(&o).contains("3"),
+        "{}",
+        stderr(&o)
+    );
     let o = psns_stdin(&["sky"], "az,zen\n");
     assert_eq!(o.status.code(), Some(2));
 }
@@ -170,25 +208,70 @@ fn sky_command_reports_bad_line_numbers() {
 #[test]
 fn sun_command_nrel_reference() {
     let o = psns(&[
-        "sun", "--time", "2003-10-17T19:30:30Z", "--lat", "39.742476", "--lon", "-105.1786",
-        "--height", "1830.14", "--delta-t", "67", "--refraction", "--pressure", "820",
-        "--temperature", "11",
+        "sun",
+        "--time",
+        "2003-10-17T19:30:30Z",
+        "--lat",
+        "39.742476",
+        "--lon",
+        "-105.1786",
+        "--height",
+        "1830.14",
+        "--delta-t",
+        "67",
+        "--refraction",
+        "--pressure",
+        "820",
+        "--temperature",
+        "11",
     ]);
     assert!(o.status.success(), "{}", stderr(&o));
     let t = String::from_utf8(o.stdout).unwrap();
     let mut l = t.lines();
     assert_eq!(l.next(), Some("zenith_deg,azimuth_deg"));
-    let v: Vec<f64> = l.next().unwrap().split(',').map(|s| s.parse().unwrap()).collect();
-    assert!((v[0] - 50.111622).abs() < 1e-5 && (v[1] - 194.340241).abs() < 1e-5, "{v:?}");
+    let v: Vec<f64> = l
+        .next()
+        .unwrap()
+        .split(',')
+        .map(|s| s.parse().unwrap())
+        .collect();
+    assert!(
+        (v[0] - 50.111622).abs() < 1e-5 && (v[1] - 194.340241).abs() < 1e-5,
+        "{v:?}"
+    );
     // night: still printed, zenith > 90
-    let o = psns(&["sun", "--time", "2003-10-17T08:00:00Z", "--lat", "39.74", "--lon", "-105.18"]);
+    let o = psns(&[
+        "sun",
+        "--time",
+        "2003-10-17T08:00:00Z",
+        "--lat",
+        "39.74",
+        "--lon",
+        "-105.18",
+    ]);
     assert!(o.status.success());
     let t = String::from_utf8(o.stdout).unwrap();
-    let z: f64 = t.lines().nth(1).unwrap().split(',').next().unwrap().parse().unwrap();
+    let z: f64 = t
+        .lines()
+        .nth(1)
+        .unwrap()
+        .split(',')
+        .next()
+        .unwrap()
+        .parse()
+        .unwrap();
     assert!(z > 90.0);
     let o = psns(&["sun", "--time", "yesterday", "--lat", "0", "--lon", "0"]);
     assert_eq!(o.status.code(), Some(2));
-    let o = psns(&["sun", "--time", "2003-10-17T08:00:00Z", "--lat", "95", "--lon", "0"]);
+    let o = psns(&[
+        "sun",
+        "--time",
+        "2003-10-17T08:00:00Z",
+        "--lat",
+        "95",
+        "--lon",
+        "0",
+    ]);
     assert_eq!(o.status.code(), Some(2));
     assert!(stderr(&o).contains("lat = 95"), "{}", stderr(&o));
 }
