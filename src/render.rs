@@ -239,3 +239,100 @@ pub fn quantize_polarizer_images(
     });
     (kappa, q)
 }
+
+/// Sensor-frame Stokes planes evaluated exactly on a grid of nodes every `step` pixels and
+/// interpolated bilinearly in between — the sky is smooth on the scale of a few pixels, so this cuts
+/// the cost of the sky model by ~step². Cells whose corners straddle the horizon, or whose S0
+/// varies by more than 2 % across the cell (the circumsolar peak), are evaluated exactly at
+/// every pixel. `step = 1` is the exact render. The sun disc is added exactly as in
+/// [`render_stokes`]. See `docs/sky.md` for the measured accuracy cost.
+pub fn render_stokes_grid(
+    sky: &Sky,
+    cam: &Camera,
+    opts: StokesOptions,
+    step: usize,
+) -> (StokesImage, usize) {
+    let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
+    if step <= 1 || w < 2 || h < 2 {
+        return render_stokes(sky, cam, opts);
+    }
+    // node coordinates: 0, step, 2 step, ..., and always the last pixel
+    let nodes = |n: usize| -> Vec<usize> {
+        let mut v: Vec<usize> = (0..n).step_by(step).collect();
+        if *v.last().unwrap() != n - 1 {
+            v.push(n - 1);
+        }
+        v
+    };
+    let (nc, nr) = (nodes(w), nodes(h));
+    let grid: Vec<[f64; 4]> = nr
+        .par_iter()
+        .flat_map_iter(|&r| {
+            nc.iter().map(move |&c| {
+                let p = pixel_sky(sky, cam, c as f64, r as f64);
+                let [a, b, d] = p.stokes();
+                [a, b, d, p.valid as u8 as f64]
+            })
+        })
+        .collect();
+    let gw = nc.len();
+    let mut out = StokesImage::zeros(w, h);
+    let rows: Vec<(usize, usize)> = (0..nr.len() - 1).map(|j| (nr[j], nr[j + 1])).collect();
+    // each band of rows between two node rows is independent
+    let bands: Vec<Vec<[f32; 3]>> = rows
+        .par_iter()
+        .enumerate()
+        .map(|(j, &(r0, r1))| {
+            let last_band = j + 2 == nr.len();
+            let r_end = if last_band { r1 + 1 } else { r1 };
+            let mut band = vec![[0f32; 3]; (r_end - r0) * w];
+            for i in 0..gw - 1 {
+                let (c0, c1) = (nc[i], nc[i + 1]);
+                let q = [
+                    grid[j * gw + i],
+                    grid[j * gw + i + 1],
+                    grid[(j + 1) * gw + i],
+                    grid[(j + 1) * gw + i + 1],
+                ];
+                let all_valid = q.iter().all(|v| v[3] > 0.0);
+                let (mn, mx) = q
+                    .iter()
+                    .fold((f64::MAX, f64::MIN), |(a, b), v| (a.min(v[0]), b.max(v[0])));
+                let exact = !all_valid || mx > 1.02 * mn;
+                let last_col = i + 2 == gw;
+                let c_end = if last_col { c1 + 1 } else { c1 };
+                for r in r0..r_end {
+                    let fy = (r - r0) as f64 / (r1 - r0) as f64;
+                    for c in c0..c_end {
+                        let s = if exact {
+                            pixel_sky(sky, cam, c as f64, r as f64).stokes()
+                        } else {
+                            let fx = (c - c0) as f64 / (c1 - c0) as f64;
+                            std::array::from_fn(|k| {
+                                let top = q[0][k] * (1.0 - fx) + q[1][k] * fx;
+                                let bot = q[2][k] * (1.0 - fx) + q[3][k] * fx;
+                                top * (1.0 - fy) + bot * fy
+                            })
+                        };
+                        band[(r - r0) * w + c] = [s[0] as f32, s[1] as f32, s[2] as f32];
+                    }
+                }
+            }
+            band
+        })
+        .collect();
+    for (&(r0, _), band) in rows.iter().zip(bands) {
+        for (k, v) in band.into_iter().enumerate() {
+            let i = r0 * w + k;
+            out.s0.data[i] = v[0];
+            out.s1.data[i] = v[1];
+            out.s2.data[i] = v[2];
+        }
+    }
+    let n_sun = if opts.sun_disc {
+        add_sun_disc(sky, cam, &mut out)
+    } else {
+        0
+    };
+    (out, n_sun)
+}
