@@ -47,7 +47,7 @@
 //! # Data and licence
 //!
 //! The fitted coefficients ship inside the crate (`data/hosek-wilkie/*.f64le`, embedded with
-//! `include_bytes!`, layout in `/work/shared/data/hosek-wilkie/README.md`). They are published
+//! `include_bytes!`; layout, cooking and check values in `data/hosek-wilkie/README.md`). They are published
 //! under the 3-clause BSD licence, © 2012–2013 Lukas Hosek and Alexander Wilkie; the notice is
 //! in `data/hosek-wilkie/LICENSE` and available at run time as [`LICENSE`]. Anything that
 //! redistributes this crate must ship that notice.
@@ -188,6 +188,15 @@ fn bernstein5(x: f64) -> [f64; 6] {
 }
 
 /// The model cooked for one (turbidity, albedo, sun elevation, wavelength).
+///
+/// ```
+/// use psns::sky::hosek::HosekWilkie;
+/// // T = 4, albedo 0.1, sun elevation 40°, 450 nm; zenith view (γ = 50°).
+/// let hw = HosekWilkie::new(4.0, 0.1, 40f64.to_radians(), 450.0).unwrap();
+/// let l = hw.radiance(0.0, 50f64.to_radians());
+/// assert!((l / 7.414022e-2 - 1.0).abs() < 1e-6); // W m⁻² sr⁻¹ nm⁻¹
+/// assert!(hw.sun_radiance(0.0) > 1e4 && hw.sun_radiance(0.01) == 0.0);
+/// ```
 #[derive(Clone, Debug)]
 pub struct HosekWilkie {
     turbidity: f64,
@@ -325,7 +334,7 @@ impl HosekWilkie {
     /// it (γ ≥ [`SUN_RADIUS_RAD`]). W m⁻² sr⁻¹ nm⁻¹, to be added to the sky radiance.
     pub fn sun_radiance(&self, gamma_rad: f64) -> f64 {
         let g = gamma_rad.abs();
-        if !(g < SUN_RADIUS_RAD) {
+        if g.is_nan() || g >= SUN_RADIUS_RAD {
             return 0.0;
         }
         let sg = g.sin();
