@@ -277,6 +277,13 @@ impl<R: Read> StreamReader<R> {
                 return Ok(());
             }
         }
+        // a valid header inside the zero pad: the writer died in the pad and a new record follows
+        let mut len = stride;
+        if ok {
+            if let Some(j) = self.valid_magic_within(FRAME_HEADER_SIZE + p, stride)? {
+                len = j;
+            }
+        }
         let rec = &self.avail()[..stride];
         let payload = rec[FRAME_HEADER_SIZE..FRAME_HEADER_SIZE + p].to_vec();
         if let Some(e) = self.expected {
@@ -294,7 +301,7 @@ impl<R: Read> StreamReader<R> {
             offset: self.offset,
         }));
         self.expected = Some(meta.index.saturating_add(1));
-        self.consume(stride);
+        self.consume(len);
         Ok(())
     }
 
