@@ -1,3 +1,4 @@
 //! IMX250MZR sensor emulation (to be written).
 
 pub mod mosaic;
+pub mod packing;

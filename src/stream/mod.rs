@@ -1,1 +1,646 @@
-//! Raw frame stream (to be written).
+//! Raw frame stream, format v1 (`docs/stream-format.md`, `stream.md`).
+//!
+//! Layout: `[file header 4096 B] [frame 0: header 256 B | payload P | zero pad] [frame 1] …` with a
+//! fixed stride `ceil((256 + P) / 4096) · 4096`, so a regular file memory-maps as one structured
+//! array. Little-endian, every field naturally aligned. Both headers end in a CRC-32 (zlib's, via
+//! `crc32fast`) of their preceding bytes; each frame header holds the CRC-32 of its payload.
+//! The same bytes go to a regular file, a growing file, a FIFO or stdout: the writer never seeks,
+//! except that [`FileStreamWriter::finish`] patches the frame count into the header of a regular
+//! file. Nothing host-dependent (clock, path, host name) enters the bytes unless the producer sets
+//! [`FrameMeta::host_time_ns`].
+
+mod reader;
+mod writer;
+
+pub use reader::{extract_frame, verify, Event, Frame, StreamReader, VerifyReport};
+pub use writer::{FileStreamWriter, StreamWriter};
+
+use crate::error::{Error, Result};
+use crate::sensor::mosaic::MosaicLayout;
+use crate::sensor::packing::{payload_size_checked, PixelFormat};
+use serde::{Deserialize, Serialize};
+
+/// File-header magic `\x89PSNSRAW`.
+pub const FILE_MAGIC: [u8; 8] = *b"\x89PSNSRAW";
+/// Frame-header magic `\x89PSNSFRM`.
+pub const FRAME_MAGIC: [u8; 8] = *b"\x89PSNSFRM";
+/// Format major version (readers reject another major).
+pub const VERSION_MAJOR: u16 = 1;
+/// Format minor version written (readers accept any minor).
+pub const VERSION_MINOR: u16 = 0;
+/// File header size in bytes.
+pub const FILE_HEADER_SIZE: usize = 4096;
+/// Frame header size in bytes.
+pub const FRAME_HEADER_SIZE: usize = 256;
+/// Offset of the JSON document inside the file header.
+pub const JSON_OFFSET: usize = 232;
+/// Longest JSON document that fits (up to the header CRC).
+pub const JSON_MAX: usize = FILE_HEADER_SIZE - 4 - JSON_OFFSET;
+/// Largest payload a reader accepts (guards against absurd sizes in crafted headers).
+pub const MAX_PAYLOAD: u64 = 1 << 30;
+
+/// Frame flag: frames were dropped before this one (index gap).
+pub const FLAG_DROPPED: u32 = 1 << 0;
+/// Frame flag: some pixels at the maximum code.
+pub const FLAG_SATURATION: u32 = 1 << 1;
+/// Frame flag: exposure clipped to its range or the frame period.
+pub const FLAG_EXPOSURE_CLIPPED: u32 = 1 << 2;
+/// Frame flag: sun below the horizon or sky-model domain left (scene rendered dark).
+pub const FLAG_SKY_INVALID: u32 = 1 << 3;
+/// Frame flag: sun disc in the field of view.
+pub const FLAG_SUN_IN_VIEW: u32 = 1 << 4;
+/// Frame flag: ground in the field of view.
+pub const FLAG_GROUND_IN_VIEW: u32 = 1 << 5;
+/// Frame flag: exposure chosen by auto-exposure.
+pub const FLAG_AUTO_EXPOSURE: u32 = 1 << 6;
+/// Frame flag: last frame of the stream.
+pub const FLAG_LAST: u32 = 1 << 7;
+
+/// CRC-32 (IEEE, zlib's) of `data`.
+pub fn crc32(data: &[u8]) -> u32 {
+    crc32fast::hash(data)
+}
+
+/// Frame stride of a payload of `p` bytes: `ceil((256 + p) / 4096) · 4096`.
+pub fn stride_for(p: u64) -> u64 {
+    (FRAME_HEADER_SIZE as u64 + p).div_ceil(FILE_HEADER_SIZE as u64) * FILE_HEADER_SIZE as u64
+}
+
+/// Camera constants stored in the file header (informative; readers do not need them).
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+pub struct CameraConstants {
+    /// Pixel pitch, µm.
+    pub pixel_pitch_um: f64,
+    /// Focal length, mm.
+    pub focal_length_mm: f64,
+    /// f-number.
+    pub f_number: f64,
+    /// Filter centre wavelength, nm.
+    pub wavelength_nm: f64,
+    /// Filter bandwidth, nm.
+    pub bandwidth_nm: f64,
+    /// Full-well capacity, e⁻.
+    pub full_well_e: f64,
+    /// Conversion gain K₀ at 0 dB and 12 bit, DN/e⁻.
+    pub k0_dn_per_e: f64,
+    /// Read noise, e⁻.
+    pub read_noise_e: f64,
+    /// Principal point column, 0-based pixels.
+    pub principal_col: f64,
+    /// Principal point row, 0-based pixels.
+    pub principal_row: f64,
+}
+
+impl Default for CameraConstants {
+    fn default() -> Self {
+        CameraConstants {
+            pixel_pitch_um: 3.45,
+            focal_length_mm: 4.0,
+            f_number: 2.0,
+            wavelength_nm: 450.0,
+            bandwidth_nm: 40.0,
+            full_well_e: 10_500.0,
+            k0_dn_per_e: 4095.0 / 10_500.0,
+            read_noise_e: 2.5,
+            principal_col: 1223.5,
+            principal_row: 1023.5,
+        }
+    }
+}
+
+impl CameraConstants {
+    fn to_array(self) -> [f64; 10] {
+        [
+            self.pixel_pitch_um,
+            self.focal_length_mm,
+            self.f_number,
+            self.wavelength_nm,
+            self.bandwidth_nm,
+            self.full_well_e,
+            self.k0_dn_per_e,
+            self.read_noise_e,
+            self.principal_col,
+            self.principal_row,
+        ]
+    }
+    fn from_array(a: [f64; 10]) -> Self {
+        CameraConstants {
+            pixel_pitch_um: a[0],
+            focal_length_mm: a[1],
+            f_number: a[2],
+            wavelength_nm: a[3],
+            bandwidth_nm: a[4],
+            full_well_e: a[5],
+            k0_dn_per_e: a[6],
+            read_noise_e: a[7],
+            principal_col: a[8],
+            principal_row: a[9],
+        }
+    }
+}
+
+mod layout_serde {
+    use crate::sensor::mosaic::MosaicLayout;
+    use serde::{Deserialize, Deserializer, Serializer};
+    pub fn serialize<S: Serializer>(l: &MosaicLayout, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&l.to_string())
+    }
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<MosaicLayout, D::Error> {
+        let s = String::deserialize(d)?;
+        s.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+/// The 4096-byte file header (sensor description).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+pub struct FileHeader {
+    /// Minor version (written as [`VERSION_MINOR`]; any value is accepted on read).
+    pub version_minor: u16,
+    /// Width in pixels.
+    pub width: u32,
+    /// Height in pixels.
+    pub height: u32,
+    /// Payload pixel format.
+    pub pixel_format: PixelFormat,
+    /// Valid bits of each stored value (8 for Mono8; the sensor bit depth otherwise).
+    pub bits_valid: u8,
+    /// Mono16 only: values shifted left by 16 − `bits_valid`.
+    pub msb_aligned: bool,
+    /// Polarizer layout of the 2 x 2 superpixel.
+    #[serde(with = "layout_serde")]
+    pub layout: MosaicLayout,
+    /// Angle sense: +1 = from +x (columns) toward +y (rows, down); −1 the other way.
+    pub angle_sense: i16,
+    /// Frames in the file; 0 = unknown (stream, or the writer did not close).
+    pub frame_count: u64,
+    /// Camera seed.
+    pub seed: u64,
+    /// Camera constants.
+    pub camera: CameraConstants,
+    /// Producer and version, at most 31 bytes UTF-8.
+    pub producer: String,
+    /// Preset name, at most 31 bytes UTF-8.
+    pub preset: String,
+    /// Configuration JSON (at most [`JSON_MAX`] bytes), empty if none.
+    pub json: String,
+}
+
+impl Default for FileHeader {
+    fn default() -> Self {
+        FileHeader {
+            version_minor: VERSION_MINOR,
+            width: 2448,
+            height: 2048,
+            pixel_format: PixelFormat::Mono16,
+            bits_valid: 12,
+            msb_aligned: false,
+            layout: MosaicLayout::IMX250MZR,
+            angle_sense: 1,
+            frame_count: 0,
+            seed: 0,
+            camera: CameraConstants::default(),
+            producer: format!("psns {}", env!("CARGO_PKG_VERSION")),
+            preset: "camera".into(),
+            json: String::new(),
+        }
+    }
+}
+
+fn put<const N: usize>(b: &mut [u8], off: usize, v: [u8; N]) {
+    b[off..off + N].copy_from_slice(&v);
+}
+fn get<const N: usize>(b: &[u8], off: usize) -> [u8; N] {
+    b[off..off + N].try_into().expect("fixed offset")
+}
+fn u16_at(b: &[u8], o: usize) -> u16 {
+    u16::from_le_bytes(get(b, o))
+}
+fn i16_at(b: &[u8], o: usize) -> i16 {
+    i16::from_le_bytes(get(b, o))
+}
+fn u32_at(b: &[u8], o: usize) -> u32 {
+    u32::from_le_bytes(get(b, o))
+}
+fn u64_at(b: &[u8], o: usize) -> u64 {
+    u64::from_le_bytes(get(b, o))
+}
+fn i64_at(b: &[u8], o: usize) -> i64 {
+    i64::from_le_bytes(get(b, o))
+}
+fn f64_at(b: &[u8], o: usize) -> f64 {
+    f64::from_le_bytes(get(b, o))
+}
+fn f32_at(b: &[u8], o: usize) -> f32 {
+    f32::from_le_bytes(get(b, o))
+}
+
+fn put_str(b: &mut [u8], off: usize, s: &str, what: &str) -> Result<()> {
+    if s.len() > 31 || s.contains('\0') {
+        return Err(Error::Invalid(format!(
+            "stream header {what} '{s}' must be at most 31 bytes without NUL"
+        )));
+    }
+    b[off..off + s.len()].copy_from_slice(s.as_bytes());
+    Ok(())
+}
+
+fn get_str(b: &[u8], off: usize, what: &str) -> Result<String> {
+    let f = &b[off..off + 32];
+    let end = f.iter().position(|&c| c == 0).unwrap_or(32);
+    if f[end..].iter().any(|&c| c != 0) {
+        return Err(Error::Format(format!("{what} field is not NUL-padded")));
+    }
+    String::from_utf8(f[..end].to_vec())
+        .map_err(|_| Error::Format(format!("{what} field is not UTF-8")))
+}
+
+impl FileHeader {
+    /// Payload bytes per frame.
+    pub fn payload_size(&self) -> u64 {
+        payload_size_checked(self.pixel_format, self.width as usize, self.height as usize)
+            .map(|p| p as u64)
+            .unwrap_or(u64::MAX)
+    }
+
+    /// Frame stride in bytes.
+    pub fn stride(&self) -> u64 {
+        stride_for(self.payload_size())
+    }
+
+    /// Byte offset of frame `i` in a file written without gaps or damage.
+    pub fn frame_offset(&self, i: u64) -> u64 {
+        FILE_HEADER_SIZE as u64 + i * self.stride()
+    }
+
+    /// Checks the header's fields for consistency.
+    pub fn validate(&self) -> Result<()> {
+        if self.width == 0 || self.height == 0 || self.width > 65_535 || self.height > 65_535 {
+            return Err(Error::Invalid(format!(
+                "stream frame size {} x {} is out of range (allowed 1..65535 each)",
+                self.width, self.height
+            )));
+        }
+        if self.payload_size() > MAX_PAYLOAD {
+            return Err(Error::Invalid(format!(
+                "stream payload of {} bytes exceeds {MAX_PAYLOAD}",
+                self.payload_size()
+            )));
+        }
+        let max = self.pixel_format.container_bits();
+        let ok_bits = if self.pixel_format == PixelFormat::Mono8 {
+            self.bits_valid == 8
+        } else {
+            (1..=max).contains(&self.bits_valid)
+        };
+        if !ok_bits {
+            return Err(Error::Invalid(format!(
+                "{} with {} valid bits",
+                self.pixel_format, self.bits_valid
+            )));
+        }
+        if self.msb_aligned && self.pixel_format != PixelFormat::Mono16 {
+            return Err(Error::Invalid(
+                "MSB alignment exists only for Mono16".into(),
+            ));
+        }
+        if self.angle_sense != 1 && self.angle_sense != -1 {
+            return Err(Error::Invalid(format!(
+                "angle sense {} (must be +1 or -1)",
+                self.angle_sense
+            )));
+        }
+        if self.json.len() > JSON_MAX || self.json.contains('\0') {
+            return Err(Error::Invalid(format!(
+                "stream header JSON of {} bytes (at most {JSON_MAX}, no NUL)",
+                self.json.len()
+            )));
+        }
+        Ok(())
+    }
+
+    /// Encodes the 4096-byte header (with its CRC).
+    pub fn encode(&self) -> Result<Vec<u8>> {
+        self.validate()?;
+        let mut b = vec![0u8; FILE_HEADER_SIZE];
+        put(&mut b, 0, FILE_MAGIC);
+        put(&mut b, 8, VERSION_MAJOR.to_le_bytes());
+        put(&mut b, 10, self.version_minor.to_le_bytes());
+        put(&mut b, 12, (FILE_HEADER_SIZE as u32).to_le_bytes());
+        put(&mut b, 16, (FRAME_HEADER_SIZE as u32).to_le_bytes());
+        put(&mut b, 20, self.width.to_le_bytes());
+        put(&mut b, 24, self.height.to_le_bytes());
+        put(&mut b, 28, self.pixel_format.pfnc_code().to_le_bytes());
+        put(&mut b, 32, (self.bits_valid as u16).to_le_bytes());
+        put(&mut b, 34, (self.msb_aligned as u16).to_le_bytes());
+        for (k, a) in self.layout.angles_deg().iter().enumerate() {
+            put(&mut b, 36 + 2 * k, (*a as i16).to_le_bytes());
+        }
+        put(&mut b, 44, self.angle_sense.to_le_bytes());
+        put(&mut b, 48, self.payload_size().to_le_bytes());
+        put(&mut b, 56, self.stride().to_le_bytes());
+        put(&mut b, 64, self.frame_count.to_le_bytes());
+        put(&mut b, 72, self.seed.to_le_bytes());
+        for (k, v) in self.camera.to_array().iter().enumerate() {
+            put(&mut b, 80 + 8 * k, v.to_le_bytes());
+        }
+        put_str(&mut b, 160, &self.producer, "producer")?;
+        put_str(&mut b, 192, &self.preset, "preset")?;
+        if !self.json.is_empty() {
+            put(&mut b, 224, (JSON_OFFSET as u32).to_le_bytes());
+            put(&mut b, 228, (self.json.len() as u32).to_le_bytes());
+            b[JSON_OFFSET..JSON_OFFSET + self.json.len()].copy_from_slice(self.json.as_bytes());
+        }
+        let c = crc32(&b[..FILE_HEADER_SIZE - 4]);
+        put(&mut b, FILE_HEADER_SIZE - 4, c.to_le_bytes());
+        Ok(b)
+    }
+
+    /// Decodes and checks a 4096-byte header: magic, major version, sizes, CRC and fields.
+    pub fn decode(b: &[u8]) -> Result<Self> {
+        if b.len() < FILE_HEADER_SIZE {
+            return Err(Error::Format(format!(
+                "stream file header truncated: {} of {FILE_HEADER_SIZE} bytes",
+                b.len()
+            )));
+        }
+        let b = &b[..FILE_HEADER_SIZE];
+        if b[..8] != FILE_MAGIC {
+            return Err(Error::Format(
+                "not a psns stream (file-header magic missing)".into(),
+            ));
+        }
+        let crc = u32_at(b, FILE_HEADER_SIZE - 4);
+        if crc32(&b[..FILE_HEADER_SIZE - 4]) != crc {
+            return Err(Error::Format("stream file header CRC mismatch".into()));
+        }
+        let major = u16_at(b, 8);
+        if major != VERSION_MAJOR {
+            return Err(Error::Format(format!(
+                "stream format major version {major} is not supported (this reader: {VERSION_MAJOR})"
+            )));
+        }
+        if u32_at(b, 12) as usize != FILE_HEADER_SIZE || u32_at(b, 16) as usize != FRAME_HEADER_SIZE
+        {
+            return Err(Error::Format(format!(
+                "stream header sizes {} / {} (expected {FILE_HEADER_SIZE} / {FRAME_HEADER_SIZE})",
+                u32_at(b, 12),
+                u32_at(b, 16)
+            )));
+        }
+        let fmt = PixelFormat::from_pfnc(u32_at(b, 28))?;
+        let align = u16_at(b, 34);
+        if align > 1 {
+            return Err(Error::Format(format!("alignment code {align} (0 or 1)")));
+        }
+        let bits = u16_at(b, 32);
+        let mut ch = [0u8; 4];
+        for (k, c) in ch.iter_mut().enumerate() {
+            let a = i16_at(b, 36 + 2 * k);
+            *c = match a {
+                0 => 0,
+                45 => 1,
+                90 => 2,
+                135 => 3,
+                _ => return Err(Error::Format(format!("polarizer angle {a} in header"))),
+            };
+        }
+        let layout = MosaicLayout::from_channels(ch).map_err(|e| Error::Format(e.to_string()))?;
+        let mut cam = [0f64; 10];
+        for (k, v) in cam.iter_mut().enumerate() {
+            *v = f64_at(b, 80 + 8 * k);
+        }
+        let (jo, jl) = (u32_at(b, 224) as usize, u32_at(b, 228) as usize);
+        let json = if jo == 0 && jl == 0 {
+            String::new()
+        } else {
+            if jo < JSON_OFFSET || jo.checked_add(jl).is_none_or(|e| e > FILE_HEADER_SIZE - 4) {
+                return Err(Error::Format(format!(
+                    "JSON at {jo} + {jl} outside the header"
+                )));
+            }
+            String::from_utf8(b[jo..jo + jl].to_vec())
+                .map_err(|_| Error::Format("header JSON is not UTF-8".into()))?
+        };
+        let h = FileHeader {
+            version_minor: u16_at(b, 10),
+            width: u32_at(b, 20),
+            height: u32_at(b, 24),
+            pixel_format: fmt,
+            bits_valid: bits.min(255) as u8,
+            msb_aligned: align == 1,
+            layout,
+            angle_sense: i16_at(b, 44),
+            frame_count: u64_at(b, 64),
+            seed: u64_at(b, 72),
+            camera: CameraConstants::from_array(cam),
+            producer: get_str(b, 160, "producer")?,
+            preset: get_str(b, 192, "preset")?,
+            json,
+        };
+        if bits > 16 {
+            return Err(Error::Format(format!("{bits} valid bits")));
+        }
+        h.validate().map_err(|e| Error::Format(e.to_string()))?;
+        if u64_at(b, 48) != h.payload_size() || u64_at(b, 56) != h.stride() {
+            return Err(Error::Format(format!(
+                "payload size / stride {} / {} disagree with {} x {} {} ({} / {})",
+                u64_at(b, 48),
+                u64_at(b, 56),
+                h.width,
+                h.height,
+                h.pixel_format,
+                h.payload_size(),
+                h.stride()
+            )));
+        }
+        Ok(h)
+    }
+}
+
+/// Per-frame metadata: the frame's ground truth (256-byte frame header without magic and CRCs).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize, Deserialize)]
+pub struct FrameMeta {
+    /// Frame index, 0-based, strictly increasing; a gap means dropped frames.
+    pub index: u64,
+    /// Flags (`FLAG_*`).
+    pub flags: u32,
+    /// Exposure start, scene time, ns since 1970-01-01 UTC (no leap seconds).
+    pub exposure_start_ns: i64,
+    /// Exposure end, same clock.
+    pub exposure_end_ns: i64,
+    /// Host CLOCK_MONOTONIC ns when written; 0 unless asked for.
+    pub host_time_ns: i64,
+    /// Exposure, µs.
+    pub exposure_us: f64,
+    /// Gain, dB.
+    pub gain_db: f64,
+    /// Black level, DN of the payload format.
+    pub black_level: f64,
+    /// Sensor temperature, °C.
+    pub temperature_c: f64,
+    /// Sun azimuth at mid-exposure, compass degrees.
+    pub sun_azimuth_deg: f64,
+    /// Sun geometric elevation at mid-exposure, degrees.
+    pub sun_elevation_deg: f64,
+    /// Sun unit vector in the camera frame (x right, y down, z optical axis).
+    pub sun_camera: [f64; 3],
+    /// Attitude quaternion w, x, y, z rotating camera-frame vectors into ENU.
+    pub attitude_wxyz: [f64; 4],
+    /// Latitude, degrees (WGS-84).
+    pub lat_deg: f64,
+    /// Longitude, degrees.
+    pub lon_deg: f64,
+    /// Ellipsoidal height, m.
+    pub height_m: f64,
+    /// Pixels at the maximum code at mosaic positions (0,0), (0,1), (1,0), (1,1).
+    pub saturated: [u32; 4],
+    /// Sky turbidity.
+    pub turbidity: f32,
+    /// Ground albedo.
+    pub albedo: f32,
+}
+
+impl FrameMeta {
+    /// Encodes the 256-byte frame header with the payload CRC and the header CRC.
+    pub fn encode(&self, payload_crc: u32) -> [u8; FRAME_HEADER_SIZE] {
+        let mut b = [0u8; FRAME_HEADER_SIZE];
+        put(&mut b, 0, FRAME_MAGIC);
+        put(&mut b, 8, self.index.to_le_bytes());
+        put(&mut b, 16, self.flags.to_le_bytes());
+        put(&mut b, 20, payload_crc.to_le_bytes());
+        put(&mut b, 24, self.exposure_start_ns.to_le_bytes());
+        put(&mut b, 32, self.exposure_end_ns.to_le_bytes());
+        put(&mut b, 40, self.host_time_ns.to_le_bytes());
+        let f = self.f64_fields();
+        for (k, v) in f.iter().enumerate() {
+            put(&mut b, 48 + 8 * k, v.to_le_bytes());
+        }
+        for (k, v) in self.saturated.iter().enumerate() {
+            put(&mut b, 176 + 4 * k, v.to_le_bytes());
+        }
+        put(&mut b, 192, self.turbidity.to_le_bytes());
+        put(&mut b, 196, self.albedo.to_le_bytes());
+        let c = crc32(&b[..FRAME_HEADER_SIZE - 4]);
+        put(&mut b, FRAME_HEADER_SIZE - 4, c.to_le_bytes());
+        b
+    }
+
+    /// The 16 f64 fields at offsets 48..176 in order.
+    pub fn f64_fields(&self) -> [f64; 16] {
+        let s = &self.sun_camera;
+        let q = &self.attitude_wxyz;
+        [
+            self.exposure_us,
+            self.gain_db,
+            self.black_level,
+            self.temperature_c,
+            self.sun_azimuth_deg,
+            self.sun_elevation_deg,
+            s[0],
+            s[1],
+            s[2],
+            q[0],
+            q[1],
+            q[2],
+            q[3],
+            self.lat_deg,
+            self.lon_deg,
+            self.height_m,
+        ]
+    }
+
+    /// Decodes a frame header; returns the metadata and the payload CRC it states.
+    /// Fails on a wrong magic or header CRC.
+    pub fn decode(b: &[u8]) -> Result<(FrameMeta, u32)> {
+        if b.len() < FRAME_HEADER_SIZE {
+            return Err(Error::Format("frame header truncated".into()));
+        }
+        if b[..8] != FRAME_MAGIC {
+            return Err(Error::Format("frame magic missing".into()));
+        }
+        if crc32(&b[..FRAME_HEADER_SIZE - 4]) != u32_at(b, FRAME_HEADER_SIZE - 4) {
+            return Err(Error::Format("frame header CRC mismatch".into()));
+        }
+        let f = |k: usize| f64_at(b, 48 + 8 * k);
+        let m = FrameMeta {
+            index: u64_at(b, 8),
+            flags: u32_at(b, 16),
+            exposure_start_ns: i64_at(b, 24),
+            exposure_end_ns: i64_at(b, 32),
+            host_time_ns: i64_at(b, 40),
+            exposure_us: f(0),
+            gain_db: f(1),
+            black_level: f(2),
+            temperature_c: f(3),
+            sun_azimuth_deg: f(4),
+            sun_elevation_deg: f(5),
+            sun_camera: [f(6), f(7), f(8)],
+            attitude_wxyz: [f(9), f(10), f(11), f(12)],
+            lat_deg: f(13),
+            lon_deg: f(14),
+            height_m: f(15),
+            saturated: [
+                u32_at(b, 176),
+                u32_at(b, 180),
+                u32_at(b, 184),
+                u32_at(b, 188),
+            ],
+            turbidity: f32_at(b, 192),
+            albedo: f32_at(b, 196),
+        };
+        Ok((m, u32_at(b, 20)))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn crc_check_value() {
+        assert_eq!(crc32(b"123456789"), 0xCBF4_3926);
+    }
+
+    #[test]
+    fn strides() {
+        let mut h = FileHeader::default();
+        for (f, p, s) in [
+            (PixelFormat::Mono8, 5_013_504, 5_017_600),
+            (PixelFormat::Mono12p, 7_520_256, 7_524_352),
+            (PixelFormat::Mono12Packed, 7_520_256, 7_524_352),
+            (PixelFormat::Mono16, 10_027_008, 10_031_104),
+        ] {
+            h.pixel_format = f;
+            h.bits_valid = if f == PixelFormat::Mono8 { 8 } else { 12 };
+            assert_eq!((h.payload_size(), h.stride()), (p, s), "{f}");
+        }
+    }
+
+    #[test]
+    fn header_round_trip_and_crc() {
+        let h = FileHeader {
+            json: r#"{"a":1}"#.into(),
+            seed: 42,
+            frame_count: 3,
+            ..Default::default()
+        };
+        let b = h.encode().unwrap();
+        assert_eq!(&b[..8], b"\x89PSNSRAW");
+        assert_eq!(FileHeader::decode(&b).unwrap(), h);
+        let mut bad = b.clone();
+        bad[100] ^= 1;
+        assert!(FileHeader::decode(&bad).is_err());
+        let m = FrameMeta {
+            index: 7,
+            gain_db: 6.0,
+            saturated: [1, 2, 3, 4],
+            turbidity: 2.5,
+            ..Default::default()
+        };
+        let fb = m.encode(0xDEAD_BEEF);
+        assert_eq!(FrameMeta::decode(&fb).unwrap(), (m, 0xDEAD_BEEF));
+        let mut bad = fb;
+        bad[60] ^= 0x80;
+        assert!(FrameMeta::decode(&bad).is_err());
+    }
+}

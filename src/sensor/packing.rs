@@ -1,0 +1,415 @@
+//! GenICam PFNC pixel packing of the ADC output (`sensor.md` §8).
+//!
+//! All multi-byte data little-endian, rows top to bottom, no row padding.
+//!
+//! | format | PFNC code | bytes / px | layout |
+//! |---|---|---|---|
+//! | Mono8 | 0x01080001 | 1 | code >> (bits − 8); the 8-bit value itself when the sensor outputs 8 bits |
+//! | Mono12p | 0x010C0047 | 1.5 | LSB-first bit stream: b0 = P0\[7:0\]; b1 = P0\[11:8\] \| P1\[3:0\]<<4; b2 = P1\[11:4\] |
+//! | Mono12Packed | 0x010C0006 | 1.5 | GigE Vision legacy: b0 = P0\[11:4\]; b1 = P0\[3:0\] \| P1\[3:0\]<<4; b2 = P1\[11:4\] |
+//! | Mono16 | 0x01100007 | 2 | u16 LE, LSB-aligned; MSB-aligned (<< (16 − bits)) on request |
+//!
+//! Codes of a 10- or 8-bit sensor sit LSB-aligned in the 12-bit containers. The number of valid
+//! bits in a payload ([`bits_valid`]) is 8 for Mono8 and the sensor bit depth otherwise.
+//! An odd pixel count in a 12-bit format ends with a half group of two bytes (the first two bytes
+//! of the three-byte group).
+//!
+//! ```
+//! use psns::sensor::packing::{pack, PixelFormat};
+//! let mut out = Vec::new();
+//! pack(&[0xABC, 0x123], 12, PixelFormat::Mono12p, false, &mut out).unwrap();
+//! assert_eq!(out, [0xBC, 0x3A, 0x12]);
+//! pack(&[0xABC, 0x123], 12, PixelFormat::Mono12Packed, false, &mut out).unwrap();
+//! assert_eq!(out, [0xAB, 0x3C, 0x12]);
+//! pack(&[0xABC, 0x123], 12, PixelFormat::Mono16, false, &mut out).unwrap();
+//! assert_eq!(out, [0xBC, 0x0A, 0x23, 0x01]);
+//! ```
+
+use crate::error::{Error, Result};
+use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::str::FromStr;
+
+/// Output pixel format, identified by its standard GenICam PFNC code and name (never vendor codes).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Default, Serialize, Deserialize)]
+pub enum PixelFormat {
+    /// 8 bits per pixel.
+    Mono8,
+    /// 12 bits, PFNC packed (LSB-first bit stream).
+    Mono12p,
+    /// 12 bits, GigE Vision legacy packing.
+    Mono12Packed,
+    /// 16-bit little-endian container.
+    #[default]
+    Mono16,
+}
+
+impl PixelFormat {
+    /// All formats.
+    pub const ALL: [PixelFormat; 4] = [
+        PixelFormat::Mono8,
+        PixelFormat::Mono12p,
+        PixelFormat::Mono12Packed,
+        PixelFormat::Mono16,
+    ];
+
+    /// Standard PFNC code.
+    pub fn pfnc_code(self) -> u32 {
+        match self {
+            PixelFormat::Mono8 => 0x0108_0001,
+            PixelFormat::Mono12p => 0x010C_0047,
+            PixelFormat::Mono12Packed => 0x010C_0006,
+            PixelFormat::Mono16 => 0x0110_0007,
+        }
+    }
+
+    /// PFNC name, e.g. `Mono12p`.
+    pub fn pfnc_name(self) -> &'static str {
+        match self {
+            PixelFormat::Mono8 => "Mono8",
+            PixelFormat::Mono12p => "Mono12p",
+            PixelFormat::Mono12Packed => "Mono12Packed",
+            PixelFormat::Mono16 => "Mono16",
+        }
+    }
+
+    /// Format of a standard PFNC code; vendor codes (high bit set) are rejected.
+    pub fn from_pfnc(code: u32) -> Result<Self> {
+        Self::ALL
+            .into_iter()
+            .find(|f| f.pfnc_code() == code)
+            .ok_or_else(|| {
+                Error::Format(format!("unsupported PFNC pixel format code {code:#010x}"))
+            })
+    }
+
+    /// Bits of the container: 8, 12 or 16.
+    pub fn container_bits(self) -> u8 {
+        match self {
+            PixelFormat::Mono8 => 8,
+            PixelFormat::Mono12p | PixelFormat::Mono12Packed => 12,
+            PixelFormat::Mono16 => 16,
+        }
+    }
+}
+
+impl fmt::Display for PixelFormat {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.pfnc_name())
+    }
+}
+
+impl FromStr for PixelFormat {
+    type Err = Error;
+    /// Case-insensitive `mono8`, `mono12p`, `mono12packed`, `mono16`.
+    fn from_str(s: &str) -> Result<Self> {
+        let l = s.trim().to_ascii_lowercase();
+        Self::ALL
+            .into_iter()
+            .find(|f| f.pfnc_name().to_ascii_lowercase() == l)
+            .ok_or_else(|| {
+                Error::Invalid(format!(
+                    "pixel format '{s}' is unknown (allowed mono8, mono12p, mono12packed, mono16)"
+                ))
+            })
+    }
+}
+
+/// Payload bytes of a `width` x `height` frame; `None` on overflow.
+pub fn payload_size_checked(fmt: PixelFormat, width: usize, height: usize) -> Option<usize> {
+    let n = width.checked_mul(height)?;
+    match fmt {
+        PixelFormat::Mono8 => Some(n),
+        PixelFormat::Mono12p | PixelFormat::Mono12Packed => Some(n.checked_mul(3)?.div_ceil(2)),
+        PixelFormat::Mono16 => n.checked_mul(2),
+    }
+}
+
+/// Payload bytes of a `width` x `height` frame (2448 x 2048: Mono8 5 013 504, 12-bit 7 520 256,
+/// Mono16 10 027 008). Saturates on overflow.
+pub fn payload_size(fmt: PixelFormat, width: usize, height: usize) -> usize {
+    payload_size_checked(fmt, width, height).unwrap_or(usize::MAX)
+}
+
+/// Valid bits of a payload produced from codes of `bit_depth` bits: 8 for Mono8, else `bit_depth`.
+pub fn bits_valid(fmt: PixelFormat, bit_depth: u8) -> u8 {
+    match fmt {
+        PixelFormat::Mono8 => 8,
+        _ => bit_depth,
+    }
+}
+
+fn check_depth(fmt: PixelFormat, bit_depth: u8, msb_aligned: bool) -> Result<()> {
+    let max = fmt.container_bits();
+    if bit_depth < 1 || bit_depth > max {
+        return Err(Error::OutOfRange {
+            name: format!("bit depth for {fmt}"),
+            value: bit_depth.to_string(),
+            allowed: format!("1..{max}"),
+        });
+    }
+    if msb_aligned && fmt != PixelFormat::Mono16 {
+        return Err(Error::Invalid(format!(
+            "MSB alignment exists only for Mono16, not {fmt}"
+        )));
+    }
+    Ok(())
+}
+
+/// Packs `codes` (values below 2^`bit_depth`) into `out` (cleared first).
+///
+/// For Mono8 `bit_depth` may be 8..16 and the top 8 bits are kept; for the 12-bit formats it is
+/// 1..12, for Mono16 1..16. `msb_aligned` is allowed only for Mono16.
+pub fn pack(
+    codes: &[u16],
+    bit_depth: u8,
+    fmt: PixelFormat,
+    msb_aligned: bool,
+    out: &mut Vec<u8>,
+) -> Result<()> {
+    // Mono8 accepts deeper codes (shifted down); the others store codes as they are.
+    if fmt == PixelFormat::Mono8 {
+        if !(8..=16).contains(&bit_depth) {
+            return Err(Error::OutOfRange {
+                name: "bit depth for Mono8".into(),
+                value: bit_depth.to_string(),
+                allowed: "8..16".into(),
+            });
+        }
+    } else {
+        check_depth(fmt, bit_depth, msb_aligned)?;
+    }
+    if msb_aligned && fmt != PixelFormat::Mono16 {
+        return Err(Error::Invalid(format!(
+            "MSB alignment exists only for Mono16, not {fmt}"
+        )));
+    }
+    let limit = 1u32 << bit_depth;
+    if let Some(i) = codes.iter().position(|&c| c as u32 >= limit) {
+        return Err(Error::OutOfRange {
+            name: format!("code of pixel {i}"),
+            value: codes[i].to_string(),
+            allowed: format!("0..{}", limit - 1),
+        });
+    }
+    out.clear();
+    out.reserve(payload_size(fmt, codes.len(), 1));
+    match fmt {
+        PixelFormat::Mono8 => {
+            let s = bit_depth - 8;
+            out.extend(codes.iter().map(|&c| (c >> s) as u8));
+        }
+        PixelFormat::Mono12p => {
+            let mut it = codes.chunks_exact(2);
+            for p in &mut it {
+                let (a, b) = (p[0], p[1]);
+                out.extend_from_slice(&[
+                    a as u8,
+                    ((a >> 8) as u8 & 0x0F) | ((b as u8) << 4),
+                    (b >> 4) as u8,
+                ]);
+            }
+            if let [a] = it.remainder() {
+                out.extend_from_slice(&[*a as u8, (*a >> 8) as u8 & 0x0F]);
+            }
+        }
+        PixelFormat::Mono12Packed => {
+            let mut it = codes.chunks_exact(2);
+            for p in &mut it {
+                let (a, b) = (p[0], p[1]);
+                out.extend_from_slice(&[
+                    (a >> 4) as u8,
+                    (a as u8 & 0x0F) | ((b as u8) << 4),
+                    (b >> 4) as u8,
+                ]);
+            }
+            if let [a] = it.remainder() {
+                out.extend_from_slice(&[(*a >> 4) as u8, *a as u8 & 0x0F]);
+            }
+        }
+        PixelFormat::Mono16 => {
+            let s = if msb_aligned { 16 - bit_depth } else { 0 };
+            for &c in codes {
+                out.extend_from_slice(&(c << s).to_le_bytes());
+            }
+        }
+    }
+    Ok(())
+}
+
+/// Unpacks a payload of `width` x `height` pixels into values with `bits_valid` valid bits
+/// (LSB-aligned; MSB-aligned Mono16 is shifted back). Mono8 returns the stored bytes.
+///
+/// Fails when the payload length is not [`payload_size`] or a value exceeds `bits_valid` bits.
+pub fn unpack(
+    payload: &[u8],
+    fmt: PixelFormat,
+    bits_valid: u8,
+    msb_aligned: bool,
+    width: usize,
+    height: usize,
+) -> Result<Vec<u16>> {
+    check_depth(fmt, bits_valid, msb_aligned)?;
+    if fmt == PixelFormat::Mono8 && bits_valid != 8 {
+        return Err(Error::Format(format!(
+            "Mono8 payload with {bits_valid} valid bits (must be 8)"
+        )));
+    }
+    let n = width
+        .checked_mul(height)
+        .ok_or_else(|| Error::Format("frame size overflows".into()))?;
+    let need = payload_size(fmt, width, height);
+    if payload.len() != need {
+        return Err(Error::Format(format!(
+            "{fmt} payload of {width} x {height} needs {need} bytes, got {}",
+            payload.len()
+        )));
+    }
+    let mut v = Vec::with_capacity(n);
+    match fmt {
+        PixelFormat::Mono8 => v.extend(payload.iter().map(|&b| b as u16)),
+        PixelFormat::Mono12p => {
+            for g in payload.chunks(3) {
+                v.push(g[0] as u16 | ((g[1] as u16 & 0x0F) << 8));
+                if g.len() == 3 {
+                    v.push((g[1] >> 4) as u16 | ((g[2] as u16) << 4));
+                }
+            }
+        }
+        PixelFormat::Mono12Packed => {
+            for g in payload.chunks(3) {
+                v.push(((g[0] as u16) << 4) | (g[1] as u16 & 0x0F));
+                if g.len() == 3 {
+                    v.push((g[1] >> 4) as u16 | ((g[2] as u16) << 4));
+                }
+            }
+        }
+        PixelFormat::Mono16 => {
+            let s = if msb_aligned { 16 - bits_valid } else { 0 };
+            let low_mask = (1u16 << s) - 1;
+            for b in payload.chunks_exact(2) {
+                let w = u16::from_le_bytes([b[0], b[1]]);
+                if w & low_mask != 0 {
+                    return Err(Error::Format(format!(
+                        "MSB-aligned Mono16 value {w:#06x} has bits set below the {bits_valid} valid bits"
+                    )));
+                }
+                v.push(w >> s);
+            }
+        }
+    }
+    debug_assert_eq!(v.len(), n);
+    if bits_valid < 16 {
+        let limit = 1u32 << bits_valid;
+        if let Some(i) = v.iter().position(|&c| c as u32 >= limit) {
+            return Err(Error::Format(format!(
+                "pixel {i} holds {} which exceeds {bits_valid} valid bits",
+                v[i]
+            )));
+        }
+    }
+    Ok(v)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn golden_vectors_both_ways() {
+        let p = [0xABCu16, 0x123];
+        let cases: [(PixelFormat, &[u8]); 3] = [
+            (PixelFormat::Mono12p, &[0xBC, 0x3A, 0x12]),
+            (PixelFormat::Mono12Packed, &[0xAB, 0x3C, 0x12]),
+            (PixelFormat::Mono16, &[0xBC, 0x0A, 0x23, 0x01]),
+        ];
+        let mut out = Vec::new();
+        for (f, bytes) in cases {
+            pack(&p, 12, f, false, &mut out).unwrap();
+            assert_eq!(out, bytes, "{f}");
+            assert_eq!(unpack(bytes, f, 12, false, 2, 1).unwrap(), p, "{f}");
+        }
+        pack(&p, 12, PixelFormat::Mono8, false, &mut out).unwrap();
+        assert_eq!(out, [0xAB, 0x12]);
+        pack(&[0xAB, 0x12], 8, PixelFormat::Mono8, false, &mut out).unwrap();
+        assert_eq!(out, [0xAB, 0x12]);
+        pack(&p, 12, PixelFormat::Mono16, true, &mut out).unwrap();
+        assert_eq!(out, [0xC0, 0xAB, 0x30, 0x12]);
+        assert_eq!(
+            unpack(&out, PixelFormat::Mono16, 12, true, 2, 1).unwrap(),
+            p
+        );
+    }
+
+    #[test]
+    fn msb_is_lsb_times_16() {
+        let codes: Vec<u16> = (0..4096).collect();
+        let (mut a, mut b) = (Vec::new(), Vec::new());
+        pack(&codes, 12, PixelFormat::Mono16, false, &mut a).unwrap();
+        pack(&codes, 12, PixelFormat::Mono16, true, &mut b).unwrap();
+        for (x, y) in a.chunks(2).zip(b.chunks(2)) {
+            let (x, y) = (
+                u16::from_le_bytes([x[0], x[1]]),
+                u16::from_le_bytes([y[0], y[1]]),
+            );
+            assert_eq!(x as u32 * 16, y as u32);
+        }
+    }
+
+    #[test]
+    fn round_trip_all_formats_odd_and_even() {
+        for bd in [8u8, 10, 12] {
+            for n in [1usize, 2, 7, 64] {
+                let codes: Vec<u16> = (0..n)
+                    .map(|i| ((i * 2654435761) % (1 << bd)) as u16)
+                    .collect();
+                for f in PixelFormat::ALL {
+                    let mut out = Vec::new();
+                    pack(&codes, bd, f, false, &mut out).unwrap();
+                    assert_eq!(out.len(), payload_size(f, n, 1));
+                    let bv = bits_valid(f, bd);
+                    let back = unpack(&out, f, bv, false, n, 1).unwrap();
+                    let want: Vec<u16> = if f == PixelFormat::Mono8 {
+                        codes.iter().map(|&c| c >> (bd - 8)).collect()
+                    } else {
+                        codes.clone()
+                    };
+                    assert_eq!(back, want, "{f} bd {bd} n {n}");
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn full_frame_sizes() {
+        assert_eq!(payload_size(PixelFormat::Mono8, 2448, 2048), 5_013_504);
+        assert_eq!(payload_size(PixelFormat::Mono12p, 2448, 2048), 7_520_256);
+        assert_eq!(
+            payload_size(PixelFormat::Mono12Packed, 2448, 2048),
+            7_520_256
+        );
+        assert_eq!(payload_size(PixelFormat::Mono16, 2448, 2048), 10_027_008);
+    }
+
+    #[test]
+    fn rejects_bad_input() {
+        let mut out = Vec::new();
+        assert!(pack(&[4096], 12, PixelFormat::Mono12p, false, &mut out).is_err());
+        assert!(pack(&[1024], 10, PixelFormat::Mono16, false, &mut out).is_err());
+        assert!(pack(&[1], 12, PixelFormat::Mono12p, true, &mut out).is_err());
+        assert!(pack(&[1], 13, PixelFormat::Mono12p, false, &mut out).is_err());
+        assert!(unpack(&[0; 5], PixelFormat::Mono12p, 12, false, 2, 2).is_err());
+        assert!(unpack(&[0x01, 0x00], PixelFormat::Mono16, 12, true, 1, 1).is_err());
+        assert!(unpack(&[0xFF, 0xFF], PixelFormat::Mono16, 12, false, 1, 1).is_err());
+        assert_eq!(PixelFormat::from_pfnc(0x8108_0001).is_err(), true);
+        assert_eq!(
+            PixelFormat::from_pfnc(0x010C_0047).unwrap(),
+            PixelFormat::Mono12p
+        );
+        assert_eq!(
+            "MONO12PACKED".parse::<PixelFormat>().unwrap(),
+            PixelFormat::Mono12Packed
+        );
+        assert!("mono10".parse::<PixelFormat>().is_err());
+    }
+}

@@ -1,0 +1,210 @@
+//! Stream writer: file header, then whole records (header | payload | zero pad), one `write_all`
+//! and one flush per frame so a reader can follow the stream as it grows.
+
+use super::{crc32, FileHeader, FrameMeta, FILE_HEADER_SIZE, FLAG_DROPPED, FRAME_HEADER_SIZE};
+use crate::error::{Error, Result};
+use crate::sensor::packing::{pack, payload_size};
+use std::fs::File;
+use std::io::{Seek, SeekFrom, Write};
+use std::path::Path;
+
+/// Writes a stream to any `Write` (file, FIFO, stdout). Never seeks.
+///
+/// A closed reader surfaces as [`Error::Io`] with kind `BrokenPipe`
+/// ([`Error::is_broken_pipe`]); the caller should then end quietly.
+pub struct StreamWriter<W: Write> {
+    w: W,
+    header: FileHeader,
+    record: Vec<u8>,
+    packed: Vec<u8>,
+    last_index: Option<u64>,
+    frames: u64,
+    sensor_bits: u8,
+}
+
+impl<W: Write> StreamWriter<W> {
+    /// Writes the file header (its `frame_count` as given, normally 0) and returns the writer.
+    ///
+    /// `header.bits_valid` is the payload's valid bits; for Mono8 it must be 8 and
+    /// [`write_frame`](Self::write_frame) takes codes at the sensor bit depth given by
+    /// [`with_sensor_bits`](Self::with_sensor_bits) (default 12).
+    pub fn new(mut w: W, header: &FileHeader) -> Result<Self> {
+        let b = header.encode()?;
+        w.write_all(&b)
+            .and_then(|_| w.flush())
+            .map_err(|e| Error::io("writing stream file header", e))?;
+        let stride = header.stride() as usize;
+        Ok(StreamWriter {
+            w,
+            header: header.clone(),
+            record: vec![0u8; stride],
+            packed: Vec::new(),
+            last_index: None,
+            frames: 0,
+            sensor_bits: if header.pixel_format == crate::sensor::packing::PixelFormat::Mono8 {
+                12
+            } else {
+                header.bits_valid
+            },
+        })
+    }
+
+    /// Mono8 only: bit depth of the codes given to [`write_frame`](Self::write_frame)
+    /// (8..16; 8 stores them unchanged, 12 keeps code >> 4).
+    pub fn with_sensor_bits(mut self, bits: u8) -> Self {
+        if self.header.pixel_format == crate::sensor::packing::PixelFormat::Mono8 {
+            self.sensor_bits = bits;
+        }
+        self
+    }
+
+    /// The header written.
+    pub fn header(&self) -> &FileHeader {
+        &self.header
+    }
+
+    /// Frames written so far.
+    pub fn frames_written(&self) -> u64 {
+        self.frames
+    }
+
+    /// Packs `codes` (width·height values, row-major) and writes one record.
+    pub fn write_frame(&mut self, meta: &FrameMeta, codes: &[u16]) -> Result<()> {
+        let n = self.header.width as usize * self.header.height as usize;
+        if codes.len() != n {
+            return Err(Error::Invalid(format!(
+                "frame has {} codes, the stream expects {} x {} = {n}",
+                codes.len(),
+                self.header.width,
+                self.header.height
+            )));
+        }
+        let mut packed = std::mem::take(&mut self.packed);
+        let r = pack(
+            codes,
+            self.sensor_bits,
+            self.header.pixel_format,
+            self.header.msb_aligned,
+            &mut packed,
+        )
+        .and_then(|_| self.write_payload(meta, &packed));
+        self.packed = packed;
+        r
+    }
+
+    /// Writes one record from an already packed payload. Indexes must increase; a jump sets
+    /// [`FLAG_DROPPED`](super::FLAG_DROPPED).
+    pub fn write_payload(&mut self, meta: &FrameMeta, payload: &[u8]) -> Result<()> {
+        let p = payload_size(
+            self.header.pixel_format,
+            self.header.width as usize,
+            self.header.height as usize,
+        );
+        if payload.len() != p {
+            return Err(Error::Invalid(format!(
+                "payload of {} bytes, the stream expects {p}",
+                payload.len()
+            )));
+        }
+        let mut meta = *meta;
+        if let Some(last) = self.last_index {
+            if meta.index <= last {
+                return Err(Error::Invalid(format!(
+                    "frame index {} after {last} (indexes must increase)",
+                    meta.index
+                )));
+            }
+            if meta.index > last + 1 {
+                meta.flags |= FLAG_DROPPED;
+            }
+        }
+        let hdr = meta.encode(crc32(payload));
+        self.record[..FRAME_HEADER_SIZE].copy_from_slice(&hdr);
+        self.record[FRAME_HEADER_SIZE..FRAME_HEADER_SIZE + p].copy_from_slice(payload);
+        // the pad stays zero: the record buffer is only ever written at the same places
+        self.w
+            .write_all(&self.record)
+            .and_then(|_| self.w.flush())
+            .map_err(|e| Error::io(format!("writing stream frame {}", meta.index), e))?;
+        self.last_index = Some(meta.index);
+        self.frames += 1;
+        Ok(())
+    }
+
+    /// Flushes and returns the inner writer.
+    pub fn finish(mut self) -> Result<W> {
+        self.w
+            .flush()
+            .map_err(|e| Error::io("flushing stream", e))?;
+        Ok(self.w)
+    }
+}
+
+/// A stream written to a path. On [`finish`](Self::finish) the frame count is patched into the
+/// header if (and only if) the path is a regular file; FIFOs and character devices keep 0.
+pub struct FileStreamWriter {
+    inner: StreamWriter<File>,
+}
+
+impl FileStreamWriter {
+    /// Creates (truncates) `path` — or opens a FIFO for writing — and writes the file header.
+    pub fn create(path: impl AsRef<Path>, header: &FileHeader) -> Result<Self> {
+        let path = path.as_ref();
+        let f = std::fs::OpenOptions::new()
+            .write(true)
+            .create(true)
+            .truncate(true)
+            .open(path)
+            .map_err(|e| Error::io(format!("creating {}", path.display()), e))?;
+        Ok(FileStreamWriter {
+            inner: StreamWriter::new(f, header)?,
+        })
+    }
+
+    /// See [`StreamWriter::with_sensor_bits`].
+    pub fn with_sensor_bits(self, bits: u8) -> Self {
+        FileStreamWriter {
+            inner: self.inner.with_sensor_bits(bits),
+        }
+    }
+
+    /// See [`StreamWriter::write_frame`].
+    pub fn write_frame(&mut self, meta: &FrameMeta, codes: &[u16]) -> Result<()> {
+        self.inner.write_frame(meta, codes)
+    }
+
+    /// See [`StreamWriter::write_payload`].
+    pub fn write_payload(&mut self, meta: &FrameMeta, payload: &[u8]) -> Result<()> {
+        self.inner.write_payload(meta, payload)
+    }
+
+    /// Frames written so far.
+    pub fn frames_written(&self) -> u64 {
+        self.inner.frames_written()
+    }
+
+    /// Flushes; for a regular file rewrites the header with the frame count. Returns the count.
+    pub fn finish(self) -> Result<u64> {
+        let n = self.inner.frames_written();
+        let mut header = self.inner.header().clone();
+        let mut f = self.inner.finish()?;
+        let regular = f
+            .metadata()
+            .map(|m| m.file_type().is_file())
+            .unwrap_or(false);
+        if regular {
+            header.frame_count = n;
+            let b = header.encode()?;
+            debug_assert_eq!(b.len(), FILE_HEADER_SIZE);
+            let end = f
+                .stream_position()
+                .map_err(|e| Error::io("patching stream frame count", e))?;
+            f.seek(SeekFrom::Start(0))
+                .and_then(|_| f.write_all(&b))
+                .and_then(|_| f.seek(SeekFrom::Start(end)))
+                .and_then(|_| f.flush())
+                .map_err(|e| Error::io("patching stream frame count", e))?;
+        }
+        Ok(n)
+    }
+}

@@ -1,0 +1,283 @@
+//! The Python (numpy) and C readers in tools/ return the same pixels and metadata as the Rust
+//! reader; the golden stream in fixtures/stream/ is reproduced byte for byte.
+
+use psns::sensor::packing::PixelFormat;
+use psns::stream::*;
+use sha2::{Digest, Sha256};
+use std::io::Cursor;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn stream(fmt: PixelFormat, w: u32, h: u32, n: u64, msb: bool) -> Vec<u8> {
+    let hd = FileHeader {
+        width: w,
+        height: h,
+        pixel_format: fmt,
+        bits_valid: if fmt == PixelFormat::Mono8 { 8 } else { 12 },
+        msb_aligned: msb,
+        seed: 11,
+        producer: "psns golden".into(),
+        json: r#"{"golden":1}"#.into(),
+        ..Default::default()
+    };
+    let mut wr = StreamWriter::new(Vec::new(), &hd).unwrap();
+    for i in 0..n {
+        let m = FrameMeta {
+            index: i,
+            flags: 0,
+            exposure_start_ns: 1_718_000_000_000_000_000 + i as i64 * 100_000_000,
+            exposure_end_ns: 1_718_000_000_001_000_000 + i as i64 * 100_000_000,
+            exposure_us: 1000.0,
+            gain_db: 0.1 * i as f64,
+            sun_azimuth_deg: 123.456 + i as f64,
+            sun_elevation_deg: 33.3,
+            sun_camera: [0.3, -0.1, 0.948_683_298],
+            attitude_wxyz: [0.5f64.sqrt(), 0.0, 0.0, 0.5f64.sqrt()],
+            lat_deg: 30.5,
+            lon_deg: 114.3,
+            height_m: 25.0,
+            saturated: [i as u32, 0, 1, 2],
+            turbidity: 3.0,
+            albedo: 0.1,
+            ..Default::default()
+        };
+        let c: Vec<u16> = (0..(w * h) as u64)
+            .map(|k| ((k * 37 + i * 1000 + k * k) % 4096) as u16)
+            .collect();
+        wr.write_frame(&m, &c).unwrap();
+    }
+    wr.finish().unwrap()
+}
+
+/// Canonical lines from the Rust reader (same format as the tools' `dump`).
+fn rust_dump(bytes: &[u8]) -> String {
+    let mut rd = StreamReader::new(Cursor::new(bytes)).unwrap();
+    let h = rd.header().clone();
+    let a = h.layout.angles_deg();
+    let mut s = format!(
+        "header {} {} {:08x} {} {} {} {} {} {} {},{},{},{}\n",
+        h.width,
+        h.height,
+        h.pixel_format.pfnc_code(),
+        h.bits_valid,
+        h.msb_aligned as u8,
+        h.seed,
+        h.frame_count,
+        h.payload_size(),
+        h.stride(),
+        a[0],
+        a[1],
+        a[2],
+        a[3]
+    );
+    while let Some(ev) = rd.next_event().unwrap() {
+        if let Event::Frame(f) = ev {
+            let m = f.meta;
+            let v = f.codes(rd.header()).unwrap();
+            let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+            let f64s: Vec<String> = m
+                .f64_fields()
+                .iter()
+                .map(|x| format!("{:016x}", x.to_bits()))
+                .collect();
+            s += &format!(
+                "frame {} {} {} {} {} {} {} {},{},{},{} {:08x},{:08x} {} {:08x}\n",
+                m.index,
+                m.flags,
+                f.payload_crc_ok as u8,
+                m.exposure_start_ns,
+                m.exposure_end_ns,
+                m.host_time_ns,
+                f64s.join(","),
+                m.saturated[0],
+                m.saturated[1],
+                m.saturated[2],
+                m.saturated[3],
+                m.turbidity.to_bits(),
+                m.albedo.to_bits(),
+                v.iter().map(|&x| x as u64).sum::<u64>(),
+                crc32(&bytes)
+            );
+        }
+    }
+    s
+}
+
+fn have_numpy() -> bool {
+    let ok = Command::new("python3")
+        .args(["-c", "import numpy"])
+        .status()
+        .map(|s| s.success())
+        .unwrap_or(false);
+    if !ok {
+        assert!(
+            std::env::var_os("CI").is_none(),
+            "python3 with numpy is required in CI"
+        );
+        eprintln!("SKIP: python3 with numpy not available");
+    }
+    ok
+}
+
+fn python(args: &[&str]) -> String {
+    let out = Command::new("python3")
+        .arg(root().join("tools/psns_stream.py"))
+        .args(args)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    String::from_utf8(out.stdout).unwrap()
+}
+
+fn c_reader(dir: &Path) -> PathBuf {
+    let exe = dir.join("psns_stream_c");
+    let st = Command::new("cc")
+        .args(["-std=c99", "-O2", "-Wall", "-o"])
+        .arg(&exe)
+        .arg(root().join("tools/psns_stream.c"))
+        .status()
+        .expect("a C compiler (cc) is required");
+    assert!(st.success());
+    exe
+}
+
+fn cases() -> Vec<(String, Vec<u8>)> {
+    let mut v = Vec::new();
+    for fmt in PixelFormat::ALL {
+        v.push((format!("{fmt}"), stream(fmt, 16, 8, 3, false)));
+        v.push((format!("{fmt}-odd"), stream(fmt, 5, 3, 2, false)));
+    }
+    v.push(("msb".into(), stream(PixelFormat::Mono16, 16, 8, 2, true)));
+    // damaged: frame 1 payload bit flip, frame 3 header bit flip, garbage before frame 4
+    let mut b = stream(PixelFormat::Mono12p, 64, 32, 6, false);
+    let stride = 4096; // 256 + 3072 bytes
+    b[4096 + stride + 300] ^= 0x10;
+    b[4096 + 3 * stride + 40] ^= 0x01;
+    let tail = b.split_off(4096 + 4 * stride);
+    b.extend_from_slice(b"garbage\x89PSNSxx");
+    b.extend_from_slice(&tail);
+    v.push(("damaged".into(), b));
+    v
+}
+
+#[test]
+fn c_reader_matches_rust() {
+    let dir = tempfile::tempdir().unwrap();
+    let exe = c_reader(dir.path());
+    for (name, bytes) in cases() {
+        let p = dir.path().join(format!("{name}.psns"));
+        std::fs::write(&p, &bytes).unwrap();
+        let out = Command::new(&exe).arg("dump").arg(&p).output().unwrap();
+        assert!(out.status.success());
+        assert_eq!(
+            String::from_utf8(out.stdout).unwrap(),
+            rust_dump(&bytes),
+            "{name}"
+        );
+        // frame dump equals Rust's codes
+        let raw = dir.path().join("f.raw");
+        let st = Command::new(&exe)
+            .arg("frame")
+            .arg(&p)
+            .arg("0")
+            .arg(&raw)
+            .status()
+            .unwrap();
+        assert!(st.success());
+        let x = extract_frame(Cursor::new(&bytes), 0).unwrap();
+        let want: Vec<u8> = x.codes.iter().flat_map(|c| c.to_le_bytes()).collect();
+        assert_eq!(std::fs::read(&raw).unwrap(), want, "{name}");
+    }
+}
+
+#[test]
+fn python_reader_matches_rust() {
+    if !have_numpy() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for (name, bytes) in cases() {
+        let p = dir.path().join(format!("{name}.psns"));
+        std::fs::write(&p, &bytes).unwrap();
+        let got = python(&["dump", p.to_str().unwrap()]);
+        assert_eq!(got, rust_dump(&bytes), "{name}");
+    }
+}
+
+#[test]
+fn python_memmap_full_size_mono16() {
+    if !have_numpy() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("full.psns");
+    let hd = FileHeader::default();
+    let mut w = FileStreamWriter::create(&p, &hd).unwrap();
+    let n = 2448 * 2048;
+    let codes: Vec<u16> = (0..n).map(|k| ((k * 7 + k / 2448) % 4096) as u16).collect();
+    for i in 0..2 {
+        let m = FrameMeta {
+            index: i,
+            ..Default::default()
+        };
+        w.write_frame(&m, &codes).unwrap();
+    }
+    assert_eq!(w.finish().unwrap(), 2);
+    assert_eq!(std::fs::metadata(&p).unwrap().len(), 4096 + 2 * 10_031_104);
+    let script = format!(
+        "import sys, zlib; sys.path.insert(0, {:?}); import psns_stream as ps\n\
+         h, fr = ps.open_memmap({:?})\n\
+         assert fr.shape == (2,) and fr.dtype.itemsize == 10031104\n\
+         a = fr[1]['payload']\n\
+         assert a.shape == (2048, 2448) and a.dtype.str == '<u2'\n\
+         assert zlib.crc32(fr[1]['payload'].tobytes()) == int(fr[1]['payload_crc'])\n\
+         print(int(a.sum(dtype='u8')), int(a[2047, 2447]), int(fr['index'][1]), h['frame_count'])\n",
+        root().join("tools").to_str().unwrap(),
+        p.to_str().unwrap()
+    );
+    let out = Command::new("python3")
+        .args(["-c", &script])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let sum: u64 = codes.iter().map(|&c| c as u64).sum();
+    assert_eq!(
+        String::from_utf8(out.stdout).unwrap().trim(),
+        format!("{sum} {} 1 2", codes[n - 1])
+    );
+}
+
+#[test]
+fn golden_stream_fixture() {
+    let bytes = stream(PixelFormat::Mono12p, 16, 8, 3, false);
+    let dir = root().join("fixtures/stream");
+    let file = dir.join("golden-mono12p-16x8x3.psns");
+    let hash = format!("{:x}", Sha256::digest(&bytes));
+    if std::env::var_os("PSNS_BLESS").is_some() {
+        std::fs::create_dir_all(&dir).unwrap();
+        std::fs::write(&file, &bytes).unwrap();
+        std::fs::write(
+            dir.join("golden-mono12p-16x8x3.sha256"),
+            format!("{hash}\n"),
+        )
+        .unwrap();
+    }
+    let want = std::fs::read(&file).expect("fixture (regenerate with PSNS_BLESS=1)");
+    let want_hash = std::fs::read_to_string(dir.join("golden-mono12p-16x8x3.sha256")).unwrap();
+    assert_eq!(hash, want_hash.trim());
+    assert_eq!(bytes, want);
+    let rep = verify(Cursor::new(&want)).unwrap();
+    assert!(rep.clean() && rep.frames == 3, "{rep}");
+}
