@@ -218,3 +218,43 @@ pub fn sky_figures(dir: &Path) -> Result<Vec<String>> {
     files.push(p.display().to_string());
     Ok(files)
 }
+
+/// Opens a file, or stdin for `-`.
+pub fn open_input(path: &Path) -> Result<Box<dyn std::io::Read>> {
+    if path.as_os_str() == "-" {
+        Ok(Box::new(std::io::stdin().lock()))
+    } else {
+        let f = std::fs::File::open(path)
+            .map_err(|e| Error::io(format!("opening {}", path.display()), e))?;
+        Ok(Box::new(std::io::BufReader::with_capacity(1 << 20, f)))
+    }
+}
+
+/// `psns extract`: one frame of a stream as `frame_N.png` (8- or 16-bit grey holding the values),
+/// `frame_N.tiff` (16-bit) and `frame_N.json` (file header and frame metadata).
+pub fn extract_to_dir(input: &Path, frame: u64, dir: &Path) -> Result<Vec<String>> {
+    let ex = crate::stream::extract_frame(open_input(input)?, frame)?;
+    create_dir(dir)?;
+    let (w, h) = (ex.header.width as usize, ex.header.height as usize);
+    let img = Image::from_vec(w, h, ex.codes.clone());
+    let mut files = Vec::new();
+    let png = dir.join(format!("frame_{frame}.png"));
+    if ex.header.bits_valid <= 8 && !ex.header.msb_aligned {
+        let g = Image::from_vec(w, h, ex.codes.iter().map(|&v| v as u8).collect());
+        io::write_png_gray8(&png, &g)?;
+    } else {
+        io::write_png_gray16(&png, &img)?;
+    }
+    files.push(png.display().to_string());
+    let tiff = dir.join(format!("frame_{frame}.tiff"));
+    io::write_tiff_u16(&tiff, &img)?;
+    files.push(tiff.display().to_string());
+    let json = dir.join(format!("frame_{frame}.json"));
+    let text = serde_json::to_string_pretty(&ex).expect("metadata serializes");
+    io::write_atomic(&json, |wr| {
+        wr.write_all(text.as_bytes())
+            .map_err(|e| Error::io("writing frame json", e))
+    })?;
+    files.push(json.display().to_string());
+    Ok(files)
+}

@@ -38,6 +38,25 @@ enum Cmd {
     },
     /// Sun position (SPA) for a UTC time and place, as CSV `zenith_deg,azimuth_deg`.
     Sun(SunArgs),
+    /// Check a frame stream: frame count, drops, corrupt and truncated frames. Exit 0 only if clean.
+    Verify {
+        /// Stream file, FIFO, or - for stdin.
+        file: PathBuf,
+        /// Print the report as JSON.
+        #[arg(long)]
+        json: bool,
+    },
+    /// Write one frame of a stream as PNG and TIFF plus its metadata as JSON.
+    Extract {
+        /// Stream file, FIFO, or - for stdin.
+        file: PathBuf,
+        /// Frame index.
+        #[arg(long)]
+        frame: u64,
+        /// Output directory.
+        #[arg(long, default_value = ".")]
+        out: PathBuf,
+    },
     /// Regenerate the pictures in docs/ (sky sweeps, default camera views).
     Figures {
         /// Output directory.
@@ -360,6 +379,23 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let stdout = std::io::stdout().lock();
             psns::app::sky_csv(&cfg, stdin, std::io::BufWriter::new(stdout))?;
         }
+        Cmd::Verify { file, json } => {
+            let rep = psns::stream::verify(psns::app::open_input(&file)?)?;
+            let mut out = std::io::stdout().lock();
+            if json {
+                writeln!(out, "{}", serde_json::to_string_pretty(&rep)?)?;
+            } else {
+                write!(out, "{rep}")?;
+            }
+            if !rep.clean() {
+                return Err(anyhow::Error::new(NotClean));
+            }
+        }
+        Cmd::Extract { file, frame, out } => {
+            for f in psns::app::extract_to_dir(&file, frame, &out)? {
+                eprintln!("wrote {f}");
+            }
+        }
         Cmd::Figures { out } => {
             for f in psns::app::sky_figures(&out)? {
                 eprintln!("wrote {f}");
@@ -388,6 +424,16 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     }
     Ok(())
 }
+
+/// `psns verify` found damage: exit code 1 with the report already printed.
+#[derive(Debug)]
+struct NotClean;
+impl std::fmt::Display for NotClean {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "stream is not clean")
+    }
+}
+impl std::error::Error for NotClean {}
 
 fn main() -> ExitCode {
     let cli = Cli::parse(); // usage errors exit with code 2

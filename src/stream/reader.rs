@@ -566,7 +566,7 @@ impl fmt::Display for VerifyReport {
         if let Some((d, n)) = self.count_mismatch {
             writeln!(f, "header declares {d} frames, found {n}")?;
         }
-        write!(f, "{}", if self.clean() { "clean" } else { "NOT clean" })
+        writeln!(f, "{}", if self.clean() { "clean" } else { "NOT clean" })
     }
 }
 
