@@ -193,12 +193,12 @@ impl PolarizationField {
         if !(v.z > 0.0) {
             return SkySample::GROUND;
         }
-        self.eval(v).1
+        self.eval(v).2
     }
 
-    /// The view zenith angle θ (radians) and the sample; requires v.z > 0.
+    /// cos θ, cos γ and the sample; requires v.z > 0.
     #[inline]
-    fn eval(&self, v: DVec3) -> (f64, SkySample) {
+    fn eval(&self, v: DVec3) -> (f64, f64, SkySample) {
         let cos_t = v.z.min(1.0);
         let theta = cos_t.acos();
         let cross = self.sun_vec.cross(v);
@@ -222,7 +222,8 @@ impl PolarizationField {
             }
         };
         (
-            theta,
+            cos_t,
+            cos_g,
             SkySample {
                 valid: true,
                 gamma_rad: gamma,
@@ -284,14 +285,17 @@ impl Sky {
 
     /// Radiance, DOP and E-vector for a unit view vector `v` in ENU. Below or on the horizon
     /// (v.z ≤ 0) returns [`SkySample::GROUND`]. The sun disc is not included (see
-    /// [`Sky::hosek`]).
+    /// [`Sky::hosek`]). The Hosek–Wilkie radiance is floored at 0 (it turns slightly negative
+    /// in the last few thousandths of a degree above the horizon for some channels).
     #[inline]
     pub fn sample(&self, v: DVec3) -> SkySample {
         if !(v.z > 0.0) {
             return SkySample::GROUND;
         }
-        let (theta, mut s) = self.pol.eval(v);
-        s.radiance = self.hw.radiance(theta, s.gamma_rad);
+        let (cos_t, cos_g, mut s) = self.pol.eval(v);
+        // HW v1.4a dips slightly below zero within ~0.005° of the horizon for some channels
+        // (e.g. 440 nm, T = 4, θ_s = 84°: −3.5e-3 at the horizon); radiance cannot be negative.
+        s.radiance = self.hw.radiance_cos(cos_t, s.gamma_rad, cos_g).max(0.0);
         s
     }
 }
