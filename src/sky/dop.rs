@@ -1,1 +1,364 @@
-//! dop (to be written)
+//! Degree of polarization of the clear sky: PSNS eq. (5) after Wang et al. 2016.
+//!
+//! Physics (Liang & Bai, PSNS, arXiv:2007.13081, eq. (5); Wang, Gao, Fan & Roberts, J. Opt.
+//! 18:065601, 2016; `sky.md` §5):
+//!
+//! DOP = clamp₍₀,₁₎( |w| · [θ·E + (π/2 − θ)·S] · M_DOP(τ) ),
+//!
+//! with θ the view zenith angle in radians, |w| the Berry field modulus ([`super::berry`]),
+//! E = cos(θ)^ρ (ρ the ground albedo), M_DOP(τ) = exp(−τ/4 + 0.12) (τ the turbidity T) and the
+//! sky-brightness weight
+//!
+//! S = (1/S_D − 1/S_sun) · S_90 S_sun / (S_sun − S_90),
+//!
+//! 0 where the sky is as bright as at the sun, 1 where it is as bright as 90° from the sun on
+//! the solar vertical, above 1 in darker regions. S_D(θ, γ, λ) is the spectral radiance of
+//! Preetham, Shirley & Smits (SIGGRAPH 1999): the Perez et al. (1993) distribution
+//! F(θ, γ) = (1 + A e^{B/cos θ})(1 + C e^{Dγ} + E cos²γ) (cos θ floored at 0.01) for luminance Y
+//! and chromaticity x, y, scaled by their zenith values, turned into a spectrum with the CIE
+//! daylight basis S0 + M₁S1 + M₂S2 normalised to luminance (CIE 15; table [`CIE_DAYLIGHT`]).
+//! Only ratios of S_D enter S, so the absolute scale of Y cancels.
+//!
+//! By default no 2/π factor is applied and the result is clamped to [0, 1] ([`DopNorm::Clamp`]);
+//! Wilkie et al.'s 2/π normalisation is [`DopNorm::Wilkie`]. Frame: θ, γ as in `sky.md` §1.
+
+use super::DopNorm;
+use crate::error::{check_range, Result};
+use std::f64::consts::{FRAC_PI_2, PI};
+
+/// First wavelength of [`CIE_DAYLIGHT`], nm.
+pub const CIE_LAMBDA0_NM: f64 = 320.0;
+/// Step of [`CIE_DAYLIGHT`], nm.
+pub const CIE_STEP_NM: f64 = 10.0;
+
+/// CIE daylight basis and luminosity function, 320–780 nm every 10 nm (CIE 15;
+/// `fixtures/sky-cie-daylight.csv`): rows [S0, S1, S2, ȳ (CIE 1931, zero below 380 nm)].
+pub const CIE_DAYLIGHT: [[f64; 4]; 47] = [
+    [29.6, 22.4, 4.0, 0.0],
+    [55.3, 42.0, 8.5, 0.0],
+    [57.3, 40.6, 7.8, 0.0],
+    [61.8, 41.6, 6.7, 0.0],
+    [61.5, 38.0, 5.3, 0.0],
+    [68.8, 42.4, 6.1, 0.0],
+    [63.4, 38.5, 3.0, 0.000039],
+    [65.8, 35.0, 1.2, 0.00012],
+    [94.8, 43.4, -1.1, 0.000396],
+    [104.8, 46.3, -0.5, 0.00121],
+    [105.9, 43.9, -0.7, 0.004],
+    [96.8, 37.1, -1.2, 0.0116],
+    [113.9, 36.7, -2.6, 0.023],
+    [125.6, 35.9, -2.9, 0.038],
+    [125.5, 32.6, -2.8, 0.06],
+    [121.3, 27.9, -2.6, 0.09098],
+    [121.3, 24.3, -2.6, 0.13902],
+    [113.5, 20.1, -1.8, 0.20802],
+    [113.1, 16.2, -1.5, 0.323],
+    [110.8, 13.2, -1.3, 0.503],
+    [106.5, 8.6, -1.2, 0.71],
+    [108.8, 6.1, -1.0, 0.862],
+    [105.3, 4.2, -0.5, 0.954],
+    [104.4, 1.9, -0.3, 0.99495],
+    [100.0, 0.0, 0.0, 0.995],
+    [96.0, -1.6, 0.2, 0.952],
+    [95.1, -3.5, 0.5, 0.87],
+    [89.1, -3.5, 2.1, 0.757],
+    [90.5, -5.8, 3.2, 0.631],
+    [90.3, -7.2, 4.1, 0.503],
+    [88.4, -8.6, 4.7, 0.381],
+    [84.0, -9.5, 5.1, 0.265],
+    [85.1, -10.9, 6.7, 0.175],
+    [81.9, -10.7, 7.3, 0.107],
+    [82.6, -12.0, 8.6, 0.061],
+    [84.9, -14.0, 9.8, 0.032],
+    [81.3, -13.6, 10.2, 0.017],
+    [71.9, -12.0, 8.3, 0.00821],
+    [74.3, -13.3, 9.6, 0.004102],
+    [76.4, -12.9, 8.5, 0.002091],
+    [63.3, -10.6, 7.0, 0.001047],
+    [71.7, -11.6, 7.6, 0.00052],
+    [77.0, -12.2, 8.0, 0.0002492],
+    [65.2, -10.2, 6.7, 0.00012],
+    [47.7, -7.8, 5.2, 0.00006],
+    [68.6, -11.2, 7.4, 0.00003],
+    [65.0, -10.4, 6.8, 0.00001499],
+];
+
+/// Perez coefficients (A, B, C, D, E) of Preetham et al. 1999 for luminance Y and chromaticity
+/// x, y at turbidity T (`sky.md` §5 table).
+pub fn perez_coefficients(t: f64) -> [[f64; 5]; 3] {
+    [
+        [
+            0.1787 * t - 1.4630,
+            -0.3554 * t + 0.4275,
+            -0.0227 * t + 5.3251,
+            0.1206 * t - 2.5771,
+            -0.0670 * t + 0.3703,
+        ],
+        [
+            -0.0193 * t - 0.2592,
+            -0.0665 * t + 0.0008,
+            -0.0004 * t + 0.2125,
+            -0.0641 * t - 0.8989,
+            -0.0033 * t + 0.0452,
+        ],
+        [
+            -0.0167 * t - 0.2608,
+            -0.0950 * t + 0.0092,
+            -0.0079 * t + 0.2102,
+            -0.0441 * t - 1.6537,
+            -0.0109 * t + 0.0529,
+        ],
+    ]
+}
+
+/// Zenith luminance Y_z (kcd m⁻²) and chromaticity x_z, y_z of Preetham et al. 1999, App. A.2,
+/// for turbidity T and sun zenith θ_s in radians.
+pub fn preetham_zenith(t: f64, sun_zenith_rad: f64) -> [f64; 3] {
+    const MX: [[f64; 4]; 3] = [
+        [0.00166, -0.00375, 0.00209, 0.0],
+        [-0.02903, 0.06377, -0.03202, 0.00394],
+        [0.11693, -0.21196, 0.06052, 0.25886],
+    ];
+    const MY: [[f64; 4]; 3] = [
+        [0.00275, -0.00610, 0.00317, 0.0],
+        [-0.04214, 0.08970, -0.04153, 0.00516],
+        [0.15346, -0.26756, 0.06670, 0.26688],
+    ];
+    let ts = sun_zenith_rad;
+    let u = (4.0 / 9.0 - t / 120.0) * (PI - 2.0 * ts);
+    let yz = (4.0453 * t - 4.9710) * u.tan() - 0.2155 * t + 2.4192;
+    let tv = [t * t, t, 1.0];
+    let sv = [ts * ts * ts, ts * ts, ts, 1.0];
+    let quad = |m: &[[f64; 4]; 3]| -> f64 {
+        (0..3)
+            .map(|i| tv[i] * (0..4).map(|j| m[i][j] * sv[j]).sum::<f64>())
+            .sum()
+    };
+    [yz, quad(&MX), quad(&MY)]
+}
+
+/// Perez distribution F(θ, γ) = (1 + A e^{B/cos θ})(1 + C e^{Dγ} + E cos²γ), cos θ floored at 0.01.
+#[inline]
+pub fn perez(c: &[f64; 5], cos_theta: f64, gamma: f64, cos_gamma: f64) -> f64 {
+    let ct = cos_theta.max(0.01);
+    (1.0 + c[0] * (c[1] / ct).exp())
+        * (1.0 + c[2] * (c[3] * gamma).exp() + c[4] * cos_gamma * cos_gamma)
+}
+
+/// CIE daylight basis at `wavelength_nm` (linear interpolation, 320..780 nm): (S0, S1, S2).
+pub fn cie_basis_at(wavelength_nm: f64) -> [f64; 3] {
+    let n = CIE_DAYLIGHT.len();
+    let x = ((wavelength_nm - CIE_LAMBDA0_NM) / CIE_STEP_NM).clamp(0.0, (n - 1) as f64);
+    let i = (x.floor() as usize).min(n - 2);
+    let f = x - i as f64;
+    let (a, b) = (&CIE_DAYLIGHT[i], &CIE_DAYLIGHT[i + 1]);
+    [
+        a[0] + f * (b[0] - a[0]),
+        a[1] + f * (b[1] - a[1]),
+        a[2] + f * (b[2] - a[2]),
+    ]
+}
+
+/// Luminance normalisation sums Σ_{380…780} S_k ȳ Δλ for k = 0, 1, 2 (Δλ = 10 nm).
+pub fn cie_luminance_sums() -> [f64; 3] {
+    let mut s = [0.0; 3];
+    for row in CIE_DAYLIGHT.iter().skip(6) {
+        for k in 0..3 {
+            s[k] += row[k] * row[3] * CIE_STEP_NM;
+        }
+    }
+    s
+}
+
+/// Preetham et al.'s spectral sky S_D(θ, γ, λ) at one wavelength, cooked for one scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Preetham {
+    /// Perez coefficients for Y, x, y.
+    coef: [[f64; 5]; 3],
+    /// Q_z / F_Q(0, θ_s) for Q = Y, x, y.
+    scale: [f64; 3],
+    /// (S0, S1, S2) at the wavelength.
+    basis: [f64; 3],
+    /// Σ S_k ȳ Δλ.
+    sums: [f64; 3],
+}
+
+impl Preetham {
+    /// Cooks the model for turbidity T, sun zenith θ_s (radians) and wavelength (nm, 320..780).
+    pub fn new(turbidity: f64, sun_zenith_rad: f64, wavelength_nm: f64) -> Self {
+        let coef = perez_coefficients(turbidity);
+        let z = preetham_zenith(turbidity, sun_zenith_rad);
+        let cs = sun_zenith_rad.cos();
+        let mut scale = [0.0; 3];
+        for q in 0..3 {
+            scale[q] = z[q] / perez(&coef[q], 1.0, sun_zenith_rad, cs);
+        }
+        Preetham {
+            coef,
+            scale,
+            basis: cie_basis_at(wavelength_nm),
+            sums: cie_luminance_sums(),
+        }
+    }
+
+    /// Luminance Y and chromaticity x, y at view zenith cos θ and scattering angle γ.
+    #[inline]
+    pub fn yxy(&self, cos_theta: f64, gamma: f64, cos_gamma: f64) -> [f64; 3] {
+        let mut r = [0.0; 3];
+        for q in 0..3 {
+            r[q] = self.scale[q] * perez(&self.coef[q], cos_theta, gamma, cos_gamma);
+        }
+        r
+    }
+
+    /// S_D at view zenith cos θ and scattering angle γ (radians, with its cosine).
+    #[inline]
+    pub fn s_d(&self, cos_theta: f64, gamma: f64, cos_gamma: f64) -> f64 {
+        let [yl, x, y] = self.yxy(cos_theta, gamma, cos_gamma);
+        // M₁ = a₁/m, M₂ = a₂/m; multiplying numerator and denominator by m saves two divisions.
+        let m = 0.0241 + 0.2562 * x - 0.7341 * y;
+        let a1 = -1.3515 - 1.7703 * x + 5.9114 * y;
+        let a2 = 0.0300 - 31.4424 * x + 30.0717 * y;
+        let b = &self.basis;
+        let s = &self.sums;
+        yl * (m * b[0] + a1 * b[1] + a2 * b[2]) / (m * s[0] + a1 * s[1] + a2 * s[2])
+    }
+}
+
+/// M_DOP(τ) = exp(−τ/4 + 0.12).
+pub fn m_dop(turbidity: f64) -> f64 {
+    (-turbidity / 4.0 + 0.12).exp()
+}
+
+/// PSNS eq. (5) cooked for one scene.
+#[derive(Clone, Debug, PartialEq)]
+pub struct WangDop {
+    preetham: Preetham,
+    /// S_sun = S_D(θ_s, 0).
+    pub s_sun: f64,
+    /// S_90 = S_D(|θ_s − 90°|, 90°).
+    pub s_90: f64,
+    inv_s_sun: f64,
+    /// S_90 S_sun / (S_sun − S_90).
+    s_coef: f64,
+    albedo: f64,
+    /// M_DOP(τ).
+    m: f64,
+    /// 1 or 2/π.
+    norm: f64,
+}
+
+impl WangDop {
+    /// Cooks the DOP for sun zenith θ_s (degrees, 0..90), turbidity (1..10), wavelength (nm,
+    /// 320..720), albedo (0..1) and normalisation.
+    pub fn new(
+        sun_zenith_deg: f64,
+        turbidity: f64,
+        wavelength_nm: f64,
+        albedo: f64,
+        norm: DopNorm,
+    ) -> Result<Self> {
+        check_range("sun-zenith", sun_zenith_deg, 0.0, 90.0)?;
+        check_range("turbidity", turbidity, 1.0, 10.0)?;
+        check_range("wavelength", wavelength_nm, 320.0, 720.0)?;
+        check_range("albedo", albedo, 0.0, 1.0)?;
+        let ts = sun_zenith_deg.to_radians();
+        let preetham = Preetham::new(turbidity, ts, wavelength_nm);
+        let s_sun = preetham.s_d(ts.cos(), 0.0, 1.0);
+        let t90 = (ts - FRAC_PI_2).abs();
+        let s_90 = preetham.s_d(t90.cos(), FRAC_PI_2, 0.0);
+        Ok(WangDop {
+            preetham,
+            s_sun,
+            s_90,
+            inv_s_sun: 1.0 / s_sun,
+            s_coef: s_90 * s_sun / (s_sun - s_90),
+            albedo,
+            m: m_dop(turbidity),
+            norm: match norm {
+                DopNorm::Clamp => 1.0,
+                DopNorm::Wilkie => 2.0 / PI,
+            },
+        })
+    }
+
+    /// The cooked Preetham model.
+    pub fn preetham(&self) -> &Preetham {
+        &self.preetham
+    }
+
+    /// Brightness weight S at view zenith cos θ and scattering angle γ (with its cosine).
+    #[inline]
+    pub fn s_weight(&self, cos_theta: f64, gamma: f64, cos_gamma: f64) -> f64 {
+        (1.0 / self.preetham.s_d(cos_theta, gamma, cos_gamma) - self.inv_s_sun) * self.s_coef
+    }
+
+    /// Unnormalised, unclamped DOP |w|·[θE + (π/2 − θ)S]·M_DOP (θ in radians).
+    #[inline]
+    pub fn seed(&self, abs_w: f64, theta: f64, cos_theta: f64, gamma: f64, cos_gamma: f64) -> f64 {
+        let e = cos_theta.max(0.0).powf(self.albedo);
+        let s = self.s_weight(cos_theta, gamma, cos_gamma);
+        abs_w * (theta * e + (FRAC_PI_2 - theta) * s) * self.m
+    }
+
+    /// The DOP: seed × (1 or 2/π), clamped to [0, 1]. A non-finite seed (possible only where
+    /// Preetham's luminance crosses zero for T < 1.203) gives 0 or 1, never NaN.
+    #[inline]
+    pub fn dop(&self, abs_w: f64, theta: f64, cos_theta: f64, gamma: f64, cos_gamma: f64) -> f64 {
+        clamp01(self.seed(abs_w, theta, cos_theta, gamma, cos_gamma) * self.norm)
+    }
+}
+
+/// Clamp to [0, 1] with NaN → 0.
+#[inline]
+pub fn clamp01(x: f64) -> f64 {
+    if x > 1.0 {
+        1.0
+    } else if x > 0.0 {
+        x
+    } else {
+        0.0
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn embedded_table_matches_fixture() {
+        let path = concat!(env!("CARGO_MANIFEST_DIR"), "/fixtures/sky-cie-daylight.csv");
+        let text = std::fs::read_to_string(path).unwrap();
+        let rows: Vec<Vec<f64>> = text
+            .lines()
+            .skip(1)
+            .filter(|l| !l.trim().is_empty())
+            .map(|l| l.split(',').map(|x| x.trim().parse().unwrap()).collect())
+            .collect();
+        assert_eq!(rows.len(), CIE_DAYLIGHT.len());
+        for (i, r) in rows.iter().enumerate() {
+            assert_eq!(r[0], CIE_LAMBDA0_NM + CIE_STEP_NM * i as f64);
+            assert_eq!(&r[1..5], &CIE_DAYLIGHT[i][..]);
+        }
+    }
+
+    #[test]
+    fn m_dop_at_4() {
+        assert!((m_dop(4.0) - 0.414783).abs() < 1e-6);
+    }
+
+    #[test]
+    fn s_is_zero_at_sun_and_one_at_90() {
+        let d = WangDop::new(50.0, 4.0, 450.0, 0.1, DopNorm::Clamp).unwrap();
+        let ts = 50f64.to_radians();
+        assert!(d.s_weight(ts.cos(), 0.0, 1.0).abs() < 1e-12);
+        assert!((d.s_weight(40f64.to_radians().cos(), FRAC_PI_2, 0.0) - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn interpolation_between_rows() {
+        let b = cie_basis_at(455.0);
+        assert!((b[0] - 0.5 * (125.6 + 125.5)).abs() < 1e-12);
+        assert_eq!(cie_basis_at(780.0)[0], 65.0);
+    }
+}

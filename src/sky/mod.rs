@@ -15,7 +15,7 @@ pub mod dop;
 pub mod hosek;
 pub mod rayleigh;
 
-use crate::error::{check_range, Error, Result};
+use crate::error::{check_range, Result};
 pub use crate::sun::SunPosition;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
@@ -139,24 +139,127 @@ pub fn zenith_azimuth_deg(v: DVec3) -> (f64, f64) {
     (z, a)
 }
 
+/// The polarization half of the sky (`sky.md` §4–§6), cooked for one scene: DOP and E-vector
+/// in any direction above the horizon, no radiance. [`Sky`] adds Hosek–Wilkie radiance to it.
+#[derive(Clone, Debug)]
+pub struct PolarizationField {
+    model: PolarizationModel,
+    /// Unit sun vector in ENU.
+    sun_vec: DVec3,
+    berry: berry::BerryField,
+    wang: dop::WangDop,
+    dop_max: f64,
+}
+
+impl PolarizationField {
+    /// Cooks the field. Errors for parameters out of range or θ_s outside 0..90.
+    pub fn new(sun: SunPosition, params: &SkyParams) -> Result<Self> {
+        params.validate()?;
+        check_range("sun-zenith", sun.zenith_deg, 0.0, 90.0)?;
+        check_range("sun-azimuth", sun.azimuth_deg, -720.0, 720.0)?;
+        Ok(PolarizationField {
+            model: params.model,
+            sun_vec: sun.vector(),
+            berry: berry::BerryField::new(
+                sun.zenith_deg,
+                sun.azimuth_deg,
+                params.babinet_deg,
+                params.brewster_deg,
+            ),
+            wang: dop::WangDop::new(
+                sun.zenith_deg,
+                params.turbidity,
+                params.wavelength_nm,
+                params.albedo,
+                params.dop_norm,
+            )?,
+            dop_max: params.dop_max,
+        })
+    }
+
+    /// The cooked Berry field.
+    pub fn berry(&self) -> &berry::BerryField {
+        &self.berry
+    }
+
+    /// The cooked PSNS eq. (5) DOP.
+    pub fn wang(&self) -> &dop::WangDop {
+        &self.wang
+    }
+
+    /// DOP, γ and E-vector for a unit ENU view vector (radiance left 0); `SkySample::GROUND`
+    /// for v.z ≤ 0 (or NaN).
+    pub fn sample(&self, v: DVec3) -> SkySample {
+        if !(v.z > 0.0) {
+            return SkySample::GROUND;
+        }
+        self.eval(v).2
+    }
+
+    /// cos θ, cos γ and the sample; requires v.z > 0.
+    #[inline]
+    fn eval(&self, v: DVec3) -> (f64, f64, SkySample) {
+        let cos_t = v.z.min(1.0);
+        let theta = cos_t.acos();
+        let cross = self.sun_vec.cross(v);
+        let sin_g2 = cross.length_squared();
+        let cos_g = self.sun_vec.dot(v);
+        let gamma = sin_g2.sqrt().atan2(cos_g);
+        let (dop, e) = match self.model {
+            PolarizationModel::Wang => {
+                let b = self.berry.eval(v);
+                let d = self.wang.dop(b.abs_w, theta, cos_t, gamma, cos_g);
+                (d, b.e)
+            }
+            PolarizationModel::Rayleigh => {
+                if sin_g2 > 0.0 {
+                    let c2 = cos_g * cos_g;
+                    let d = self.dop_max * sin_g2 / (sin_g2 + 2.0 * c2);
+                    (dop::clamp01(d), cross / sin_g2.sqrt())
+                } else {
+                    (0.0, berry::chart_basis(v).0)
+                }
+            }
+        };
+        (
+            cos_t,
+            cos_g,
+            SkySample {
+                valid: true,
+                gamma_rad: gamma,
+                radiance: 0.0,
+                dop,
+                e,
+            },
+        )
+    }
+}
+
 /// A prepared sky: sun position and parameters with every per-scene constant cooked.
 #[derive(Clone, Debug)]
 pub struct Sky {
     sun: SunPosition,
     params: SkyParams,
-    // filled in by the implementation: cooked Hosek–Wilkie, Berry and DOP constants
+    pol: PolarizationField,
+    hw: hosek::HosekWilkie,
 }
 
 impl Sky {
     /// Prepares the sky. Errors for parameters out of range or a sun below the horizon
     /// (θ_s outside 0..90).
     pub fn new(sun: SunPosition, params: &SkyParams) -> Result<Sky> {
-        params.validate()?;
-        check_range("sun-zenith", sun.zenith_deg, 0.0, 90.0)?;
-        let _ = Error::Invalid(String::new());
+        let pol = PolarizationField::new(sun, params)?;
+        let hw = hosek::HosekWilkie::new(
+            params.turbidity,
+            params.albedo,
+            (90.0 - sun.zenith_deg).to_radians(),
+            params.wavelength_nm,
+        )?;
         Ok(Sky {
             sun,
             params: params.clone(),
+            pol,
+            hw,
         })
     }
 
@@ -170,10 +273,30 @@ impl Sky {
         &self.params
     }
 
-    /// Radiance, DOP and E-vector for a unit view vector `v` in ENU.
+    /// The polarization half (DOP and E-vector without radiance).
+    pub fn polarization(&self) -> &PolarizationField {
+        &self.pol
+    }
+
+    /// The cooked Hosek–Wilkie model (e.g. for the solar disc, [`hosek::HosekWilkie::sun_radiance`]).
+    pub fn hosek(&self) -> &hosek::HosekWilkie {
+        &self.hw
+    }
+
+    /// Radiance, DOP and E-vector for a unit view vector `v` in ENU. Below or on the horizon
+    /// (v.z ≤ 0) returns [`SkySample::GROUND`]. The sun disc is not included (see
+    /// [`Sky::hosek`]). The Hosek–Wilkie radiance is floored at 0 (it turns slightly negative
+    /// in the last few thousandths of a degree above the horizon for some channels).
+    #[inline]
     pub fn sample(&self, v: DVec3) -> SkySample {
-        let _ = v;
-        todo!("sky composition")
+        if !(v.z > 0.0) {
+            return SkySample::GROUND;
+        }
+        let (cos_t, cos_g, mut s) = self.pol.eval(v);
+        // HW v1.4a dips slightly below zero within ~0.005° of the horizon for some channels
+        // (e.g. 440 nm, T = 4, θ_s = 84°: −3.5e-3 at the horizon); radiance cannot be negative.
+        s.radiance = self.hw.radiance_cos(cos_t, s.gamma_rad, cos_g).max(0.0);
+        s
     }
 }
 
@@ -181,13 +304,19 @@ impl Sky {
 /// along the meridian) toward e_A, wrapped to (−90°, 90°]. At the zenith (undefined) the chart
 /// AOP χ is returned, as in the spec's tables.
 pub fn aop_meridian_deg(v: DVec3, e: DVec3) -> f64 {
-    let _ = (v, e);
-    todo!("aop_meridian_deg")
+    let rh = v.x.hypot(v.y);
+    if rh <= 1e-15 * v.z.abs() {
+        return aop_chart_deg(v, e);
+    }
+    let (sa, ca) = (v.x / rh, v.y / rh);
+    let e_theta = DVec3::new(v.z * sa, v.z * ca, -rh);
+    let e_a = DVec3::new(ca, -sa, 0.0);
+    crate::angle::wrap_pm90(e.dot(e_a).atan2(e.dot(e_theta)).to_degrees())
 }
 
 /// Chart AOP χ (`sky.md` §1): angle of `e` from north toward east in the stereographic chart,
 /// = AOP_m + A, wrapped to (−90°, 90°].
 pub fn aop_chart_deg(v: DVec3, e: DVec3) -> f64 {
-    let _ = (v, e);
-    todo!("aop_chart_deg")
+    let (n, east) = berry::chart_basis(v);
+    crate::angle::wrap_pm90(e.dot(east).atan2(e.dot(n)).to_degrees())
 }
