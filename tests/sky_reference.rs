@@ -857,3 +857,11 @@ fn fig6_statements_hold_exactly_for_delta_19_to_40() {
         assert_eq!(all, delta > 19.0 && delta < 40.0, "delta {delta}");
     }
 }
+
+/// The renderer shares one `Sky` across rayon threads.
+#[test]
+fn sky_is_send_and_sync() {
+    fn check<T: Send + Sync>() {}
+    check::<Sky>();
+    check::<PolarizationField>();
+}
