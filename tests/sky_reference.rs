@@ -796,3 +796,72 @@ fn bench_sample() {
         );
     }
 }
+
+/// Maximum of the DOP over the sky on a 0.2° grid (plus the unclamped seed's maximum).
+fn sky_max(p: &SkyParams) -> (f64, f64) {
+    let pf = PolarizationField::new(default_sun(), p).unwrap();
+    let (mut max_dop, mut max_seed): (f64, f64) = (0.0, 0.0);
+    for i in 0..450 {
+        for j in 0..1800 {
+            let v = direction(i as f64 * 0.2, j as f64 * 0.2);
+            let s = pf.sample(v);
+            let th = v.z.acos();
+            let b = pf.berry().eval(v);
+            let seed = pf
+                .wang()
+                .seed(b.abs_w, th, v.z, s.gamma_rad, s.gamma_rad.cos());
+            max_dop = max_dop.max(s.dop);
+            max_seed = max_seed.max(seed);
+        }
+    }
+    (max_dop, max_seed)
+}
+
+/// `sky.md` §5 [measured] statements: T = 1 unclamped maximum 1.154 (clamped to exactly 1;
+/// 0.735 with 2/π); T = 4 maximum 0.588 (0.374 with 2/π). θ_s = 50°, λ = 450 nm, δ = 25°.
+#[test]
+fn sky_maximum_dop_statements() {
+    let t1 = SkyParams {
+        turbidity: 1.0,
+        ..SkyParams::default()
+    };
+    let (d1, s1) = sky_max(&t1);
+    let (d4, s4) = sky_max(&SkyParams::default());
+    let w4 = sky_max(&SkyParams {
+        dop_norm: DopNorm::Wilkie,
+        ..SkyParams::default()
+    })
+    .0;
+    let w1 = sky_max(&SkyParams {
+        dop_norm: DopNorm::Wilkie,
+        ..t1
+    })
+    .0;
+    println!("T=1: max seed {s1}, max DOP {d1}, with 2/pi {w1}; T=4: max seed {s4}, max DOP {d4}, with 2/pi {w4}");
+    assert!((s1 - 1.154).abs() < 5e-4 && d1 == 1.0 && (w1 - 0.735).abs() < 5e-4);
+    assert!((d4 - 0.588).abs() < 5e-4 && (w4 - 0.374).abs() < 5e-4);
+}
+
+/// `sky.md` §4: with one δ for both points, all six Fig. 6 statements hold exactly for
+/// 19° < δ < 40°.
+#[test]
+fn fig6_statements_hold_exactly_for_delta_19_to_40() {
+    for k in 0..120 {
+        let delta = 0.25 + 0.5 * k as f64;
+        let all = [85.0, 78.0, 71.0]
+            .iter()
+            .all(|&ts| fig6_statement_holds(ts, delta, true))
+            && [50.0, 43.0, 36.0]
+                .iter()
+                .all(|&ts| fig6_statement_holds(ts, delta, false));
+        assert_eq!(all, delta > 19.0 && delta < 40.0, "delta {delta}");
+    }
+}
+
+/// The renderer shares one `Sky` across rayon threads.
+#[test]
+fn sky_is_send_and_sync() {
+    fn check<T: Send + Sync>() {}
+    check::<Sky>();
+    check::<PolarizationField>();
+}

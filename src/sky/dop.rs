@@ -204,11 +204,7 @@ impl Preetham {
     /// Luminance Y and chromaticity x, y at view zenith cos θ and scattering angle γ.
     #[inline]
     pub fn yxy(&self, cos_theta: f64, gamma: f64, cos_gamma: f64) -> [f64; 3] {
-        let mut r = [0.0; 3];
-        for q in 0..3 {
-            r[q] = self.scale[q] * perez(&self.coef[q], cos_theta, gamma, cos_gamma);
-        }
-        r
+        std::array::from_fn(|q| self.scale[q] * perez(&self.coef[q], cos_theta, gamma, cos_gamma))
     }
 
     /// S_D at view zenith cos θ and scattering angle γ (radians, with its cosine).

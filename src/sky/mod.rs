@@ -8,6 +8,18 @@
 //! Frame: ENU (x east, y north, z up); directions as zenith angle θ and compass azimuth A
 //! (`sky.md` §1). The E-vector is returned as a 3-D unit vector perpendicular to the view
 //! direction, which is the only route into the camera (`sky.md` §4, §7).
+//!
+//! [`Sky::new`] cooks every per-scene constant (the two Hosek–Wilkie channels, Berry's t±,
+//! Preetham's zenith values and Perez coefficients, S_sun, S_90 and the CIE normalisation);
+//! [`Sky::sample`] is the per-pixel path: no allocation, three inverse trigonometric/square-root
+//! calls shared between radiance and polarization, and ground (v.z ≤ 0) short-circuited to
+//! [`SkySample::GROUND`] — Hosek–Wilkie and Preetham are never evaluated below the horizon
+//! (`sky.md` §8). [`PolarizationField`] is the same without radiance.
+//!
+//! References: Hošek & Wilkie, ACM TOG 31(4):95 (2012) and IEEE CG&A 33(3):44 (2013);
+//! Berry, Dennis & Lee, New J. Phys. 6:162 (2004); Wang, Gao, Fan & Roberts, J. Opt.
+//! 18:065601 (2016); Preetham, Shirley & Smits, SIGGRAPH 1999; Liang & Bai, PSNS,
+//! arXiv:2007.13081 (2020).
 
 pub mod berry;
 pub mod clouds;
@@ -190,7 +202,7 @@ impl PolarizationField {
     /// DOP, γ and E-vector for a unit ENU view vector (radiance left 0); `SkySample::GROUND`
     /// for v.z ≤ 0 (or NaN).
     pub fn sample(&self, v: DVec3) -> SkySample {
-        if !(v.z > 0.0) {
+        if v.z.is_nan() || v.z <= 0.0 {
             return SkySample::GROUND;
         }
         self.eval(v).2
@@ -289,7 +301,7 @@ impl Sky {
     /// in the last few thousandths of a degree above the horizon for some channels).
     #[inline]
     pub fn sample(&self, v: DVec3) -> SkySample {
-        if !(v.z > 0.0) {
+        if v.z.is_nan() || v.z <= 0.0 {
             return SkySample::GROUND;
         }
         let (cos_t, cos_g, mut s) = self.pol.eval(v);
