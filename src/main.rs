@@ -111,28 +111,28 @@ struct SceneArgs {
     #[arg(long, value_name = "FILE")]
     config: Option<PathBuf>,
     /// Sun zenith angle, degrees (0..90 for a render).
-    #[arg(long, value_parser = finite, value_name = "DEG")]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG")]
     sun_zenith: Option<f64>,
     /// Sun altitude (elevation), degrees; alternative to --sun-zenith.
-    #[arg(long, value_parser = finite, value_name = "DEG", conflicts_with = "sun_zenith")]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG", conflicts_with = "sun_zenith")]
     sun_altitude: Option<f64>,
     /// Sun compass azimuth, degrees from north, clockwise.
-    #[arg(long, value_parser = finite, value_name = "DEG")]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG")]
     sun_azimuth: Option<f64>,
     /// UTC time (ISO 8601, e.g. 2003-10-17T19:30:30Z): sun from SPA with --lat/--lon.
     #[arg(long, conflicts_with_all = ["sun_zenith", "sun_altitude", "sun_azimuth"])]
     time: Option<String>,
     /// Observer latitude, degrees north.
-    #[arg(long, value_parser = finite, allow_hyphen_values = true)]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true)]
     lat: Option<f64>,
     /// Observer longitude, degrees east.
-    #[arg(long, value_parser = finite, allow_hyphen_values = true)]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true)]
     lon: Option<f64>,
     /// Observer height above the ellipsoid, metres (for --time).
-    #[arg(long, value_parser = finite, value_name = "M")]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "M")]
     observer_height: Option<f64>,
     /// ΔT = TT − UT in seconds (default: estimated).
-    #[arg(long, value_parser = finite, allow_hyphen_values = true, value_name = "S")]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "S")]
     delta_t: Option<f64>,
     /// Apply atmospheric refraction to the SPA position.
     #[arg(long)]
@@ -141,65 +141,65 @@ struct SceneArgs {
     #[arg(long, value_parser = finite, default_value_t = 1010.0, value_name = "HPA")]
     pressure: f64,
     /// Temperature for --refraction, °C.
-    #[arg(long, value_parser = finite, default_value_t = 10.0, allow_hyphen_values = true, value_name = "C")]
+    #[arg(long, value_parser = finite, default_value_t = 10.0, allow_negative_numbers = true, value_name = "C")]
     temperature: f64,
     /// Polarization model.
     #[arg(long, value_enum)]
     model: Option<ModelArg>,
     /// Turbidity, 1..10.
-    #[arg(long, value_parser = finite, value_name = "T")]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "T")]
     turbidity: Option<f64>,
     /// Wavelength, nm, 320..720.
-    #[arg(long, value_parser = finite, value_name = "NM")]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "NM")]
     wavelength: Option<f64>,
     /// Ground albedo, 0..1.
-    #[arg(long, value_parser = finite, value_name = "A")]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "A")]
     albedo: Option<f64>,
     /// Distance of both neutral points from the sun (Babinet and Brewster), degrees 0..60.
-    #[arg(long, value_parser = finite, value_name = "DEG")]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG")]
     neutral_distance: Option<f64>,
     /// Babinet point distance above the sun, degrees 0..60.
-    #[arg(long, value_parser = finite, value_name = "DEG", conflicts_with = "neutral_distance")]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG", conflicts_with = "neutral_distance")]
     babinet: Option<f64>,
     /// Brewster point distance below the sun, degrees 0..60.
-    #[arg(long, value_parser = finite, value_name = "DEG", conflicts_with = "neutral_distance")]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG", conflicts_with = "neutral_distance")]
     brewster: Option<f64>,
     /// Maximum DOP of the Rayleigh model, 0..1.
-    #[arg(long, value_parser = finite)]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true)]
     dop_max: Option<f64>,
     /// DOP normalisation of the Wang model (clamp: none; wilkie: 2/π).
     #[arg(long, value_enum)]
     dop_norm: Option<NormArg>,
     /// Camera yaw, degrees.
-    #[arg(long, value_parser = finite, allow_hyphen_values = true, value_name = "DEG")]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG")]
     yaw: Option<f64>,
     /// Camera pitch, degrees.
-    #[arg(long, value_parser = finite, allow_hyphen_values = true, value_name = "DEG")]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG")]
     pitch: Option<f64>,
     /// Camera roll, degrees.
-    #[arg(long, value_parser = finite, allow_hyphen_values = true, value_name = "DEG")]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG")]
     roll: Option<f64>,
     /// Reference frame of yaw/pitch/roll (or of --quaternion).
     #[arg(long, value_enum)]
     frame: Option<FrameArg>,
     /// Attitude quaternion W,X,Y,Z (Hamilton, scalar first) rotating camera vectors into the frame.
-    #[arg(long, value_parser = finite_list::<4>, allow_hyphen_values = true,
+    #[arg(long, value_parser = finite_list::<4>, allow_negative_numbers = true,
           conflicts_with_all = ["yaw", "pitch", "roll"], value_name = "W,X,Y,Z")]
     quaternion: Option<[f64; 4]>,
     /// Focal length, mm.
-    #[arg(long, value_parser = finite, value_name = "MM")]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "MM")]
     focal_length: Option<f64>,
     /// Pixel pitch, µm.
-    #[arg(long, value_parser = finite, value_name = "UM")]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "UM")]
     pixel_pitch: Option<f64>,
     /// Image width (columns), pixels.
-    #[arg(long, value_name = "PX")]
+    #[arg(long, value_name = "PX", allow_negative_numbers = true)]
     width: Option<i64>,
     /// Image height (rows), pixels.
-    #[arg(long, value_name = "PX")]
+    #[arg(long, value_name = "PX", allow_negative_numbers = true)]
     height: Option<i64>,
     /// Principal point X,Y: 0-based column and row of the optical axis.
-    #[arg(long, value_parser = finite_list::<2>, value_name = "X,Y")]
+    #[arg(long, value_parser = finite_list::<2>, allow_negative_numbers = true, value_name = "X,Y")]
     principal_point: Option<[f64; 2]>,
 }
 
@@ -337,16 +337,16 @@ struct SunArgs {
     #[arg(long)]
     time: String,
     /// Latitude, degrees north (−90..90).
-    #[arg(long, value_parser = finite, allow_hyphen_values = true)]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true)]
     lat: f64,
     /// Longitude, degrees east (−180..180).
-    #[arg(long, value_parser = finite, allow_hyphen_values = true)]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true)]
     lon: f64,
     /// Height above the ellipsoid, metres.
-    #[arg(long, value_parser = finite, default_value_t = 0.0, allow_hyphen_values = true)]
+    #[arg(long, value_parser = finite, default_value_t = 0.0, allow_negative_numbers = true)]
     height: f64,
     /// ΔT = TT − UT in seconds (default: the crate's estimate for the date).
-    #[arg(long, value_parser = finite, allow_hyphen_values = true, value_name = "S")]
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "S")]
     delta_t: Option<f64>,
     /// Apply atmospheric refraction (default: geometric position).
     #[arg(long)]
@@ -355,7 +355,7 @@ struct SunArgs {
     #[arg(long, value_parser = finite, default_value_t = 1010.0, value_name = "HPA")]
     pressure: f64,
     /// Temperature for --refraction, °C.
-    #[arg(long, value_parser = finite, default_value_t = 10.0, allow_hyphen_values = true, value_name = "C")]
+    #[arg(long, value_parser = finite, default_value_t = 10.0, allow_negative_numbers = true, value_name = "C")]
     temperature: f64,
 }
 
