@@ -93,22 +93,83 @@ pub fn gaussian_map(
 /// `rand_distr` limits λ (its `MAX_LAMBDA` ≈ 1.8e19).
 const POISSON_NORMAL_ABOVE: f64 = 1e15;
 
-/// One draw of Poisson(`mean`) as f64; exact (Knuth below 12, Ahrens–Dieter PD rejection above)
-/// for every mean a sensor can hold. Non-positive or non-finite means give 0.
+/// Below this mean the draw uses `rand_distr` (Knuth's multiplication method below 12).
+const POISSON_PTRS_ABOVE: f64 = 12.0;
+
+/// One draw of Poisson(`mean`) as f64; exact for every mean a sensor can hold: `rand_distr`
+/// (Knuth's method) below 12, Hörmann's PTRS transformed rejection with squeeze above
+/// (W. Hörmann, "The transformed rejection method for generating Poisson random variables",
+/// Insurance: Mathematics and Economics 12, 1993; the algorithm NumPy uses), and N(μ, μ) only
+/// above 1e15 e⁻. Non-positive or non-finite means give 0.
 #[inline]
 pub fn poisson<R: Rng + ?Sized>(rng: &mut R, mean: f64) -> f64 {
     if !(mean > 0.0) || !mean.is_finite() {
         return 0.0;
     }
-    if mean < POISSON_NORMAL_ABOVE {
+    if mean < POISSON_PTRS_ABOVE {
         match Poisson::new(mean) {
             Ok(p) => p.sample(rng),
             Err(_) => 0.0,
         }
+    } else if mean < POISSON_NORMAL_ABOVE {
+        poisson_ptrs(rng, mean)
     } else {
         let z: f64 = rng.sample(StandardNormal);
         (mean + mean.sqrt() * z).max(0.0)
     }
+}
+
+/// PTRS for λ ≥ 10 (Hörmann 1993, algorithm PTRS); the squeeze accepts ~89 % of draws without
+/// a logarithm.
+fn poisson_ptrs<R: Rng + ?Sized>(rng: &mut R, lam: f64) -> f64 {
+    let slam = lam.sqrt();
+    let b = 0.931 + 2.53 * slam;
+    let a = -0.059 + 0.02483 * b;
+    let vr = 0.9277 - 3.6224 / (b - 2.0);
+    let mut slow: Option<(f64, f64)> = None; // (ln λ, ln(1/α)), computed on first need
+    loop {
+        let u = rng.random::<f64>() - 0.5;
+        let v = rng.random::<f64>();
+        let us = 0.5 - u.abs();
+        let k = ((2.0 * a / us + b) * u + lam + 0.43).floor();
+        if us >= 0.07 && v <= vr {
+            return k;
+        }
+        if k < 0.0 || (us < 0.013 && v > us) {
+            continue;
+        }
+        let (loglam, log_inv_alpha) =
+            *slow.get_or_insert_with(|| (lam.ln(), (1.1239 + 1.1328 / (b - 3.4)).ln()));
+        if v.ln() + log_inv_alpha - (a / (us * us) + b).ln() <= -lam + k * loglam - ln_factorial(k)
+        {
+            return k;
+        }
+    }
+}
+
+/// ln k! (exact table to 9, Stirling series with three correction terms above).
+fn ln_factorial(k: f64) -> f64 {
+    const T: [f64; 10] = [
+        0.0,
+        0.0,
+        std::f64::consts::LN_2,
+        1.791_759_469_228_055,
+        3.178_053_830_347_146,
+        4.787_491_742_782_046,
+        6.579_251_212_010_101,
+        8.525_161_361_065_415,
+        10.604_602_902_745_25,
+        12.801_827_480_081_469,
+    ];
+    if k < 10.0 {
+        return T[k as usize];
+    }
+    let n = k + 1.0; // ln Γ(n)
+    let inv = 1.0 / n;
+    let inv2 = inv * inv;
+    (n - 0.5) * n.ln() - n
+        + 0.918_938_533_204_672_8
+        + inv * (1.0 / 12.0 - inv2 * (1.0 / 360.0 - inv2 / 1260.0))
 }
 
 /// One standard-normal draw.
@@ -143,6 +204,61 @@ mod tests {
     // Recorded from the first implementation (rand_chacha 0.9 ChaCha8, key layout above).
     const GOLDEN_MAP_PRNU_42_7: u64 = 3222751305945780762;
     const GOLDEN_SHOT_42_3_7: u64 = 13565395923466616630;
+
+    /// PTRS against the exact pmf (chi-square over the bulk) at several means, and ln k!.
+    #[test]
+    fn ptrs_matches_pmf() {
+        for k in [10.0f64, 11.0, 30.0, 170.0] {
+            let exact: f64 = (1..=k as u64).map(|i| (i as f64).ln()).sum();
+            assert!((ln_factorial(k) - exact).abs() < 1e-10, "{k}");
+        }
+        for lam in [12.0f64, 37.5, 400.0, 1e4] {
+            let mut rng = frame_rng(3, 0, STAGE_SHOT, lam as u64);
+            let n = 200_000usize;
+            let sd = lam.sqrt();
+            let lo = (lam - 3.0 * sd).floor().max(0.0) as i64;
+            let hi = (lam + 3.0 * sd).ceil() as i64;
+            // bins of ~sd/4 width
+            let w = ((sd / 4.0).floor() as i64).max(1);
+            let nb = ((hi - lo) / w + 1) as usize;
+            let mut obs = vec![0f64; nb];
+            let (mut sum, mut sum2) = (0.0, 0.0);
+            for _ in 0..n {
+                let x = poisson(&mut rng, lam);
+                assert_eq!(x, x.floor());
+                sum += x;
+                sum2 += x * x;
+                let xi = x as i64;
+                if xi >= lo && xi < lo + nb as i64 * w {
+                    obs[((xi - lo) / w) as usize] += 1.0;
+                }
+            }
+            let mut exp = vec![0f64; nb];
+            for x in lo..lo + nb as i64 * w {
+                let lp = -lam + x as f64 * lam.ln() - ln_factorial(x as f64);
+                exp[((x - lo) / w) as usize] += n as f64 * lp.exp();
+            }
+            let chi2: f64 = obs
+                .iter()
+                .zip(&exp)
+                .filter(|(_, &e)| e > 20.0)
+                .map(|(o, e)| (o - e) * (o - e) / e)
+                .sum();
+            let dof = exp.iter().filter(|&&e| e > 20.0).count() as f64;
+            // chi-square with ~dof degrees of freedom: mean dof, sd sqrt(2 dof)
+            assert!(
+                chi2 < dof + 5.0 * (2.0 * dof).sqrt(),
+                "λ {lam}: χ² {chi2} dof {dof}"
+            );
+            let m = sum / n as f64;
+            let v = sum2 / n as f64 - m * m;
+            assert!(
+                (m - lam).abs() < 5.0 * sd / (n as f64).sqrt(),
+                "λ {lam} mean {m}"
+            );
+            assert!((v / lam - 1.0).abs() < 0.02, "λ {lam} var {v}");
+        }
+    }
 
     #[test]
     fn poisson_edge_cases() {
