@@ -240,3 +240,69 @@ fn flat_field_values() {
     assert!(flat_field(4, 4, 1.0, 1.5, 0.0).is_err());
     let _unused: Image<f32> = f.s0;
 }
+
+/// 8-bit output: codes and truth share the output units (12-bit DN / 16), black level too.
+#[test]
+fn eight_bit_truth_units() {
+    let (w, h) = (32, 32);
+    let mut cfg = SensorConfig::default();
+    cfg.bit_depth = 8;
+    cfg.black_level_dn = 32.0;
+    cfg.stages = Stages::ideal();
+    cfg.exposure = psns::sensor::Exposure::Fixed { us: 500.0 };
+    let f = simulate(&sky(w, h), &intr(w, h), &cfg, 0, 0).unwrap();
+    assert_eq!(f.black_level_dn, 2.0);
+    let mut twelve = cfg.clone();
+    twelve.bit_depth = 12;
+    let g = simulate(&sky(w, h), &intr(w, h), &twelve, 0, 0).unwrap();
+    for k in 0..w * h {
+        assert!((f.truth.s0.data[k] * 16.0 / g.truth.s0.data[k] - 1.0).abs() < 1e-6);
+        let a = cfg.layout.angle_deg(k / w, k % w).to_radians();
+        let reading = 0.5
+            * (f.truth.s0.data[k] as f64
+                + f.truth.s1.data[k] as f64 * (2.0 * a).cos()
+                + f.truth.s2.data[k] as f64 * (2.0 * a).sin());
+        assert!((f.codes.data[k] as f64 - 2.0 - reading).abs() <= 0.5 + 1e-4);
+    }
+    let (dolp, aolp) = f.truth_dolp_aolp();
+    let k = 16 * w + 16;
+    let (s1, s2) = (f.truth.s1.data[k] as f64, f.truth.s2.data[k] as f64);
+    assert!((dolp.data[k] as f64 - s1.hypot(s2) / f.truth.s0.data[k] as f64).abs() < 1e-6);
+    assert!(
+        (aolp.data[k] as f64 - psns::angle::SensorAngle::from_stokes(s1, s2).deg()).abs() < 1e-3
+    );
+}
+
+/// Crosstalk conserves a flat signal and lowers the measured DoLP (effective ER).
+#[test]
+fn crosstalk_lowers_dolp() {
+    let (w, h) = (16, 16);
+    let dolp_of = |c: f64| {
+        let mut cfg = SensorConfig::default();
+        cfg.crosstalk = c;
+        cfg.stages = Stages {
+            crosstalk: true,
+            ..Stages::none()
+        };
+        let f = simulate(
+            &flat_field(w, h, 0.1, 1.0, 0.0).unwrap(),
+            &intr(w, h),
+            &cfg,
+            0,
+            0,
+        )
+        .unwrap();
+        let an = f.analog.unwrap();
+        let v = |r: usize, c: usize| *an.get(r, c) as f64;
+        let (i90, i45, i135, i0) = (v(6, 6), v(6, 7), v(7, 6), v(7, 7));
+        let s0 = 0.5 * (i0 + i45 + i90 + i135);
+        ((i0 - i90).hypot(i45 - i135) / s0, s0)
+    };
+    let (d0, s00) = dolp_of(0.0);
+    let (d3, s03) = dolp_of(0.03);
+    assert!((d0 - 1.0).abs() < 1e-6);
+    // 0° pixel: edge neighbours 45°/135° (½), corners 90° (0): I0 = 1 − c + 4·c/6·½ = 1 − 2c/3;
+    // 90° pixel: edges ½, corners 1: I90 = 2c/6 + 4c/12 = 2c/3; I45 = I135 = ½ → DoLP = 1 − 4c/3
+    assert!((d3 - (1.0 - 4.0 * 0.03 / 3.0)).abs() < 1e-5, "{d3}");
+    assert!((s03 / s00 - 1.0).abs() < 1e-6);
+}

@@ -386,6 +386,31 @@ pub struct RawFrame {
     pub analog: Option<Image<f32>>,
 }
 
+impl RawFrame {
+    /// DoLP = |S_lin|/S0 (0 where S0 ≤ 0) and AoLP = ½ atan2(S2, S1) in degrees, [0, 180), of the
+    /// ground truth.
+    pub fn truth_dolp_aolp(&self) -> (Image<f32>, Image<f32>) {
+        let t = &self.truth;
+        let (w, h) = (t.width(), t.height());
+        let mut dolp = Image::new(w, h);
+        let mut aolp = Image::new(w, h);
+        for k in 0..w * h {
+            let (s0, s1, s2) = (
+                t.s0.data[k] as f64,
+                t.s1.data[k] as f64,
+                t.s2.data[k] as f64,
+            );
+            dolp.data[k] = if s0 > 0.0 {
+                (s1.hypot(s2) / s0) as f32
+            } else {
+                0.0
+            };
+            aolp.data[k] = crate::angle::SensorAngle::from_stokes(s1, s2).deg() as f32;
+        }
+        (dolp, aolp)
+    }
+}
+
 /// A prepared camera: configuration, intrinsics and the fixed-pattern maps of one camera seed.
 /// Build once, then render any number of frames with [`Sensor::frame`].
 #[derive(Clone, Debug)]
