@@ -282,3 +282,50 @@ fn bad_input() {
         SensorConfig::default()
     );
 }
+
+/// Dark current doubles every 7 °C: at 60 °C, 5 · 2^5 = 160 e⁻/s; a 10 s dark frame holds
+/// Poisson(1600) electrons.
+#[test]
+fn dark_current_with_temperature() {
+    let (w, h) = (64, 64);
+    let mut cfg = SensorConfig::default();
+    cfg.temperature_c = 60.0;
+    cfg.exposure = Exposure::Fixed { us: 1e7 };
+    cfg.stages = Stages {
+        dark: true,
+        shot: true,
+        ..Stages::none()
+    };
+    assert!((cfg.dark_current_at_temperature() - 160.0).abs() < 1e-9);
+    let f = simulate(
+        &flat_field(w, h, 0.0, 0.0, 0.0).unwrap(),
+        &intr(w, h),
+        &cfg,
+        3,
+        0,
+    )
+    .unwrap();
+    let e: Vec<f64> = f
+        .analog
+        .unwrap()
+        .data
+        .iter()
+        .map(|&v| v as f64 / f.dn_per_electron)
+        .collect();
+    let (m, v) = mean_var(&e);
+    assert!(
+        (m - 1600.0).abs() < 4.0 * (1600.0f64 / 4096.0).sqrt(),
+        "{m}"
+    );
+    assert!((v / 1600.0 - 1.0).abs() < 0.1, "{v}");
+    cfg.stages.dark = false;
+    let g = simulate(
+        &flat_field(w, h, 0.0, 0.0, 0.0).unwrap(),
+        &intr(w, h),
+        &cfg,
+        3,
+        0,
+    )
+    .unwrap();
+    assert!(g.analog.unwrap().data.iter().all(|&v| v == 0.0));
+}
