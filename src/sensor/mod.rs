@@ -863,3 +863,34 @@ pub fn flat_field(
         s2: mk(s2),
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn config_serde_round_trip() {
+        for p in Preset::ALL {
+            let c = SensorConfig::preset(p);
+            let j = serde_json::to_string(&c).unwrap();
+            assert_eq!(serde_json::from_str::<SensorConfig>(&j).unwrap(), c);
+            let t = toml::to_string(&c).unwrap();
+            assert_eq!(toml::from_str::<SensorConfig>(&t).unwrap(), c);
+        }
+        let c: SensorConfig =
+            toml::from_str("gain_db = 6.0\nlayout = \"0,45/135,90\"\n[exposure]\nmode = \"auto\"\npercentile = 95.0\nfraction = 0.5\n")
+                .unwrap();
+        assert_eq!(c.gain_db, 6.0);
+        assert_eq!(c.layout.angle_deg(0, 0), 0.0);
+        assert!(matches!(c.exposure, Exposure::Auto { .. }));
+        assert!(toml::from_str::<SensorConfig>("gain = 6.0").is_err());
+    }
+
+    #[test]
+    fn sizes() {
+        assert!(check_size(2448, 2048).is_ok());
+        assert!(check_size(8, 4).is_ok());
+        assert!(check_size(6, 4).is_err());
+        assert!(check_size(0, 4).is_err());
+    }
+}
