@@ -103,7 +103,7 @@ const POISSON_PTRS_ABOVE: f64 = 12.0;
 /// above 1e15 e⁻. Non-positive or non-finite means give 0.
 #[inline]
 pub fn poisson<R: Rng + ?Sized>(rng: &mut R, mean: f64) -> f64 {
-    if !(mean > 0.0) || !mean.is_finite() {
+    if !mean.is_finite() || mean <= 0.0 {
         return 0.0;
     }
     if mean < POISSON_PTRS_ABOVE {

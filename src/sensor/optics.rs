@@ -123,7 +123,11 @@ pub fn photon_rate_per_radiance(
     wavelength_nm: f64,
     pixel_pitch_um: f64,
 ) -> Result<f64> {
-    if !(f_number > 0.0) || !(pixel_pitch_um > 0.0) {
+    if !(f_number.is_finite()
+        && f_number > 0.0
+        && pixel_pitch_um.is_finite()
+        && pixel_pitch_um > 0.0)
+    {
         return Err(Error::Invalid(format!(
             "f-number {f_number} and pixel pitch {pixel_pitch_um} um must be > 0"
         )));

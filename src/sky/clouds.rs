@@ -194,7 +194,7 @@ pub fn apply_soft_clouds(stokes: &mut StokesImage, p: &SoftClouds, seed: u64) ->
                 return;
             }
             for i in 0..w {
-                if !(a[i] > 0.0) {
+                if a[i].is_nan() || a[i] <= 0.0 {
                     continue;
                 }
                 let mut clear = 1.0;
