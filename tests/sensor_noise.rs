@@ -329,3 +329,41 @@ fn dark_current_with_temperature() {
     .unwrap();
     assert!(g.analog.unwrap().data.iter().all(|&v| v == 0.0));
 }
+
+/// Option: gain above 24 dB applied after a 12-bit ADC leaves missing codes; all-analog gain does
+/// not. Both keep the mean.
+#[test]
+fn digital_gain_missing_codes() {
+    let (w, h) = (128, 128);
+    let scene = flat_field(w, h, 0.02, 0.0, 0.0).unwrap();
+    let run = |digital: Option<f64>| {
+        let mut cfg = SensorConfig::default();
+        cfg.gain_db = 36.0;
+        cfg.black_level_dn = 0.0;
+        cfg.exposure = Exposure::Fixed { us: 60.0 };
+        cfg.digital_gain_above_db = digital;
+        let f = simulate(&scene, &intr(w, h), &cfg, 8, 0).unwrap();
+        let mut used = [false; 4096];
+        for &v in &f.codes.data {
+            used[v as usize] = true;
+        }
+        // central 90 % of the histogram (the tails are sparse anyway)
+        let mut sorted = f.codes.data.clone();
+        sorted.sort_unstable();
+        let lo = sorted[sorted.len() / 20] as usize;
+        let hi = sorted[sorted.len() * 19 / 20] as usize;
+        let missing = (lo..=hi).filter(|&v| !used[v]).count() as f64 / (hi - lo + 1) as f64;
+        let mean = f.codes.data.iter().map(|&v| v as f64).sum::<f64>() / (w * h) as f64;
+        (missing, mean, hi)
+    };
+    let (m_an, mean_an, hi_an) = run(None);
+    let (m_dig, mean_dig, _) = run(Some(24.0));
+    assert!(hi_an < 4095);
+    // 12 dB digital = ×3.98: about 3 of 4 codes unused
+    assert!(m_dig > 0.6, "digital: {m_dig} of codes missing");
+    assert!(m_an < 0.2, "analog: {m_an} of codes missing");
+    assert!(
+        (mean_dig / mean_an - 1.0).abs() < 0.02,
+        "{mean_dig} vs {mean_an}"
+    );
+}

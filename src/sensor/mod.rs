@@ -217,6 +217,9 @@ pub struct SensorConfig {
     /// Crosstalk: fraction of a pixel's signal leaking to its 8 neighbours (c/6 to each edge
     /// neighbour, c/12 to each corner), 0..0.03 (default 0 = off).
     pub crosstalk: f64,
+    /// Option (`sensor.md` §6): gain above this many dB is applied digitally after a 12-bit ADC
+    /// (missing codes, as reported for LUCID cameras), e.g. `Some(24.0)`; `None` = all analog.
+    pub digital_gain_above_db: Option<f64>,
     /// Stage switches.
     pub stages: Stages,
     /// PSNS dataset model (`sensor.md` §9) instead of the camera model; `None` for the camera.
@@ -250,6 +253,7 @@ impl Default for SensorConfig {
             bit_depth: 12,
             exposure: Exposure::default(),
             crosstalk: 0.0,
+            digital_gain_above_db: None,
             stages: Stages::default(),
             psns: None,
         }
@@ -323,6 +327,9 @@ impl SensorConfig {
         check_range("full-well-e", self.full_well_e, 100.0, 1e6)?;
         check_range("k0", self.k0, 1e-4, 100.0)?;
         check_range("crosstalk", self.crosstalk, 0.0, 0.03)?;
+        if let Some(g) = self.digital_gain_above_db {
+            check_range("digital-gain-above-db", g, 0.0, 48.0)?;
+        }
         if let Some(p) = &self.psns {
             p.validate()?;
         }
@@ -639,6 +646,13 @@ impl Sensor {
             0.0
         };
         let kg = adc::system_gain(cfg.k0, cfg.gain_db);
+        // analog part before the ADC and an optional digital part after a 12-bit ADC
+        let (g_analog, g_digital) = match cfg.digital_gain_above_db {
+            Some(th) if cfg.gain_db > th => (th, cfg.gain_db - th),
+            _ => (cfg.gain_db, 0.0),
+        };
+        let kg_analog = adc::system_gain(cfg.k0, g_analog);
+        let digital = 10f64.powf(g_digital / 20.0);
         let scale = adc::output_scale(cfg.bit_depth);
         let max = adc::max_code(cfg.bit_depth);
         let black = cfg.black_level_dn;
@@ -676,7 +690,17 @@ impl Sensor {
                         if st.read && sigma_d > 0.0 {
                             n += sigma_d * noise::normal(&mut rr);
                         }
-                        let v = (kg * n + black) * scale;
+                        let v = if g_digital > 0.0 {
+                            let a = kg_analog * n;
+                            let a = if st.quantize {
+                                adc::quantize(a, 4095) as f64
+                            } else {
+                                a
+                            };
+                            (a * digital + black) * scale
+                        } else {
+                            (kg * n + black) * scale
+                        };
                         if let Some(a) = an.as_deref_mut() {
                             a[c] = v as f32;
                         }
