@@ -198,6 +198,21 @@ fn sun_in_view_and_max_gain() {
     }
 }
 
+/// The PSNS presets stay in range with the sun in view too (κ then follows the sun).
+#[test]
+fn psns_presets_with_sun() {
+    let (w, h) = (64, 64);
+    let mut scene = sky(w, h);
+    *scene.s0.get_mut(10, 10) = 1.6e4;
+    *scene.s0.get_mut(11, 11) = f32::NAN;
+    for p in [Preset::Nfpi, Preset::Gniipi, Preset::Gniicpi] {
+        let f = simulate(&scene, &intr(w, h), &SensorConfig::preset(p), 1, 0).unwrap();
+        assert_eq!(*f.codes.get(10, 10), 255);
+        assert!(f.codes.data.iter().all(|&v| v <= 255));
+        assert!(f.truth.s0.data.iter().all(|v| v.is_finite()));
+    }
+}
+
 /// Auto-exposure puts the 99th percentile of the noise-free electrons at 70 % of full well,
 /// quantised to the line time; limits set the clipped flag.
 #[test]

@@ -501,6 +501,11 @@ impl Sensor {
         &self.cfg
     }
 
+    /// The intrinsics (frame size, focal length, pitch).
+    pub fn intrinsics(&self) -> &Intrinsics {
+        &self.intrinsics
+    }
+
     /// The camera seed.
     pub fn seed(&self) -> u64 {
         self.seed
