@@ -1,4 +1,926 @@
-//! IMX250MZR sensor emulation (to be written).
+//! IMX250MZR sensor emulation: sensor-frame Stokes radiance at every pixel centre → raw mosaic
+//! codes plus noise-free ground truth (`sensor.md`).
+//!
+//! Pipeline of the camera model (`sensor.md` §6), each stage switchable in [`Stages`]:
+//!
+//! 1. optics ([`optics`]): relative illumination RI, lens and filter transmission, π/(4N²), pixel
+//!    area, band width, photon energy → photons/s per unit radiance;
+//! 2. polarizer ([`polarizer`]): partial polarizer with ER(λ_c) and a fixed-pattern orientation
+//!    error δ_k, evaluated at the pixel's own pass axis (no superpixel shortcut);
+//! 3. mean electrons μ_k = t · η · photons, times the PRNU gain g_k; optional 3 × 3 crosstalk;
+//! 4. dark current I_d(T)·t, shot noise Poisson(μ + I_d t) (exact), full-well clip, DSNU, read
+//!    noise N(0, σ_d²) ([`noise`]);
+//! 5. gain, black level, ADC ([`adc`]).
+//!
+//! The ground truth ([`RawFrame::truth`]) is the Stokes vector in output DN above the black level
+//! that an ideal pixel would see: same optics, RI, filter, T∥, QE, exposure and gain, but an ideal
+//! polarizer (ER = ∞, δ = 0), no PRNU and no noise, so that such a pixel at angle a reads
+//! (S0 + S1 cos 2a + S2 sin 2a)/2.
+//!
+//! The PSNS presets ([`presets`], `sensor.md` §9) bypass the camera model: I_k = κ · ½(S0 + S1 cos
+//! 2θ_k + S2 sin 2θ_k), optionally times RI, plus Gaussian noise and ellipse clouds.
+//!
+//! Randomness: fixed-pattern maps and temporal noise come from per-row ChaCha8 streams
+//! ([`noise`]), so frames do not depend on the number of rayon threads.
 
+pub mod adc;
+pub mod emva;
 pub mod mosaic;
+pub mod noise;
 pub mod packing;
+pub mod optics;
+pub mod polarizer;
+pub mod presets;
+
+use crate::camera::Intrinsics;
+use crate::error::{check_range, Error, Result};
+use crate::image::{Image, StokesImage};
+use mosaic::MosaicLayout;
+use optics::RelativeIllumination;
+use polarizer::ErTable;
+pub use presets::{Preset, PsnsModel};
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+
+/// Exposure control.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(tag = "mode", rename_all = "lowercase")]
+pub enum Exposure {
+    /// Fixed exposure time in µs, 20 µs..10 s.
+    Fixed {
+        /// Exposure time, µs.
+        us: f64,
+    },
+    /// t = fraction · FWC / P_percentile(μ̇) over sky pixels (S0 > 0), clamped to 20 µs..10 s and
+    /// quantised to the line time (`sensor.md` §5).
+    Auto {
+        /// Percentile p of the noise-free electron-rate image, (0, 100] (default 99).
+        percentile: f64,
+        /// Target fraction f of full well, (0, 1] (default 0.70).
+        fraction: f64,
+    },
+}
+
+impl Default for Exposure {
+    fn default() -> Self {
+        Exposure::Fixed { us: 1000.0 }
+    }
+}
+
+impl Exposure {
+    /// Auto-exposure with the spec defaults p = 99, f = 0.70.
+    pub fn auto() -> Self {
+        Exposure::Auto {
+            percentile: 99.0,
+            fraction: 0.70,
+        }
+    }
+}
+
+/// Stage switches of the electron-domain pipeline; `true` = stage active.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(default)]
+pub struct Stages {
+    /// Relative illumination (vignetting).
+    pub ri: bool,
+    /// Finite extinction ratio ER(λ_c); off = ideal polarizer.
+    pub polarizer_er: bool,
+    /// Fixed-pattern orientation error δ_k.
+    pub polarizer_orientation: bool,
+    /// PRNU gain map g_k.
+    pub prnu: bool,
+    /// 3 × 3 crosstalk (active only when `SensorConfig::crosstalk` > 0).
+    pub crosstalk: bool,
+    /// Dark current.
+    pub dark: bool,
+    /// Shot noise (Poisson).
+    pub shot: bool,
+    /// Full-well clip.
+    pub fwc_clip: bool,
+    /// DSNU offset map.
+    pub dsnu: bool,
+    /// Read noise.
+    pub read: bool,
+    /// ADC rounding and clipping; when off, [`RawFrame::analog`] holds the unrounded values.
+    pub quantize: bool,
+}
+
+impl Default for Stages {
+    fn default() -> Self {
+        Stages {
+            ri: true,
+            polarizer_er: true,
+            polarizer_orientation: true,
+            prnu: true,
+            crosstalk: true,
+            dark: true,
+            shot: true,
+            fwc_clip: true,
+            dsnu: true,
+            read: true,
+            quantize: true,
+        }
+    }
+}
+
+impl Stages {
+    /// Every stage off (the exact float model of `sensor.md` §6).
+    pub fn none() -> Self {
+        Stages {
+            ri: false,
+            polarizer_er: false,
+            polarizer_orientation: false,
+            prnu: false,
+            crosstalk: false,
+            dark: false,
+            shot: false,
+            fwc_clip: false,
+            dsnu: false,
+            read: false,
+            quantize: false,
+        }
+    }
+    /// Only the noise-free ideal model with RI and ADC: polarizer non-idealities, fixed patterns,
+    /// crosstalk, dark current and noise off; RI, full-well clip and quantisation on.
+    pub fn ideal() -> Self {
+        Stages {
+            ri: true,
+            fwc_clip: true,
+            quantize: true,
+            ..Self::none()
+        }
+    }
+}
+
+mod layout_serde {
+    use super::MosaicLayout;
+    use serde::{Deserialize, Deserializer, Serializer};
+    pub fn serialize<S: Serializer>(l: &MosaicLayout, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(&l.to_string())
+    }
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<MosaicLayout, D::Error> {
+        let s = String::deserialize(d)?;
+        s.parse().map_err(serde::de::Error::custom)
+    }
+}
+
+/// Every sensor parameter, defaults of `sensor.md` §7 (the `camera` preset).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct SensorConfig {
+    /// 2 × 2 polarizer layout (default `90,45/135,0`).
+    #[serde(with = "layout_serde")]
+    pub layout: MosaicLayout,
+    /// Lens f-number N, 1..16 (default 2).
+    pub f_number: f64,
+    /// Lens transmission τ_L, 0..1 (default 0.9).
+    pub lens_transmission: f64,
+    /// Relative illumination model (default cos^1.5).
+    pub ri: RelativeIllumination,
+    /// Band-pass centre λ_c in nm, 380..720 (default 450; should equal the sky wavelength).
+    pub filter_center_nm: f64,
+    /// Band-pass width Δλ in nm, 1..400 (default 40).
+    pub filter_width_nm: f64,
+    /// In-band filter transmission T_F, 0..1 (default 0.9).
+    pub filter_transmission: f64,
+    /// Quantum efficiency η(λ_c) of the bare (mono) pixel, 0..1 (default 0.60).
+    pub qe: f64,
+    /// Pass-axis transmission T∥ of the wire grid, 0..1 (default 0.8).
+    pub pass_transmission: f64,
+    /// Extinction ratio table (default `sensor.md` §4).
+    pub er_table: ErTable,
+    /// Standard deviation of the fixed orientation error δ_k, degrees, 0..2 (default 0.5).
+    pub orientation_sigma_deg: f64,
+    /// PRNU, relative standard deviation of g_k, 0..0.02 (default 0.005).
+    pub prnu: f64,
+    /// DSNU standard deviation in e⁻, 0..2 (default 0.5).
+    pub dsnu_e: f64,
+    /// Dark current at 25 °C, e⁻/s, 0..1e5 (default 5).
+    pub dark_current_e_per_s: f64,
+    /// Dark-current doubling temperature step, °C (default 7).
+    pub dark_doubling_c: f64,
+    /// Sensor temperature, °C, −40..85 (default 25).
+    pub temperature_c: f64,
+    /// Read (dark temporal) noise σ_d in e⁻, 0..50 (default 2.5).
+    pub read_noise_e: f64,
+    /// Full-well capacity in e⁻, 100..1e6 (default 10 500).
+    pub full_well_e: f64,
+    /// K₀: DN per e⁻ at 0 dB, 12 bit (default 4095/10 500).
+    pub k0: f64,
+    /// Analog gain in dB, 0..48 (default 0).
+    pub gain_db: f64,
+    /// Black level in 12-bit DN, 0..200 (default 0). The frame reports it in output DN.
+    pub black_level_dn: f64,
+    /// Output bit depth, 8, 10 or 12 (default 12).
+    pub bit_depth: u8,
+    /// Exposure (default fixed 1000 µs).
+    pub exposure: Exposure,
+    /// Crosstalk: fraction of a pixel's signal leaking to its 8 neighbours (c/6 to each edge
+    /// neighbour, c/12 to each corner), 0..0.03 (default 0 = off).
+    pub crosstalk: f64,
+    /// Option (`sensor.md` §6): gain above this many dB is applied digitally after a 12-bit ADC
+    /// (missing codes, as reported for LUCID cameras), e.g. `Some(24.0)`; `None` = all analog.
+    pub digital_gain_above_db: Option<f64>,
+    /// Stage switches.
+    pub stages: Stages,
+    /// PSNS dataset model (`sensor.md` §9) instead of the camera model; `None` for the camera.
+    pub psns: Option<PsnsModel>,
+}
+
+impl Default for SensorConfig {
+    fn default() -> Self {
+        SensorConfig {
+            layout: MosaicLayout::IMX250MZR,
+            f_number: 2.0,
+            lens_transmission: 0.9,
+            ri: RelativeIllumination::default(),
+            filter_center_nm: 450.0,
+            filter_width_nm: 40.0,
+            filter_transmission: 0.9,
+            qe: 0.60,
+            pass_transmission: 0.8,
+            er_table: ErTable::default(),
+            orientation_sigma_deg: 0.5,
+            prnu: 0.005,
+            dsnu_e: 0.5,
+            dark_current_e_per_s: 5.0,
+            dark_doubling_c: 7.0,
+            temperature_c: 25.0,
+            read_noise_e: 2.5,
+            full_well_e: 10_500.0,
+            k0: 4095.0 / 10_500.0,
+            gain_db: 0.0,
+            black_level_dn: 0.0,
+            bit_depth: 12,
+            exposure: Exposure::default(),
+            crosstalk: 0.0,
+            digital_gain_above_db: None,
+            stages: Stages::default(),
+            psns: None,
+        }
+    }
+}
+
+/// Shortest exposure, µs.
+pub const MIN_EXPOSURE_US: f64 = 20.0;
+/// Longest exposure, µs.
+pub const MAX_EXPOSURE_US: f64 = 10_000_000.0;
+
+impl SensorConfig {
+    /// The configuration of a preset.
+    pub fn preset(p: Preset) -> Self {
+        presets::config(p)
+    }
+
+    /// Checks every parameter and the frame size (multiples of 4, non-zero).
+    pub fn validate(&self, width: usize, height: usize) -> Result<()> {
+        check_size(width, height)?;
+        if ![8u8, 10, 12].contains(&self.bit_depth) {
+            return Err(Error::range(
+                "bit-depth",
+                self.bit_depth as f64,
+                "8, 10 or 12",
+            ));
+        }
+        check_range("gain-db", self.gain_db, 0.0, 48.0)?;
+        check_range("black-level", self.black_level_dn, 0.0, 200.0)?;
+        match self.exposure {
+            Exposure::Fixed { us } => {
+                check_range("exposure-us", us, MIN_EXPOSURE_US, MAX_EXPOSURE_US)?;
+            }
+            Exposure::Auto {
+                percentile,
+                fraction,
+            } => {
+                if !(percentile > 0.0 && percentile <= 100.0) {
+                    return Err(Error::range(
+                        "auto-exposure percentile",
+                        percentile,
+                        "(0, 100]",
+                    ));
+                }
+                if !(fraction > 0.0 && fraction <= 1.0) {
+                    return Err(Error::range("auto-exposure fraction", fraction, "(0, 1]"));
+                }
+            }
+        }
+        check_range("f-number", self.f_number, 1.0, 16.0)?;
+        check_range("lens-transmission", self.lens_transmission, 0.0, 1.0)?;
+        self.ri.validate()?;
+        check_range("filter-center-nm", self.filter_center_nm, 380.0, 720.0)?;
+        check_range("filter-width-nm", self.filter_width_nm, 1.0, 400.0)?;
+        check_range("filter-transmission", self.filter_transmission, 0.0, 1.0)?;
+        check_range("qe", self.qe, 0.0, 1.0)?;
+        check_range("pass-transmission", self.pass_transmission, 0.0, 1.0)?;
+        self.er_table.validate()?;
+        check_range(
+            "orientation-sigma-deg",
+            self.orientation_sigma_deg,
+            0.0,
+            2.0,
+        )?;
+        check_range("prnu", self.prnu, 0.0, 0.02)?;
+        check_range("dsnu-e", self.dsnu_e, 0.0, 2.0)?;
+        check_range("dark-current", self.dark_current_e_per_s, 0.0, 1e5)?;
+        check_range("dark-doubling-c", self.dark_doubling_c, 1.0, 100.0)?;
+        check_range("temperature-c", self.temperature_c, -40.0, 85.0)?;
+        check_range("read-noise-e", self.read_noise_e, 0.0, 50.0)?;
+        check_range("full-well-e", self.full_well_e, 100.0, 1e6)?;
+        check_range("k0", self.k0, 1e-4, 100.0)?;
+        check_range("crosstalk", self.crosstalk, 0.0, 0.03)?;
+        if let Some(g) = self.digital_gain_above_db {
+            check_range("digital-gain-above-db", g, 0.0, 48.0)?;
+        }
+        if let Some(p) = &self.psns {
+            p.validate()?;
+        }
+        Ok(())
+    }
+
+    /// Dark current at the configured temperature, e⁻/s: I_d(25 °C) · 2^((T − 25)/ΔT).
+    pub fn dark_current_at_temperature(&self) -> f64 {
+        self.dark_current_e_per_s * 2f64.powf((self.temperature_c - 25.0) / self.dark_doubling_c)
+    }
+
+    /// Readout line time in µs (6.25 at 8 bit, 8.333 at 10/12 bit; `sensor.md` §1).
+    pub fn line_time_us(&self) -> f64 {
+        if self.bit_depth == 8 {
+            6.25
+        } else {
+            25.0 / 3.0
+        }
+    }
+}
+
+/// Checks a frame/ROI size: non-zero multiples of 4.
+pub fn check_size(width: usize, height: usize) -> Result<()> {
+    for (name, v) in [("width", width), ("height", height)] {
+        if v == 0 || v % 4 != 0 {
+            return Err(Error::OutOfRange {
+                name: name.into(),
+                value: v.to_string(),
+                allowed: "a non-zero multiple of 4".into(),
+            });
+        }
+    }
+    Ok(())
+}
+
+/// One emulated raw frame with its ground truth.
+#[derive(Clone, Debug)]
+pub struct RawFrame {
+    /// Raw mosaic codes at `bit_depth` (LSB-aligned).
+    pub codes: Image<u16>,
+    /// Output bit depth.
+    pub bit_depth: u8,
+    /// Black level in output DN.
+    pub black_level_dn: f64,
+    /// Exposure used, µs.
+    pub exposure_us: f64,
+    /// Analog gain, dB.
+    pub gain_db: f64,
+    /// System gain in output DN per electron (0 for the PSNS presets).
+    pub dn_per_electron: f64,
+    /// Noise-free Stokes (S0, S1, S2) of an ideal pixel at every pixel's own position, output DN
+    /// above the black level.
+    pub truth: StokesImage,
+    /// Pixels at the maximum code per mosaic position (0,0), (0,1), (1,0), (1,1).
+    pub saturated: [u32; 4],
+    /// The exposure came from auto-exposure.
+    pub auto_exposed: bool,
+    /// Auto-exposure hit the 20 µs..10 s limits.
+    pub exposure_clipped: bool,
+    /// Unrounded, unclipped output values (output DN) when the `quantize` stage is off.
+    pub analog: Option<Image<f32>>,
+}
+
+impl RawFrame {
+    /// DoLP = |S_lin|/S0 (0 where S0 ≤ 0) and AoLP = ½ atan2(S2, S1) in degrees, [0, 180), of the
+    /// ground truth.
+    pub fn truth_dolp_aolp(&self) -> (Image<f32>, Image<f32>) {
+        let t = &self.truth;
+        let (w, h) = (t.width(), t.height());
+        let mut dolp = Image::new(w, h);
+        let mut aolp = Image::new(w, h);
+        for k in 0..w * h {
+            let (s0, s1, s2) = (
+                t.s0.data[k] as f64,
+                t.s1.data[k] as f64,
+                t.s2.data[k] as f64,
+            );
+            dolp.data[k] = if s0 > 0.0 {
+                (s1.hypot(s2) / s0) as f32
+            } else {
+                0.0
+            };
+            aolp.data[k] = crate::angle::SensorAngle::from_stokes(s1, s2).deg() as f32;
+        }
+        (dolp, aolp)
+    }
+}
+
+/// A prepared camera: configuration, intrinsics and the fixed-pattern maps of one camera seed.
+/// Build once, then render any number of frames with [`Sensor::frame`].
+#[derive(Clone, Debug)]
+pub struct Sensor {
+    cfg: SensorConfig,
+    intrinsics: Intrinsics,
+    seed: u64,
+    /// RI per pixel, `None` when off (= 1).
+    ri: Option<Vec<f32>>,
+    /// Per-pixel (cos 2θ_k, sin 2θ_k) with the orientation error; `None` = nominal angles.
+    axis: Option<Vec<[f32; 2]>>,
+    /// PRNU gain g_k; `None` = 1.
+    prnu: Option<Vec<f32>>,
+    /// DSNU offset in e⁻; `None` = 0.
+    dsnu: Option<Vec<f32>>,
+    /// Photons/s per unit radiance on an on-axis pixel before the polarizer.
+    photon_rate: f64,
+}
+
+impl Sensor {
+    /// Validates and builds the fixed-pattern maps of camera `seed`.
+    pub fn new(cfg: &SensorConfig, intrinsics: &Intrinsics, seed: u64) -> Result<Self> {
+        intrinsics.validate()?;
+        let (w, h) = (intrinsics.width, intrinsics.height);
+        cfg.validate(w, h)?;
+        let st = &cfg.stages;
+        let psns_ri = cfg.psns.as_ref().map(|p| p.relative_illumination);
+        let want_ri = match psns_ri {
+            Some(r) => r,
+            None => st.ri,
+        };
+        let ri = (want_ri && cfg.ri != RelativeIllumination::None).then(|| cfg.ri.map(intrinsics));
+        let camera = cfg.psns.is_none();
+        let axis =
+            (camera && st.polarizer_orientation && cfg.orientation_sigma_deg > 0.0).then(|| {
+                let delta = noise::gaussian_map(
+                    w,
+                    h,
+                    seed,
+                    noise::MAP_ORIENTATION,
+                    0.0,
+                    cfg.orientation_sigma_deg,
+                );
+                let mut out = vec![[0f32; 2]; w * h];
+                out.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
+                    for (c, v) in row.iter_mut().enumerate() {
+                        let th =
+                            (cfg.layout.angle_deg(r, c) + delta[r * w + c] as f64).to_radians();
+                        let (s, co) = (2.0 * th).sin_cos();
+                        *v = [co as f32, s as f32];
+                    }
+                });
+                out
+            });
+        let prnu = (camera && st.prnu && cfg.prnu > 0.0)
+            .then(|| noise::gaussian_map(w, h, seed, noise::MAP_PRNU, 1.0, cfg.prnu));
+        let dsnu = (camera && st.dsnu && cfg.dsnu_e > 0.0)
+            .then(|| noise::gaussian_map(w, h, seed, noise::MAP_DSNU, 0.0, cfg.dsnu_e));
+        let photon_rate = optics::photon_rate_per_radiance(
+            cfg.f_number,
+            cfg.lens_transmission,
+            cfg.filter_transmission,
+            cfg.filter_width_nm,
+            cfg.filter_center_nm,
+            intrinsics.pixel_pitch_um,
+        )?;
+        Ok(Sensor {
+            cfg: cfg.clone(),
+            intrinsics: *intrinsics,
+            seed,
+            ri,
+            axis,
+            prnu,
+            dsnu,
+            photon_rate,
+        })
+    }
+
+    /// The configuration.
+    pub fn config(&self) -> &SensorConfig {
+        &self.cfg
+    }
+
+    /// The intrinsics (frame size, focal length, pitch).
+    pub fn intrinsics(&self) -> &Intrinsics {
+        &self.intrinsics
+    }
+
+    /// The camera seed.
+    pub fn seed(&self) -> u64 {
+        self.seed
+    }
+
+    /// Photons/s per unit radiance on an on-axis pixel before the polarizer.
+    pub fn photon_rate_per_radiance(&self) -> f64 {
+        self.photon_rate
+    }
+
+    /// The PRNU gain map (row-major), if active.
+    pub fn prnu_map(&self) -> Option<&[f32]> {
+        self.prnu.as_deref()
+    }
+
+    /// The DSNU map in e⁻ (row-major), if active.
+    pub fn dsnu_map(&self) -> Option<&[f32]> {
+        self.dsnu.as_deref()
+    }
+
+    /// Per-pixel pass-axis angle θ_k in degrees, [0, 180), including the orientation error.
+    pub fn pass_axis_deg(&self, row: usize, col: usize) -> f64 {
+        match &self.axis {
+            Some(a) => {
+                let [c, s] = a[row * self.intrinsics.width + col];
+                crate::angle::SensorAngle::from_deg(0.5 * (s as f64).atan2(c as f64).to_degrees())
+                    .deg()
+            }
+            None => self.cfg.layout.angle_deg(row, col),
+        }
+    }
+
+    #[inline]
+    fn ri_at(&self, k: usize) -> f64 {
+        self.ri.as_ref().map_or(1.0, |m| m[k] as f64)
+    }
+
+    #[inline]
+    fn axis_at(&self, row: usize, col: usize) -> (f64, f64) {
+        match &self.axis {
+            Some(a) => {
+                let [c, s] = a[row * self.intrinsics.width + col];
+                (c as f64, s as f64)
+            }
+            None => nominal_axis(&self.cfg.layout, row, col),
+        }
+    }
+
+    fn check_input(&self, stokes: &StokesImage) -> Result<()> {
+        let (w, h) = (self.intrinsics.width, self.intrinsics.height);
+        for (n, im) in [("S0", &stokes.s0), ("S1", &stokes.s1), ("S2", &stokes.s2)] {
+            if im.width != w || im.height != h || im.data.len() != w * h {
+                return Err(Error::Invalid(format!(
+                    "{n} plane is {}x{}, the sensor is {w}x{h}",
+                    im.width, im.height
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// Noise-free electron rate (e⁻/s) of every pixel before crosstalk: η · photons · RI · g_k ·
+    /// partial-polarizer reading. Non-finite input counts as no light.
+    pub fn electron_rate(&self, stokes: &StokesImage) -> Result<Vec<f64>> {
+        self.check_input(stokes)?;
+        let cfg = &self.cfg;
+        let er = if cfg.stages.polarizer_er {
+            cfg.er_table.at(cfg.filter_center_nm)
+        } else {
+            f64::INFINITY
+        };
+        let (a, b) = polarizer::coefficients(cfg.pass_transmission, er);
+        let base = cfg.qe * self.photon_rate;
+        let w = self.intrinsics.width;
+        let mut out = vec![0f64; w * self.intrinsics.height];
+        out.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
+            for (c, v) in row.iter_mut().enumerate() {
+                let k = r * w + c;
+                let (s0, s1, s2) = finite3(stokes, k);
+                let (co, si) = self.axis_at(r, c);
+                let g = self.prnu.as_ref().map_or(1.0, |m| m[k] as f64);
+                *v = base * self.ri_at(k) * g * polarizer::reading(s0, s1, s2, co, si, a, b);
+            }
+        });
+        Ok(out)
+    }
+
+    /// Exposure for this scene: the fixed value, or auto-exposure (`sensor.md` §5).
+    /// Returns (µs, auto, clipped).
+    pub fn exposure_for(&self, stokes: &StokesImage, rate: &[f64]) -> (f64, bool, bool) {
+        match self.cfg.exposure {
+            Exposure::Fixed { us } => (us, false, false),
+            Exposure::Auto {
+                percentile,
+                fraction,
+            } => {
+                let mut sky: Vec<f64> = rate
+                    .iter()
+                    .zip(&stokes.s0.data)
+                    .filter(|(_, &s0)| s0 > 0.0 && s0.is_finite())
+                    .map(|(&r, _)| r)
+                    .collect();
+                let p = if sky.is_empty() {
+                    0.0
+                } else {
+                    let n = sky.len();
+                    let i = ((percentile / 100.0 * n as f64).ceil() as usize).clamp(1, n) - 1;
+                    *sky.select_nth_unstable_by(i, |x, y| x.total_cmp(y)).1
+                };
+                let wanted = if p > 0.0 {
+                    1e6 * fraction * self.cfg.full_well_e / p
+                } else {
+                    f64::INFINITY
+                };
+                let line = self.cfg.line_time_us();
+                let lo = (MIN_EXPOSURE_US / line).ceil();
+                let hi = (MAX_EXPOSURE_US / line).floor();
+                let n = (wanted / line).round();
+                let clipped = !(n >= lo && n <= hi);
+                (n.clamp(lo, hi) * line, true, clipped)
+            }
+        }
+    }
+
+    /// Renders frame `frame_index` of this camera.
+    pub fn frame(&self, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
+        self.check_input(stokes)?;
+        if self.cfg.psns.is_some() {
+            return presets::psns_frame(self, stokes, frame_index);
+        }
+        let cfg = &self.cfg;
+        let st = &cfg.stages;
+        let (w, h) = (self.intrinsics.width, self.intrinsics.height);
+        let mut rate = self.electron_rate(stokes)?;
+        let (t_us, auto, clipped) = self.exposure_for(stokes, &rate);
+        if st.crosstalk && cfg.crosstalk > 0.0 {
+            rate = crosstalk(&rate, w, h, cfg.crosstalk);
+        }
+        let t = t_us * 1e-6;
+        let dark_e = if st.dark {
+            cfg.dark_current_at_temperature() * t
+        } else {
+            0.0
+        };
+        let kg = adc::system_gain(cfg.k0, cfg.gain_db);
+        // analog part before the ADC and an optional digital part after a 12-bit ADC
+        let (g_analog, g_digital) = match cfg.digital_gain_above_db {
+            Some(th) if cfg.gain_db > th => (th, cfg.gain_db - th),
+            _ => (cfg.gain_db, 0.0),
+        };
+        let kg_analog = adc::system_gain(cfg.k0, g_analog);
+        let digital = 10f64.powf(g_digital / 20.0);
+        let scale = adc::output_scale(cfg.bit_depth);
+        let max = adc::max_code(cfg.bit_depth);
+        let black = cfg.black_level_dn;
+        let fwc = cfg.full_well_e;
+        let sigma_d = cfg.read_noise_e;
+        let mut codes = vec![0u16; w * h];
+        let mut analog = (!st.quantize).then(|| vec![0f32; w * h]);
+        let seed = self.seed;
+        let sat_rows: Vec<[u32; 4]> = {
+            let rows: Vec<(usize, &mut [u16])> = codes.chunks_mut(w).enumerate().collect();
+            let mut an_rows: Vec<Option<&mut [f32]>> = match analog.as_mut() {
+                Some(a) => a.chunks_mut(w).map(Some).collect(),
+                None => (0..h).map(|_| None).collect(),
+            };
+            rows.into_par_iter()
+                .zip(an_rows.par_iter_mut())
+                .map(|((r, row), an)| {
+                    let mut rs = noise::frame_rng(seed, frame_index, noise::STAGE_SHOT, r as u64);
+                    let mut rr = noise::frame_rng(seed, frame_index, noise::STAGE_READ, r as u64);
+                    let mut sat = [0u32; 4];
+                    for (c, code) in row.iter_mut().enumerate() {
+                        let k = r * w + c;
+                        let mean = rate[k] * t + dark_e;
+                        let mut n = if st.shot {
+                            noise::poisson(&mut rs, mean)
+                        } else {
+                            mean
+                        };
+                        if st.fwc_clip {
+                            n = n.min(fwc);
+                        }
+                        if let Some(d) = &self.dsnu {
+                            n += d[k] as f64;
+                        }
+                        if st.read && sigma_d > 0.0 {
+                            n += sigma_d * noise::normal(&mut rr);
+                        }
+                        let v = if g_digital > 0.0 {
+                            let a = kg_analog * n;
+                            let a = if st.quantize {
+                                adc::quantize(a, 4095) as f64
+                            } else {
+                                a
+                            };
+                            (a * digital + black) * scale
+                        } else {
+                            (kg * n + black) * scale
+                        };
+                        if let Some(a) = an.as_deref_mut() {
+                            a[c] = v as f32;
+                        }
+                        *code = adc::quantize(v, max);
+                        if *code == max {
+                            sat[((r & 1) << 1) | (c & 1)] += 1;
+                        }
+                    }
+                    sat
+                })
+                .collect()
+        };
+        let mut saturated = [0u32; 4];
+        for s in &sat_rows {
+            for i in 0..4 {
+                saturated[i] += s[i];
+            }
+        }
+        let truth_gain = scale * kg * t * cfg.qe * self.photon_rate * cfg.pass_transmission;
+        let truth = self.truth(stokes, truth_gain);
+        Ok(RawFrame {
+            codes: Image::from_vec(w, h, codes),
+            bit_depth: cfg.bit_depth,
+            black_level_dn: black * scale,
+            exposure_us: t_us,
+            gain_db: cfg.gain_db,
+            dn_per_electron: kg * scale,
+            truth,
+            saturated,
+            auto_exposed: auto,
+            exposure_clipped: clipped,
+            analog: analog.map(|a| Image::from_vec(w, h, a)),
+        })
+    }
+
+    /// Ground truth: `gain` · RI · S at every pixel (non-finite input → 0).
+    pub(crate) fn truth(&self, stokes: &StokesImage, gain: f64) -> StokesImage {
+        let (w, h) = (self.intrinsics.width, self.intrinsics.height);
+        let mut out = StokesImage::zeros(w, h);
+        let StokesImage { s0, s1, s2 } = &mut out;
+        s0.data
+            .par_chunks_mut(w)
+            .zip(s1.data.par_chunks_mut(w))
+            .zip(s2.data.par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(r, ((a, b), c))| {
+                for i in 0..w {
+                    let k = r * w + i;
+                    let (x0, x1, x2) = finite3(stokes, k);
+                    let g = gain * self.ri_at(k);
+                    a[i] = (g * x0) as f32;
+                    b[i] = (g * x1) as f32;
+                    c[i] = (g * x2) as f32;
+                }
+            });
+        out
+    }
+
+    /// The float image of the ideal model with no noise, no fixed patterns, an ideal polarizer and
+    /// no rounding or clipping: black + K₀10^(g/20)·μ_k in output DN, RI as configured, exposure as
+    /// configured (auto-exposure evaluated on the ideal model).
+    pub fn float_image(&self, stokes: &StokesImage) -> Result<Image<f32>> {
+        self.check_input(stokes)?;
+        let mut cfg = self.cfg.clone();
+        let ri = cfg.stages.ri;
+        cfg.stages = Stages {
+            ri,
+            ..Stages::none()
+        };
+        cfg.psns = None;
+        let ideal = Sensor::new(&cfg, &self.intrinsics, self.seed)?;
+        let rate = ideal.electron_rate(stokes)?;
+        let (t_us, _, _) = ideal.exposure_for(stokes, &rate);
+        let f = adc::system_gain(cfg.k0, cfg.gain_db) * adc::output_scale(cfg.bit_depth);
+        let b = cfg.black_level_dn * adc::output_scale(cfg.bit_depth);
+        let t = t_us * 1e-6;
+        let (w, h) = (self.intrinsics.width, self.intrinsics.height);
+        Ok(Image::from_vec(
+            w,
+            h,
+            rate.iter().map(|&r| (b + f * r * t) as f32).collect(),
+        ))
+    }
+}
+
+#[inline]
+fn finite3(s: &StokesImage, k: usize) -> (f64, f64, f64) {
+    let f = |v: f32| if v.is_finite() { v as f64 } else { 0.0 };
+    (f(s.s0.data[k]), f(s.s1.data[k]), f(s.s2.data[k]))
+}
+
+/// (cos 2θ, sin 2θ) of the nominal pass axis; exact for the four layout angles.
+#[inline]
+pub(crate) fn nominal_axis(layout: &MosaicLayout, row: usize, col: usize) -> (f64, f64) {
+    match layout.channel(row, col) {
+        0 => (1.0, 0.0),
+        1 => (0.0, 1.0),
+        2 => (-1.0, 0.0),
+        _ => (0.0, -1.0),
+    }
+}
+
+/// 3 × 3 crosstalk of a row-major image: each pixel keeps 1 − c and gives c/6 to each edge and
+/// c/12 to each corner neighbour; mirrored at the borders.
+pub fn crosstalk(img: &[f64], w: usize, h: usize, c: f64) -> Vec<f64> {
+    let mut out = vec![0f64; w * h];
+    let idx = |i: isize, n: usize| -> usize {
+        let n = n as isize;
+        (if i < 0 {
+            -i
+        } else if i >= n {
+            2 * n - 2 - i
+        } else {
+            i
+        })
+        .clamp(0, n - 1) as usize
+    };
+    out.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
+        for (col, v) in row.iter_mut().enumerate() {
+            let mut edge = 0.0;
+            let mut corner = 0.0;
+            for dr in -1isize..=1 {
+                for dc in -1isize..=1 {
+                    if dr == 0 && dc == 0 {
+                        continue;
+                    }
+                    let rr = idx(r as isize + dr, h);
+                    let cc = idx(col as isize + dc, w);
+                    let x = img[rr * w + cc];
+                    if dr == 0 || dc == 0 {
+                        edge += x;
+                    } else {
+                        corner += x;
+                    }
+                }
+            }
+            *v = (1.0 - c) * img[r * w + col] + c / 6.0 * edge + c / 12.0 * corner;
+        }
+    });
+    out
+}
+
+/// Renders one frame: builds the camera of `seed` and renders frame `frame_index`. For a stream
+/// build a [`Sensor`] once instead (the fixed-pattern maps are then made only once).
+pub fn simulate(
+    stokes_radiance: &StokesImage,
+    intrinsics: &Intrinsics,
+    cfg: &SensorConfig,
+    seed: u64,
+    frame_index: u64,
+) -> Result<RawFrame> {
+    Sensor::new(cfg, intrinsics, seed)?.frame(stokes_radiance, frame_index)
+}
+
+/// The float image of the ideal model (see [`Sensor::float_image`]).
+pub fn simulate_float(
+    stokes_radiance: &StokesImage,
+    intrinsics: &Intrinsics,
+    cfg: &SensorConfig,
+) -> Result<Image<f32>> {
+    let mut c = cfg.clone();
+    c.psns = None;
+    Sensor::new(&c, intrinsics, 0)?.float_image(stokes_radiance)
+}
+
+/// Uniform flat-field scene (EMVA 1288): radiance S0 = `radiance` (W m⁻² sr⁻¹ nm⁻¹), degree
+/// `dolp` in [0, 1] and angle `aolp_deg` (sensor frame) of linear polarization everywhere.
+pub fn flat_field(
+    width: usize,
+    height: usize,
+    radiance: f64,
+    dolp: f64,
+    aolp_deg: f64,
+) -> Result<StokesImage> {
+    check_range("flat-radiance", radiance, 0.0, 1e6)?;
+    check_range("flat-dolp", dolp, 0.0, 1.0)?;
+    check_range("flat-aolp", aolp_deg, -360.0, 360.0)?;
+    let a = 2.0 * aolp_deg.to_radians();
+    let (s1, s2) = (radiance * dolp * a.cos(), radiance * dolp * a.sin());
+    let mk = |v: f64| Image::from_vec(width, height, vec![v as f32; width * height]);
+    Ok(StokesImage {
+        s0: mk(radiance),
+        s1: mk(s1),
+        s2: mk(s2),
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn config_serde_round_trip() {
+        for p in Preset::ALL {
+            let c = SensorConfig::preset(p);
+            let j = serde_json::to_string(&c).unwrap();
+            assert_eq!(serde_json::from_str::<SensorConfig>(&j).unwrap(), c);
+            let t = toml::to_string(&c).unwrap();
+            assert_eq!(toml::from_str::<SensorConfig>(&t).unwrap(), c);
+        }
+        let c: SensorConfig =
+            toml::from_str("gain_db = 6.0\nlayout = \"0,45/135,90\"\n[exposure]\nmode = \"auto\"\npercentile = 95.0\nfraction = 0.5\n")
+                .unwrap();
+        assert_eq!(c.gain_db, 6.0);
+        assert_eq!(c.layout.angle_deg(0, 0), 0.0);
+        assert!(matches!(c.exposure, Exposure::Auto { .. }));
+        assert!(toml::from_str::<SensorConfig>("gain = 6.0").is_err());
+    }
+
+    #[test]
+    fn sizes() {
+        assert!(check_size(2448, 2048).is_ok());
+        assert!(check_size(8, 4).is_ok());
+        assert!(check_size(6, 4).is_err());
+        assert!(check_size(0, 4).is_err());
+    }
+}

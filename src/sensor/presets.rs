@@ -1,0 +1,235 @@
+//! Presets: the realistic IMX250MZR camera and the PSNS dataset variants (`sensor.md` §9).
+//!
+//! PSNS (Liang & Bai) eq. (24): I_k = κ · ½ LI [1 + DOP cos 2(AOP_s − θ_k)]
+//! = κ · ½ (S0 + S1 cos 2θ_k + S2 sin 2θ_k), rounded and clipped to the output depth. κ is fixed
+//! if configured, otherwise per frame κ = (2^bits − 1) / max over the frame of ½ (S0 + |S_lin|),
+//! so the brightest sample reads full scale.
+//!
+//! * `nfpi`: ideal, 8 bit, no optics and no noise;
+//! * `gniipi`: plus relative-illumination falloff (the configured RI model, default cos^1.5 of the
+//!   field angle) and additive Gaussian white noise σ = 2 % of full scale;
+//! * `gniicpi`: plus 3–8 filled ellipses set to full scale, applied last (ground truth there:
+//!   unpolarized with S0 = 2 × full scale, consistent with every channel reading full scale).
+
+use super::{adc, noise, nominal_axis, RawFrame, Sensor, SensorConfig, Stages};
+use crate::error::{check_range, Error, Result};
+use crate::image::{Image, StokesImage};
+use crate::sky::clouds;
+use rayon::prelude::*;
+use serde::{Deserialize, Serialize};
+use std::fmt;
+use std::str::FromStr;
+
+/// Named sensor presets.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Preset {
+    /// Realistic IMX250MZR (`sensor.md` §7 defaults).
+    #[default]
+    Camera,
+    /// PSNS: no noise, ideal, 8 bit.
+    Nfpi,
+    /// PSNS: Gaussian noise + insufficient illumination toward the edge.
+    Gniipi,
+    /// PSNS: as `gniipi` plus clouds.
+    Gniicpi,
+}
+
+impl Preset {
+    /// All presets.
+    pub const ALL: [Preset; 4] = [
+        Preset::Camera,
+        Preset::Nfpi,
+        Preset::Gniipi,
+        Preset::Gniicpi,
+    ];
+}
+
+impl fmt::Display for Preset {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            Preset::Camera => "camera",
+            Preset::Nfpi => "nfpi",
+            Preset::Gniipi => "gniipi",
+            Preset::Gniicpi => "gniicpi",
+        })
+    }
+}
+
+impl FromStr for Preset {
+    type Err = Error;
+    /// Parses `camera`, `nfpi`, `gniipi`, `gniicpi` (case-insensitive).
+    fn from_str(s: &str) -> Result<Self> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "camera" => Ok(Preset::Camera),
+            "nfpi" => Ok(Preset::Nfpi),
+            "gniipi" => Ok(Preset::Gniipi),
+            "gniicpi" => Ok(Preset::Gniicpi),
+            _ => Err(Error::OutOfRange {
+                name: "preset".into(),
+                value: s.to_string(),
+                allowed: "camera, nfpi, gniipi, gniicpi".into(),
+            }),
+        }
+    }
+}
+
+/// The PSNS dataset model (replaces the camera model when set).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(default, deny_unknown_fields)]
+pub struct PsnsModel {
+    /// Fixed κ (DN per radiance unit); `None` = per frame, brightest sample at full scale.
+    pub kappa: Option<f64>,
+    /// Multiply by the relative illumination ("insufficient illumination at the edge").
+    pub relative_illumination: bool,
+    /// Gaussian white noise σ as a fraction of full scale (0.02 for gniipi), 0..1.
+    pub noise_fraction: f64,
+    /// Ellipse clouds set to full scale.
+    pub clouds: bool,
+}
+
+impl Default for PsnsModel {
+    fn default() -> Self {
+        PsnsModel {
+            kappa: None,
+            relative_illumination: false,
+            noise_fraction: 0.0,
+            clouds: false,
+        }
+    }
+}
+
+impl PsnsModel {
+    /// Checks κ and the noise fraction.
+    pub fn validate(&self) -> Result<()> {
+        if let Some(k) = self.kappa {
+            check_range("kappa", k, 0.0, 1e12)?;
+        }
+        check_range("noise-fraction", self.noise_fraction, 0.0, 1.0)?;
+        Ok(())
+    }
+}
+
+/// The configuration of preset `p`.
+pub fn config(p: Preset) -> SensorConfig {
+    let psns = |ri: bool, noise: f64, clouds: bool| SensorConfig {
+        bit_depth: 8,
+        stages: Stages {
+            ri,
+            ..Stages::none()
+        },
+        psns: Some(PsnsModel {
+            kappa: None,
+            relative_illumination: ri,
+            noise_fraction: noise,
+            clouds,
+        }),
+        ..SensorConfig::default()
+    };
+    match p {
+        Preset::Camera => SensorConfig::default(),
+        Preset::Nfpi => psns(false, 0.0, false),
+        Preset::Gniipi => psns(true, 0.02, false),
+        Preset::Gniicpi => psns(true, 0.02, true),
+    }
+}
+
+/// Per-frame κ: full / max ½(S0 + |S_lin|) over finite pixels (1 if the frame is dark).
+pub fn auto_kappa(stokes: &StokesImage, full: f64) -> f64 {
+    let m = stokes
+        .s0
+        .data
+        .par_iter()
+        .zip(stokes.s1.data.par_iter())
+        .zip(stokes.s2.data.par_iter())
+        .map(|((&a, &b), &c)| {
+            let v = 0.5 * (a as f64 + (b as f64).hypot(c as f64));
+            if v.is_finite() {
+                v
+            } else {
+                0.0
+            }
+        })
+        .reduce(|| 0.0, f64::max);
+    if m > 0.0 {
+        full / m
+    } else {
+        1.0
+    }
+}
+
+/// Renders a PSNS-model frame (called by [`Sensor::frame`] when `cfg.psns` is set).
+pub(crate) fn psns_frame(s: &Sensor, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
+    let cfg = &s.cfg;
+    let p = cfg.psns.as_ref().expect("psns model");
+    let (w, h) = (s.intrinsics.width, s.intrinsics.height);
+    let max = adc::max_code(cfg.bit_depth);
+    let full = max as f64;
+    let kappa = p.kappa.unwrap_or_else(|| auto_kappa(stokes, full));
+    let sigma = p.noise_fraction * full;
+    let mut codes = vec![0u16; w * h];
+    codes.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
+        let mut rng = noise::frame_rng(s.seed, frame_index, noise::STAGE_PSNS_NOISE, r as u64);
+        for (c, code) in row.iter_mut().enumerate() {
+            let k = r * w + c;
+            let (s0, s1, s2) = super::finite3(stokes, k);
+            let (co, si) = nominal_axis(&cfg.layout, r, c);
+            let mut v = kappa * s.ri_at(k) * 0.5 * (s0 + s1 * co + s2 * si);
+            if sigma > 0.0 {
+                v += sigma * noise::normal(&mut rng);
+            }
+            *code = adc::quantize(v, max);
+        }
+    });
+    let mut truth = s.truth(stokes, kappa);
+    if p.clouds {
+        let mut rng = noise::frame_rng(s.seed, frame_index, noise::STAGE_PSNS_CLOUDS, 0);
+        let ellipses = clouds::psns_ellipses(w, h, &mut rng);
+        let mask = clouds::ellipse_mask(w, h, &ellipses);
+        for (k, &m) in mask.iter().enumerate() {
+            if m {
+                codes[k] = max;
+                truth.s0.data[k] = (2.0 * full) as f32;
+                truth.s1.data[k] = 0.0;
+                truth.s2.data[k] = 0.0;
+            }
+        }
+    }
+    let mut saturated = [0u32; 4];
+    for (k, &v) in codes.iter().enumerate() {
+        if v == max {
+            saturated[(((k / w) & 1) << 1) | ((k % w) & 1)] += 1;
+        }
+    }
+    Ok(RawFrame {
+        codes: Image::from_vec(w, h, codes),
+        bit_depth: cfg.bit_depth,
+        black_level_dn: 0.0,
+        exposure_us: match cfg.exposure {
+            super::Exposure::Fixed { us } => us,
+            super::Exposure::Auto { .. } => 0.0,
+        },
+        gain_db: 0.0,
+        dn_per_electron: 0.0,
+        truth,
+        saturated,
+        auto_exposed: false,
+        exposure_clipped: false,
+        analog: None,
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn names_round_trip() {
+        for p in Preset::ALL {
+            assert_eq!(p.to_string().parse::<Preset>().unwrap(), p);
+        }
+        let e = "fancy".parse::<Preset>().unwrap_err();
+        assert!(e.to_string().contains("fancy") && e.to_string().contains("gniicpi"));
+        assert!(e.is_usage());
+    }
+}

@@ -1,0 +1,168 @@
+//! PSNS presets (nfpi, gniipi, gniicpi) of the sensor emulator.
+
+use psns::camera::Intrinsics;
+use psns::image::StokesImage;
+use psns::sensor::{simulate, Preset, SensorConfig};
+
+fn intr(w: usize, h: usize) -> Intrinsics {
+    Intrinsics {
+        width: w,
+        height: h,
+        ..Default::default()
+    }
+}
+
+fn sky(w: usize, h: usize) -> StokesImage {
+    let mut s = StokesImage::zeros(w, h);
+    for r in 0..h {
+        for c in 0..w {
+            let (x, y) = (c as f64 / w as f64, r as f64 / h as f64);
+            let s0 = 0.08 + 0.1 * x * y;
+            let p = 0.2 + 0.5 * y;
+            let a = (10.0 + 160.0 * x).to_radians();
+            *s.s0.get_mut(r, c) = s0 as f32;
+            *s.s1.get_mut(r, c) = (s0 * p * (2.0 * a).cos()) as f32;
+            *s.s2.get_mut(r, c) = (s0 * p * (2.0 * a).sin()) as f32;
+        }
+    }
+    s
+}
+
+/// PSNS eq. (24) reading of pixel (r, c) for κ.
+fn psns_reading(s: &StokesImage, r: usize, c: usize, kappa: f64) -> f64 {
+    let a = psns::sensor::mosaic::MosaicLayout::IMX250MZR
+        .angle_deg(r, c)
+        .to_radians();
+    let (s0, s1, s2) = (
+        *s.s0.get(r, c) as f64,
+        *s.s1.get(r, c) as f64,
+        *s.s2.get(r, c) as f64,
+    );
+    // ½ LI [1 + DOP cos 2(AOP − θ)]
+    let dop = s1.hypot(s2) / s0;
+    let aop = 0.5 * s2.atan2(s1);
+    kappa * 0.5 * s0 * (1.0 + dop * (2.0 * (aop - a)).cos())
+}
+
+fn kappa(s: &StokesImage, full: f64) -> f64 {
+    let m = (0..s.s0.data.len())
+        .map(|k| 0.5 * (s.s0.data[k] as f64 + (s.s1.data[k] as f64).hypot(s.s2.data[k] as f64)))
+        .fold(0.0, f64::max);
+    full / m
+}
+
+#[test]
+fn nfpi_is_eq24_rounded_and_brightest_is_full_scale() {
+    let (w, h) = (64, 64);
+    let scene = sky(w, h);
+    for bits in [8u8, 12] {
+        let mut cfg = SensorConfig::preset(Preset::Nfpi);
+        assert_eq!(cfg.bit_depth, 8);
+        cfg.bit_depth = bits; // --bit-depth override
+        let full = ((1u32 << bits) - 1) as f64;
+        let k = kappa(&scene, full);
+        let f = simulate(&scene, &intr(w, h), &cfg, 9, 0).unwrap();
+        assert_eq!(f.bit_depth, bits);
+        let mut top = 0u16;
+        for r in 0..h {
+            for c in 0..w {
+                let want = psns_reading(&scene, r, c, k);
+                let code = *f.codes.get(r, c);
+                assert!(
+                    (code as f64 - want).abs() <= 0.5 + 1e-6,
+                    "{bits}: {code} vs {want}"
+                );
+                top = top.max(code);
+                // truth: κ·S
+                let t0 = *f.truth.s0.get(r, c) as f64;
+                assert!((t0 / (k * *scene.s0.get(r, c) as f64) - 1.0).abs() < 1e-5);
+            }
+        }
+        // κ uses max ½(S0 + |S_lin|), which a pixel reaches only when its axis meets the AoLP
+        assert!(top as f64 <= full && top as f64 > 0.95 * full, "{top}");
+        let flat = psns::sensor::flat_field(w, h, 0.3, 0.4, 45.0).unwrap();
+        let g = simulate(&flat, &intr(w, h), &cfg, 9, 0).unwrap();
+        assert_eq!(*g.codes.get(0, 1) as f64, full, "45° pixel at full scale");
+        let low = (full * 0.6 / 1.4).round();
+        assert_eq!(*g.codes.get(1, 0) as f64, low, "135° pixel");
+    }
+}
+
+#[test]
+fn gniipi_noise_and_falloff() {
+    let (w, h) = (256, 256);
+    let scene = sky(w, h);
+    let cfg = SensorConfig::preset(Preset::Gniipi);
+    let f = simulate(&scene, &intr(w, h), &cfg, 4, 0).unwrap();
+    let k = kappa(&scene, 255.0);
+    // falloff: truth = κ · RI · S with the configured RI (cos^1.5 of the field angle)
+    let i = intr(w, h);
+    let mut res = Vec::new();
+    for r in 0..h {
+        for c in 0..w {
+            let ri = cfg.ri.factor(&i, c as f64, r as f64);
+            let t0 = *f.truth.s0.get(r, c) as f64;
+            assert!((t0 / (k * ri * *scene.s0.get(r, c) as f64) - 1.0).abs() < 1e-5);
+            let want = ri * psns_reading(&scene, r, c, k);
+            if want > 30.0 && want < 225.0 {
+                res.push(*f.codes.get(r, c) as f64 - want);
+            }
+        }
+    }
+    assert!(res.len() > 30_000);
+    let n = res.len() as f64;
+    let m = res.iter().sum::<f64>() / n;
+    let sd = (res.iter().map(|x| (x - m) * (x - m)).sum::<f64>() / n).sqrt();
+    // σ = 2 % of 255 = 5.1 DN, plus rounding (1/12 DN²)
+    let want = (5.1f64 * 5.1 + 1.0 / 12.0).sqrt();
+    assert!((sd / want - 1.0).abs() < 0.03, "noise sd {sd}");
+    assert!(m.abs() < 0.1, "noise mean {m}");
+    // different frames, different noise; same frame, same bytes
+    let g = simulate(&scene, &intr(w, h), &cfg, 4, 1).unwrap();
+    assert_ne!(f.codes, g.codes);
+    assert_eq!(
+        f.codes,
+        simulate(&scene, &intr(w, h), &cfg, 4, 0).unwrap().codes
+    );
+}
+
+#[test]
+fn gniicpi_clouds_are_full_scale_ellipses() {
+    let (w, h) = (256, 192);
+    let scene = sky(w, h);
+    let base = simulate(
+        &scene,
+        &intr(w, h),
+        &SensorConfig::preset(Preset::Gniipi),
+        4,
+        0,
+    )
+    .unwrap();
+    let f = simulate(
+        &scene,
+        &intr(w, h),
+        &SensorConfig::preset(Preset::Gniicpi),
+        4,
+        0,
+    )
+    .unwrap();
+    let mut cloud = 0usize;
+    for k in 0..w * h {
+        if f.codes.data[k] != base.codes.data[k] {
+            // only cloud pixels change, and they read full scale with unpolarized truth
+            assert_eq!(f.codes.data[k], 255);
+            assert_eq!(f.truth.s0.data[k], 510.0);
+            assert_eq!(f.truth.s1.data[k], 0.0);
+            cloud += 1;
+        }
+    }
+    let full = f.codes.data.iter().filter(|&&v| v == 255).count();
+    // 3..8 ellipses with semi-axes ≥ 5 % of the width cover at least π·12.8² px (clipped by
+    // the frame edge at worst to a quarter)
+    assert!(
+        full as f64 > 0.25 * std::f64::consts::PI * 12.8 * 12.8,
+        "{full}"
+    );
+    assert!(cloud > 0);
+    assert_eq!(f.saturated.iter().sum::<u32>() as usize, full);
+}
