@@ -258,3 +258,225 @@ pub fn extract_to_dir(input: &Path, frame: u64, dir: &Path) -> Result<Vec<String
     files.push(json.display().to_string());
     Ok(files)
 }
+
+/// One row of the sky grid benchmark.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GridBenchRow {
+    /// Grid step in pixels (1 = exact).
+    pub step: usize,
+    /// Median wall time per full Stokes render, ms.
+    pub ms_per_frame: f64,
+    /// Max |ΔS0|/S0 over sky pixels.
+    pub max_rel_s0: f64,
+    /// Max |ΔDOP|.
+    pub max_dop: f64,
+    /// Max AOP error, degrees, over pixels with DOP > 0.02.
+    pub max_aop_deg: f64,
+    /// 99th percentile AOP error, degrees, same pixels.
+    pub p99_aop_deg: f64,
+}
+
+/// Error of an approximate Stokes render against the exact one.
+pub fn stokes_errors(
+    exact: &crate::image::StokesImage,
+    approx: &crate::image::StokesImage,
+) -> (f64, f64, f64, f64) {
+    let (mut rel, mut dop, mut aop) = (0.0f64, 0.0f64, Vec::new());
+    for i in 0..exact.s0.data.len() {
+        let (a0, a1, a2) = (
+            exact.s0.data[i] as f64,
+            exact.s1.data[i] as f64,
+            exact.s2.data[i] as f64,
+        );
+        let (b0, b1, b2) = (
+            approx.s0.data[i] as f64,
+            approx.s1.data[i] as f64,
+            approx.s2.data[i] as f64,
+        );
+        if a0 <= 0.0 {
+            continue;
+        }
+        rel = rel.max((b0 - a0).abs() / a0);
+        let (pa, pb) = (
+            a1.hypot(a2) / a0,
+            if b0 > 0.0 { b1.hypot(b2) / b0 } else { 0.0 },
+        );
+        dop = dop.max((pa - pb).abs());
+        if pa > 0.02 {
+            let da = crate::angle::SensorAngle::from_stokes(a1, a2)
+                .diff(crate::angle::SensorAngle::from_stokes(b1, b2));
+            aop.push(da);
+        }
+    }
+    aop.sort_by(|a, b| a.total_cmp(b));
+    let max = aop.last().copied().unwrap_or(0.0);
+    let p99 = aop
+        .get(((aop.len() as f64 - 1.0) * 0.99) as usize)
+        .copied()
+        .unwrap_or(0.0);
+    (rel, dop, max, p99)
+}
+
+/// `psns bench sky`: exact vs coarse-grid Stokes rendering of a scene, time and accuracy.
+pub fn bench_sky_grid(
+    cfg: &SceneConfig,
+    steps: &[usize],
+    runs: usize,
+) -> Result<Vec<GridBenchRow>> {
+    let (sky, cam) = cfg.build()?;
+    let opts = render::StokesOptions { sun_disc: false };
+    let (exact, _) = render::render_stokes(&sky, &cam, opts);
+    let mut rows = Vec::new();
+    for &step in steps {
+        let mut times = Vec::new();
+        let mut last = None;
+        for _ in 0..runs.max(1) {
+            let t0 = Instant::now();
+            let (st, _) = render::render_stokes_grid(&sky, &cam, opts, step);
+            times.push(t0.elapsed().as_secs_f64() * 1e3);
+            last = Some(st);
+        }
+        times.sort_by(|a, b| a.total_cmp(b));
+        let (max_rel_s0, max_dop, max_aop_deg, p99_aop_deg) = stokes_errors(&exact, &last.unwrap());
+        rows.push(GridBenchRow {
+            step,
+            ms_per_frame: times[times.len() / 2],
+            max_rel_s0,
+            max_dop,
+            max_aop_deg,
+            p99_aop_deg,
+        });
+    }
+    Ok(rows)
+}
+
+/// What `render --raw` measured.
+#[derive(Clone, Debug)]
+pub struct RawSummary {
+    /// Seconds for the scene (sky Stokes) of the frame.
+    pub scene_s: f64,
+    /// Seconds for the sensor emulation of the frame.
+    pub sensor_s: f64,
+    /// Seconds to build the camera (fixed-pattern maps; once per camera).
+    pub setup_s: f64,
+    /// Files written.
+    pub files: Vec<String>,
+}
+
+/// `psns render --raw`: the raw frame, its ground truth and (for a sky scene) the ideal images.
+pub fn render_raw_to_dir(cfg: &SceneConfig, dir: &Path) -> Result<RawSummary> {
+    use crate::config::SceneKind;
+    use crate::pipeline::RawPipeline;
+    let t0 = Instant::now();
+    let pipe = RawPipeline::new(cfg)?; // validates everything before anything is written
+    let setup_s = t0.elapsed().as_secs_f64();
+    if cfg.raw.scene == SceneKind::Sky {
+        cfg.build()?;
+    }
+    let sun = cfg.sun.resolve()?;
+    let t1 = Instant::now();
+    let (stokes, info) = pipe.stokes(sun, &cfg.camera.attitude)?;
+    if cfg.raw.scene == SceneKind::Sky && !info.sky_valid {
+        crate::error::check_range("sun-zenith", sun.zenith_deg, 0.0, 90.0)?;
+    }
+    let scene_s = t1.elapsed().as_secs_f64();
+    let t2 = Instant::now();
+    let frame = pipe.frame(&stokes, cfg.raw.frame_index)?;
+    let sensor_s = t2.elapsed().as_secs_f64();
+    let mut files = if cfg.raw.scene == SceneKind::Sky {
+        render_ideal_to_dir(cfg, dir)?.files
+    } else {
+        create_dir(dir)?;
+        Vec::new()
+    };
+    let mut put = |name: &str| {
+        files.push(name.to_string());
+        dir.join(name)
+    };
+    let codes = &frame.codes;
+    if frame.bit_depth <= 8 {
+        let g = Image::from_vec(
+            codes.width,
+            codes.height,
+            codes.data.iter().map(|&v| v as u8).collect(),
+        );
+        io::write_png_gray8(&put("raw.png"), &g)?;
+    } else {
+        io::write_png_gray16(&put("raw.png"), codes)?;
+    }
+    io::write_tiff_u16(&put("raw.tiff"), codes)?;
+    let mut packed = Vec::new();
+    crate::sensor::packing::pack(
+        &codes.data,
+        frame.bit_depth,
+        cfg.raw.pixel_format,
+        false,
+        &mut packed,
+    )?;
+    io::write_atomic(&put("raw.bin"), |w| {
+        w.write_all(&packed)
+            .map_err(|e| Error::io("writing raw.bin", e))
+    })?;
+    let full = ((1u32 << frame.bit_depth) - 1) as f64;
+    let view = Image::from_vec(
+        codes.width,
+        codes.height,
+        codes
+            .data
+            .iter()
+            .map(|&v| (v as f64 / full * 255.0).round() as u8)
+            .collect(),
+    );
+    io::write_png_gray8(&put("raw_view.png"), &view)?;
+    io::write_npy(&put("truth_s0.npy"), &frame.truth.s0)?;
+    io::write_npy(&put("truth_s1.npy"), &frame.truth.s1)?;
+    io::write_npy(&put("truth_s2.npy"), &frame.truth.s2)?;
+    let (dolp, aolp) = frame.truth_dolp_aolp();
+    io::write_npy(&put("truth_dolp.npy"), &dolp)?;
+    io::write_npy(&put("truth_aolp.npy"), &aolp)?;
+    // scene.json: the whole configuration plus what this frame measured
+    let mut out = cfg.clone();
+    out.raw.sensor = Some(pipe.sensor_config().clone());
+    let mut derived = Derived {
+        sun: info.sun,
+        ..Default::default()
+    };
+    let x = &mut derived.extra;
+    let layout = pipe.sensor_config().layout;
+    let sat: serde_json::Map<String, serde_json::Value> = (0..4)
+        .map(|k| {
+            let (r, c) = (k / 2, k % 2);
+            (
+                format!("({r},{c}) {}deg", layout.angle_deg(r, c)),
+                frame.saturated[k].into(),
+            )
+        })
+        .collect();
+    x.insert("saturated_pixels".into(), sat.into());
+    x.insert("exposure_us".into(), frame.exposure_us.into());
+    x.insert("auto_exposed".into(), frame.auto_exposed.into());
+    x.insert("exposure_clipped".into(), frame.exposure_clipped.into());
+    x.insert("gain_db".into(), frame.gain_db.into());
+    x.insert("bit_depth".into(), frame.bit_depth.into());
+    x.insert("black_level_dn".into(), frame.black_level_dn.into());
+    x.insert("dn_per_electron".into(), frame.dn_per_electron.into());
+    x.insert("sun_disc_pixels".into(), info.sun_pixels.into());
+    x.insert("ground_pixels".into(), info.ground_pixels.into());
+    x.insert("scene_seconds".into(), scene_s.into());
+    x.insert("sensor_seconds".into(), sensor_s.into());
+    out.derived = Some(derived);
+    let json = out.to_json();
+    io::write_atomic(&dir.join("scene.json"), |w| {
+        w.write_all(json.as_bytes())
+            .map_err(|e| Error::io("writing scene.json", e))
+    })?;
+    if !files.iter().any(|f| f == "scene.json") {
+        files.push("scene.json".into());
+    }
+    Ok(RawSummary {
+        scene_s,
+        sensor_s,
+        setup_s,
+        files,
+    })
+}

@@ -7,6 +7,9 @@
 
 use crate::camera::{Attitude, Camera, Intrinsics};
 use crate::error::{check_range, Error, Result};
+use crate::sensor::packing::PixelFormat;
+use crate::sensor::{Preset, SensorConfig};
+use crate::sky::clouds::SoftClouds;
 use crate::sky::{Sky, SkyParams};
 use crate::sun::{self, Place, Refraction, SunPosition};
 use serde::{Deserialize, Serialize};
@@ -97,6 +100,111 @@ pub struct Derived {
     pub extra: serde_json::Map<String, serde_json::Value>,
 }
 
+/// What the camera looks at for raw frames.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum SceneKind {
+    /// The sky model (default).
+    #[default]
+    Sky,
+    /// A uniform flat field (EMVA 1288 calibration).
+    Flat,
+}
+
+/// Flat-field scene parameters.
+#[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct FlatConfig {
+    /// Radiance S0, W m⁻² sr⁻¹ nm⁻¹ (default 0.1).
+    pub radiance: f64,
+    /// Degree of linear polarization, 0..1 (default 0).
+    pub dolp: f64,
+    /// Angle of linear polarization, degrees in the sensor frame (default 0).
+    pub aolp_deg: f64,
+}
+
+impl Default for FlatConfig {
+    fn default() -> Self {
+        FlatConfig {
+            radiance: 0.1,
+            dolp: 0.0,
+            aolp_deg: 0.0,
+        }
+    }
+}
+
+impl FlatConfig {
+    /// Checks ranges.
+    pub fn validate(&self) -> Result<()> {
+        check_range("flat-radiance", self.radiance, 0.0, 1e6)?;
+        check_range("flat-dolp", self.dolp, 0.0, 1.0)?;
+        check_range("flat-aolp", self.aolp_deg, -360.0, 360.0)?;
+        Ok(())
+    }
+}
+
+/// Raw-frame settings: sensor preset and overrides, scene kind, seed and output format.
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RawConfig {
+    /// Sensor preset (default `camera`).
+    pub preset: Preset,
+    /// Full sensor configuration; `None` = the preset's.
+    pub sensor: Option<SensorConfig>,
+    /// Sky or flat field.
+    pub scene: SceneKind,
+    /// Flat-field parameters (for `scene = flat`).
+    pub flat: FlatConfig,
+    /// Camera seed: fixed patterns and noise (default 1).
+    pub seed: u64,
+    /// Which frame of that camera (temporal noise), default 0.
+    pub frame_index: u64,
+    /// Packed output format (stream payload, `raw.bin`).
+    pub pixel_format: PixelFormat,
+    /// Solar disc; `None` = on for the camera preset, off for the PSNS presets.
+    pub sun_disc: Option<bool>,
+    /// Soft unpolarized clouds added to the scene (off by default).
+    pub soft_clouds: Option<SoftClouds>,
+    /// Sky evaluated exactly every `sky_grid` pixels and interpolated between (1 = exact;
+    /// default 4, see docs/sky.md for the accuracy cost).
+    pub sky_grid: usize,
+}
+
+impl Default for RawConfig {
+    fn default() -> Self {
+        RawConfig {
+            preset: Preset::Camera,
+            sensor: None,
+            scene: SceneKind::Sky,
+            flat: FlatConfig::default(),
+            seed: 1,
+            frame_index: 0,
+            pixel_format: PixelFormat::Mono16,
+            sun_disc: None,
+            soft_clouds: None,
+            sky_grid: 4,
+        }
+    }
+}
+
+impl RawConfig {
+    /// The sensor in force: the explicit one or the preset's, with the band-pass filter centred
+    /// on the sky model's wavelength.
+    pub fn effective_sensor(&self, wavelength_nm: f64) -> SensorConfig {
+        let mut s = self
+            .sensor
+            .clone()
+            .unwrap_or_else(|| SensorConfig::preset(self.preset));
+        s.filter_center_nm = wavelength_nm;
+        s
+    }
+
+    /// Whether the solar disc is drawn.
+    pub fn sun_disc_on(&self) -> bool {
+        self.sun_disc.unwrap_or(self.preset == Preset::Camera)
+    }
+}
+
 /// A full scene.
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -107,6 +215,8 @@ pub struct SceneConfig {
     pub sky: SkyParams,
     /// Camera.
     pub camera: CameraConfig,
+    /// Raw-frame (sensor) settings.
+    pub raw: RawConfig,
     /// Outputs of the run that wrote this file (ignored on input).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub derived: Option<Derived>,

@@ -22,6 +22,7 @@ pub mod error;
 pub mod figures;
 pub mod image;
 pub mod io;
+pub mod pipeline;
 pub mod render;
 pub mod sensor;
 pub mod sky;

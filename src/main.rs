@@ -3,7 +3,9 @@
 use anyhow::Context;
 use clap::{Args, Parser, Subcommand, ValueEnum};
 use psns::camera::{Attitude, AttitudeFrame};
-use psns::config::SceneConfig;
+use psns::config::{SceneConfig, SceneKind};
+use psns::sensor::packing::PixelFormat;
+use psns::sensor::{Exposure, Preset, SensorConfig};
 use psns::sky::{DopNorm, PolarizationModel};
 use psns::sun::{Place, Refraction};
 use std::io::Write;
@@ -27,6 +29,11 @@ enum Cmd {
     Render {
         #[command(flatten)]
         scene: SceneArgs,
+        #[command(flatten)]
+        raw: RawArgs,
+        /// Also emulate the sensor: raw.png, raw.tiff, raw.bin, truth_*.npy.
+        #[arg(long = "raw")]
+        raw_frame: bool,
         /// Output directory (created if missing; files of the same names are replaced).
         #[arg(long, default_value = "out")]
         out: PathBuf,
@@ -331,6 +338,198 @@ impl SceneArgs {
     }
 }
 
+#[derive(Clone, Copy, ValueEnum)]
+enum SceneKindArg {
+    Sky,
+    Flat,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
+enum OnOff {
+    On,
+    Off,
+}
+
+/// Sensor and raw-frame options (`render --raw`, `stream`, `bench`).
+#[derive(Args, Clone, Default)]
+struct RawArgs {
+    /// Sensor preset: camera (realistic IMX250MZR), nfpi, gniipi, gniicpi (PSNS dataset variants).
+    #[arg(long, value_parser = parse_preset)]
+    preset: Option<Preset>,
+    /// Scene for raw frames: the sky or a uniform flat field.
+    #[arg(long, value_enum)]
+    scene: Option<SceneKindArg>,
+    /// Flat-field radiance, W m^-2 sr^-1 nm^-1.
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "R")]
+    flat_radiance: Option<f64>,
+    /// Flat-field degree of linear polarization, 0..1.
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "D")]
+    flat_dolp: Option<f64>,
+    /// Flat-field angle of linear polarization, degrees (sensor frame).
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG")]
+    flat_aolp: Option<f64>,
+    /// Exposure time, µs (20..10,000,000).
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "US", conflicts_with = "auto_exposure")]
+    exposure_us: Option<f64>,
+    /// Auto-exposure: 99th percentile of the sky at 70 % of full well.
+    #[arg(long)]
+    auto_exposure: bool,
+    /// Analog gain, dB (0..48).
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DB")]
+    gain_db: Option<f64>,
+    /// Black level, DN at 12 bit (0..200).
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DN")]
+    black_level: Option<f64>,
+    /// Output bit depth: 8, 10 or 12.
+    #[arg(long, allow_negative_numbers = true, value_name = "BITS")]
+    bit_depth: Option<i64>,
+    /// Packed pixel format of raw.bin / the stream payload: mono8, mono12p, mono12packed, mono16.
+    #[arg(long, value_parser = parse_pixel_format)]
+    pixel_format: Option<PixelFormat>,
+    /// Camera seed (fixed patterns and noise).
+    #[arg(long)]
+    seed: Option<u64>,
+    /// Frame index of that camera (temporal noise).
+    #[arg(long)]
+    frame_index: Option<u64>,
+    /// Draw the solar disc (default: on for the camera preset, off for PSNS presets).
+    #[arg(long, value_enum)]
+    sun_disc: Option<OnOff>,
+    /// Add soft unpolarized clouds to the scene.
+    #[arg(long)]
+    clouds: bool,
+    /// Evaluate the sky every N pixels and interpolate (1 = exact; default 4).
+    #[arg(long, value_name = "N", allow_negative_numbers = true)]
+    sky_grid: Option<i64>,
+    /// Lens f-number.
+    #[arg(long, value_parser = finite, allow_negative_numbers = true)]
+    f_number: Option<f64>,
+    /// Read (dark) noise, e-.
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "E")]
+    read_noise: Option<f64>,
+    /// Full-well capacity, e-.
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "E")]
+    full_well: Option<f64>,
+    /// Sensor temperature, °C (dark current).
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "C")]
+    sensor_temperature: Option<f64>,
+    /// Pixel crosstalk fraction (0..0.03).
+    #[arg(long, value_parser = finite, allow_negative_numbers = true)]
+    crosstalk: Option<f64>,
+    /// Band-pass filter width, nm.
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "NM")]
+    filter_width: Option<f64>,
+    /// Switch stages off: any of ri, polarizer_er, polarizer_orientation, prnu, crosstalk, dark,
+    /// shot, fwc_clip, dsnu, read, quantize (comma-separated).
+    #[arg(long, value_delimiter = ',', value_name = "STAGE")]
+    off: Vec<String>,
+    /// Set any sensor field: KEY=VALUE with VALUE in JSON (e.g. prnu=0.01, ri={"kind":"cospower","n":4}).
+    #[arg(long = "sensor-set", value_name = "KEY=VALUE")]
+    sensor_set: Vec<String>,
+}
+
+fn parse_preset(s: &str) -> Result<Preset, String> {
+    s.parse().map_err(|e: psns::Error| e.to_string())
+}
+
+fn parse_pixel_format(s: &str) -> Result<PixelFormat, String> {
+    s.parse().map_err(|e: psns::Error| e.to_string())
+}
+
+impl RawArgs {
+    /// Applies the raw options to a scene.
+    fn apply(&self, c: &mut SceneConfig) -> psns::Result<()> {
+        let r = &mut c.raw;
+        if let Some(p) = self.preset {
+            r.preset = p;
+            r.sensor = None;
+        }
+        if let Some(k) = self.scene {
+            r.scene = match k {
+                SceneKindArg::Sky => SceneKind::Sky,
+                SceneKindArg::Flat => SceneKind::Flat,
+            };
+        }
+        r.flat.radiance = self.flat_radiance.unwrap_or(r.flat.radiance);
+        r.flat.dolp = self.flat_dolp.unwrap_or(r.flat.dolp);
+        r.flat.aolp_deg = self.flat_aolp.unwrap_or(r.flat.aolp_deg);
+        if let Some(f) = self.pixel_format {
+            r.pixel_format = f;
+        }
+        r.seed = self.seed.unwrap_or(r.seed);
+        r.frame_index = self.frame_index.unwrap_or(r.frame_index);
+        if let Some(d) = self.sun_disc {
+            r.sun_disc = Some(matches!(d, OnOff::On));
+        }
+        if self.clouds {
+            r.soft_clouds = Some(Default::default());
+        }
+        if let Some(g) = self.sky_grid {
+            if !(1..=64).contains(&g) {
+                return Err(psns::Error::range("sky-grid", g as f64, "1..64"));
+            }
+            r.sky_grid = g as usize;
+        }
+        let mut s = r
+            .sensor
+            .clone()
+            .unwrap_or_else(|| SensorConfig::preset(r.preset));
+        if let Some(us) = self.exposure_us {
+            s.exposure = Exposure::Fixed { us };
+        }
+        if self.auto_exposure {
+            s.exposure = Exposure::auto();
+        }
+        s.gain_db = self.gain_db.unwrap_or(s.gain_db);
+        s.black_level_dn = self.black_level.unwrap_or(s.black_level_dn);
+        if let Some(b) = self.bit_depth {
+            if ![8, 10, 12].contains(&b) {
+                return Err(psns::Error::range("bit-depth", b as f64, "8, 10 or 12"));
+            }
+            s.bit_depth = b as u8;
+        }
+        s.f_number = self.f_number.unwrap_or(s.f_number);
+        s.read_noise_e = self.read_noise.unwrap_or(s.read_noise_e);
+        s.full_well_e = self.full_well.unwrap_or(s.full_well_e);
+        s.temperature_c = self.sensor_temperature.unwrap_or(s.temperature_c);
+        s.crosstalk = self.crosstalk.unwrap_or(s.crosstalk);
+        s.filter_width_nm = self.filter_width.unwrap_or(s.filter_width_nm);
+        if !self.off.is_empty() || !self.sensor_set.is_empty() {
+            let mut v = serde_json::to_value(&s).expect("sensor serializes");
+            for st in &self.off {
+                let st = st.trim();
+                match v["stages"].get_mut(st) {
+                    Some(x) => *x = false.into(),
+                    None => {
+                        return Err(psns::Error::OutOfRange {
+                            name: "off".into(),
+                            value: st.into(),
+                            allowed: "ri, polarizer_er, polarizer_orientation, prnu, crosstalk, dark, shot, fwc_clip, dsnu, read, quantize".into(),
+                        })
+                    }
+                }
+            }
+            for kv in &self.sensor_set {
+                let (k, val) = kv.split_once('=').ok_or_else(|| {
+                    psns::Error::Invalid(format!("--sensor-set '{kv}' is not KEY=VALUE"))
+                })?;
+                let parsed: serde_json::Value = serde_json::from_str(val)
+                    .unwrap_or_else(|_| serde_json::Value::String(val.to_string()));
+                if v.get(k.trim()).is_none() {
+                    return Err(psns::Error::Invalid(format!(
+                        "--sensor-set: unknown sensor field '{k}'"
+                    )));
+                }
+                v[k.trim()] = parsed;
+            }
+            s = serde_json::from_value(v)
+                .map_err(|e| psns::Error::Invalid(format!("sensor settings: {e}")))?;
+        }
+        r.sensor = Some(s);
+        Ok(())
+    }
+}
+
 #[derive(Args)]
 struct SunArgs {
     /// UTC time, ISO 8601 (e.g. 2003-10-17T19:30:30Z).
@@ -361,8 +560,28 @@ struct SunArgs {
 
 fn run(cli: Cli) -> anyhow::Result<()> {
     match cli.cmd {
-        Cmd::Render { scene, out } => {
-            let cfg = scene.scene()?;
+        Cmd::Render {
+            scene,
+            raw,
+            raw_frame,
+            out,
+        } => {
+            let mut cfg = scene.scene()?;
+            raw.apply(&mut cfg)?;
+            if raw_frame || cfg.raw.scene == SceneKind::Flat {
+                let s = psns::app::render_raw_to_dir(&cfg, &out)?;
+                eprintln!(
+                    "raw frame {}x{}: scene {:.3} s + sensor {:.3} s (camera setup {:.3} s); wrote {} files to {}",
+                    cfg.camera.intrinsics.width,
+                    cfg.camera.intrinsics.height,
+                    s.scene_s,
+                    s.sensor_s,
+                    s.setup_s,
+                    s.files.len(),
+                    out.display()
+                );
+                return Ok(());
+            }
             let s = psns::app::render_ideal_to_dir(&cfg, &out)?;
             eprintln!(
                 "rendered {}x{} in {:.3} s; wrote {} files to {}",

@@ -27,8 +27,8 @@ pub mod adc;
 pub mod emva;
 pub mod mosaic;
 pub mod noise;
-pub mod packing;
 pub mod optics;
+pub mod packing;
 pub mod polarizer;
 pub mod presets;
 

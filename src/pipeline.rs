@@ -1,0 +1,140 @@
+//! The full chain for one camera: scene (sky or flat field) → sensor-frame Stokes radiance →
+//! IMX250MZR raw frame with ground truth.
+//!
+//! A [`RawPipeline`] is built once per camera (it owns the sensor's fixed-pattern maps, which
+//! depend only on the seed) and then renders any number of frames for changing sun positions and
+//! attitudes — what `psns render --raw`, `psns stream` and the benchmarks share.
+
+use crate::camera::{Attitude, Camera};
+use crate::config::{RawConfig, SceneConfig, SceneKind};
+use crate::error::Result;
+use crate::image::StokesImage;
+use crate::render::{self, StokesOptions};
+use crate::sensor::{self, RawFrame, Sensor, SensorConfig};
+use crate::sky::Sky;
+use crate::sun::SunPosition;
+
+/// What one frame's scene looked like.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct SceneInfo {
+    /// Sun position used (None for a flat field).
+    pub sun: Option<SunPosition>,
+    /// False when the sun is below the horizon (the frame is rendered dark).
+    pub sky_valid: bool,
+    /// Pixels touched by the solar disc.
+    pub sun_pixels: usize,
+    /// Pixels looking at the ground.
+    pub ground_pixels: usize,
+    /// ENU → camera rotation used.
+    pub enu_to_camera: Option<glam::DMat3>,
+}
+
+/// A camera with its fixed patterns, ready to render frames of a configured scene.
+pub struct RawPipeline {
+    cfg: SceneConfig,
+    sensor_cfg: SensorConfig,
+    sensor: Sensor,
+}
+
+impl RawPipeline {
+    /// Validates the scene and the sensor and builds the camera `cfg.raw.seed`.
+    pub fn new(cfg: &SceneConfig) -> Result<Self> {
+        let raw = &cfg.raw;
+        let i = &cfg.camera.intrinsics;
+        i.validate()?;
+        sensor::check_size(i.width, i.height)?;
+        cfg.sky.validate()?;
+        cfg.camera.attitude.validate()?;
+        let sensor_cfg = raw.effective_sensor(cfg.sky.wavelength_nm);
+        sensor_cfg.validate(i.width, i.height)?;
+        if let Some(c) = &raw.soft_clouds {
+            c.validate()?;
+        }
+        if raw.scene == SceneKind::Flat {
+            raw.flat.validate()?;
+        }
+        let sensor = Sensor::new(&sensor_cfg, i, raw.seed)?;
+        Ok(RawPipeline {
+            cfg: cfg.clone(),
+            sensor_cfg,
+            sensor,
+        })
+    }
+
+    /// The scene configuration.
+    pub fn config(&self) -> &SceneConfig {
+        &self.cfg
+    }
+
+    /// The sensor configuration in force (preset + overrides, filter at the sky wavelength).
+    pub fn sensor_config(&self) -> &SensorConfig {
+        &self.sensor_cfg
+    }
+
+    /// The sensor.
+    pub fn sensor(&self) -> &Sensor {
+        &self.sensor
+    }
+
+    /// Sensor-frame Stokes radiance for a sun position and attitude (ignored for a flat field).
+    /// A sun below the horizon gives a dark (all-zero) scene with `sky_valid = false`.
+    pub fn stokes(
+        &self,
+        sun: SunPosition,
+        attitude: &Attitude,
+    ) -> Result<(StokesImage, SceneInfo)> {
+        let raw: &RawConfig = &self.cfg.raw;
+        let i = self.cfg.camera.intrinsics;
+        let mut info = SceneInfo::default();
+        let mut st = match raw.scene {
+            SceneKind::Flat => {
+                info.sky_valid = true;
+                sensor::flat_field(
+                    i.width,
+                    i.height,
+                    raw.flat.radiance,
+                    raw.flat.dolp,
+                    raw.flat.aolp_deg,
+                )?
+            }
+            SceneKind::Sky => {
+                info.sun = Some(sun);
+                let cam = Camera::new(i, attitude, sun.azimuth_deg)?;
+                info.enu_to_camera = Some(cam.enu_to_camera);
+                if !(0.0..=90.0).contains(&sun.zenith_deg) {
+                    StokesImage::zeros(i.width, i.height)
+                } else {
+                    info.sky_valid = true;
+                    let sky = Sky::new(sun, &self.cfg.sky)?;
+                    let opts = StokesOptions {
+                        sun_disc: raw.sun_disc_on(),
+                    };
+                    let (st, n) = render::render_stokes_grid(&sky, &cam, opts, raw.sky_grid);
+                    info.sun_pixels = n;
+                    info.ground_pixels = st.s0.data.iter().filter(|&&v| v <= 0.0).count();
+                    st
+                }
+            }
+        };
+        if let Some(c) = &raw.soft_clouds {
+            crate::sky::clouds::apply_soft_clouds(&mut st, c, raw.seed ^ 0x636c_6f75_6473)?;
+        }
+        Ok((st, info))
+    }
+
+    /// The raw frame of a Stokes scene.
+    pub fn frame(&self, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
+        self.sensor.frame(stokes, frame_index)
+    }
+
+    /// The configured scene's frame `cfg.raw.frame_index` (sun and attitude from the config).
+    pub fn render_configured(&self) -> Result<(RawFrame, SceneInfo)> {
+        let sun = self.cfg.sun.resolve()?;
+        let (st, info) = self.stokes(sun, &self.cfg.camera.attitude)?;
+        if self.cfg.raw.scene == SceneKind::Sky && !info.sky_valid {
+            // a static render needs the sun up (sky.md §8)
+            crate::error::check_range("sun-zenith", sun.zenith_deg, 0.0, 90.0)?;
+        }
+        Ok((self.frame(&st, self.cfg.raw.frame_index)?, info))
+    }
+}
