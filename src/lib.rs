@@ -20,6 +20,8 @@ pub mod config;
 pub mod demosaic;
 pub mod error;
 pub mod figures;
+pub mod figures_sensor;
+pub mod hil;
 pub mod image;
 pub mod io;
 pub mod pipeline;

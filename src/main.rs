@@ -45,6 +45,37 @@ enum Cmd {
     },
     /// Sun position (SPA) for a UTC time and place, as CSV `zenith_deg,azimuth_deg`.
     Sun(SunArgs),
+    /// Stream raw frames driven by a trajectory to a file, FIFO or stdout (hardware in the loop).
+    Stream {
+        #[command(flatten)]
+        scene: SceneArgs,
+        #[command(flatten)]
+        raw: RawArgs,
+        /// Trajectory CSV (t_s, yaw_deg,pitch_deg,roll_deg or qw,qx,qy,qz [, lat_deg,lon_deg,height_m]); - for stdin. Default: built-in turning camera.
+        #[arg(long, value_name = "PATH|-")]
+        trajectory: Option<PathBuf>,
+        /// Output file, FIFO, or - for stdout.
+        #[arg(long, default_value = "-", value_name = "PATH|-")]
+        out: PathBuf,
+        /// Stop after N frames.
+        #[arg(long, value_name = "N")]
+        frames: Option<u64>,
+        /// Pace output in real time at FPS against the trajectory clock (default: unpaced).
+        #[arg(long, value_parser = finite, value_name = "FPS")]
+        rate: Option<f64>,
+        /// Time zero of the trajectory, ISO 8601 UTC.
+        #[arg(long, value_name = "TIME")]
+        start_time: Option<String>,
+        /// Built-in trajectory: yaw rate, degrees per second.
+        #[arg(long, value_parser = finite, allow_negative_numbers = true, default_value_t = 10.0)]
+        yaw_rate: f64,
+        /// Built-in trajectory: frame interval, ms.
+        #[arg(long, value_parser = finite, default_value_t = 50.0)]
+        frame_interval_ms: f64,
+        /// Stamp the host monotonic clock into frame headers (output no longer byte-identical).
+        #[arg(long)]
+        stamp_host_time: bool,
+    },
     /// Check a frame stream: frame count, drops, corrupt and truncated frames. Exit 0 only if clean.
     Verify {
         /// Stream file, FIFO, or - for stdin.
@@ -598,6 +629,48 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             let stdout = std::io::stdout().lock();
             psns::app::sky_csv(&cfg, stdin, std::io::BufWriter::new(stdout))?;
         }
+        Cmd::Stream {
+            scene,
+            raw,
+            trajectory,
+            out,
+            frames,
+            rate,
+            start_time,
+            yaw_rate,
+            frame_interval_ms,
+            stamp_host_time,
+        } => {
+            let mut cfg = scene.scene()?;
+            raw.apply(&mut cfg)?;
+            let opts = psns::hil::StreamOptions {
+                trajectory,
+                out,
+                frames,
+                rate_fps: rate,
+                start_time,
+                yaw_rate_deg_s: yaw_rate,
+                frame_interval_ms,
+                stamp_host_time,
+            };
+            let s = psns::hil::run_stream(&cfg, &opts)?;
+            eprintln!(
+                "streamed {} frames in {:.2} s ({:.2} fps){}{}",
+                s.frames,
+                s.seconds,
+                s.frames as f64 / s.seconds.max(1e-9),
+                if s.late_frames > 0 {
+                    format!(", {} late", s.late_frames)
+                } else {
+                    String::new()
+                },
+                if s.reader_closed {
+                    ", reader closed the stream"
+                } else {
+                    ""
+                }
+            );
+        }
         Cmd::Verify { file, json } => {
             let rep = psns::stream::verify(psns::app::open_input(&file)?)?;
             let mut out = std::io::stdout().lock();
@@ -617,6 +690,9 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         }
         Cmd::Figures { out } => {
             for f in psns::app::sky_figures(&out)? {
+                eprintln!("wrote {f}");
+            }
+            for f in psns::figures_sensor::sensor_figures(&out)? {
                 eprintln!("wrote {f}");
             }
         }
