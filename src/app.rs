@@ -480,3 +480,36 @@ pub fn render_raw_to_dir(cfg: &SceneConfig, dir: &Path) -> Result<RawSummary> {
         files,
     })
 }
+
+/// `psns bench sky`: grid-step sweep for three views (zenith, tilted to the horizon, sun in view)
+/// written as `sky_grid.csv` (and printed).
+pub fn bench_sky_to_dir(cfg: &SceneConfig, dir: &Path, runs: usize) -> Result<Vec<String>> {
+    use crate::camera::Attitude;
+    cfg.build()?;
+    create_dir(dir)?;
+    let sun = cfg.sun.resolve()?;
+    let views = [
+        ("zenith", cfg.camera.attitude),
+        ("horizon", Attitude::enu(sun.azimuth_deg + 90.0, 60.0, 0.0)),
+        ("sun-in-view", Attitude::enu(sun.azimuth_deg, -(sun.zenith_deg - 20.0), 0.0)),
+    ];
+    let mut csv = String::from("view,step,ms_per_frame,max_rel_s0,max_dop_err,max_aop_err_deg,p99_aop_err_deg\n");
+    for (name, att) in views {
+        let mut c = cfg.clone();
+        c.camera.attitude = att;
+        for r in bench_sky_grid(&c, &[1, 2, 4, 8, 16], runs)? {
+            let line = format!(
+                "{name},{},{:.1},{:.3e},{:.3e},{:.3e},{:.3e}\n",
+                r.step, r.ms_per_frame, r.max_rel_s0, r.max_dop, r.max_aop_deg, r.p99_aop_deg
+            );
+            eprint!("{line}");
+            csv.push_str(&line);
+        }
+    }
+    let p = dir.join("sky_grid.csv");
+    io::write_atomic(&p, |w| {
+        w.write_all(csv.as_bytes())
+            .map_err(|e| Error::io("writing sky_grid.csv", e))
+    })?;
+    Ok(vec![p.display().to_string()])
+}

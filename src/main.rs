@@ -95,11 +95,31 @@ enum Cmd {
         #[arg(long, default_value = ".")]
         out: PathBuf,
     },
+    /// Benchmarks that chart speed against accuracy.
+    Bench {
+        #[command(subcommand)]
+        what: BenchCmd,
+    },
     /// Regenerate the pictures in docs/ (sky sweeps, default camera views).
     Figures {
         /// Output directory.
         #[arg(long, default_value = "docs/img")]
         out: PathBuf,
+    },
+}
+
+#[derive(Subcommand)]
+enum BenchCmd {
+    /// Exact vs coarse-grid sky evaluation: time per full frame and error (writes sky_grid.csv).
+    Sky {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Output directory.
+        #[arg(long, default_value = "docs/bench")]
+        out: PathBuf,
+        /// Timed runs per setting (median reported).
+        #[arg(long, default_value_t = 5)]
+        runs: usize,
     },
 }
 
@@ -688,6 +708,14 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 eprintln!("wrote {f}");
             }
         }
+        Cmd::Bench { what } => match what {
+            BenchCmd::Sky { scene, out, runs } => {
+                let cfg = scene.scene()?;
+                for f in psns::app::bench_sky_to_dir(&cfg, &out, runs)? {
+                    eprintln!("wrote {f}");
+                }
+            }
+        },
         Cmd::Figures { out } => {
             for f in psns::app::sky_figures(&out)? {
                 eprintln!("wrote {f}");
