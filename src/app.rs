@@ -186,14 +186,14 @@ pub fn sky_figures(dir: &Path) -> Result<Vec<String>> {
         .map(|&z| SunPosition::new(z, 200.0))
         .collect();
     let p = dir.join("sky_zenith_sweep.png");
-    io::write_png_rgb8(&p, &sky_sweep(&params, &zen, 200)?)?;
+    io::write_png_rgb8(&p, &sky_sweep(&params, &zen, 160)?)?;
     files.push(p.display().to_string());
     let az: Vec<SunPosition> = [0.0, 90.0, 200.0, 270.0]
         .iter()
         .map(|&a| SunPosition::new(50.0, a))
         .collect();
     let p = dir.join("sky_azimuth_sweep.png");
-    io::write_png_rgb8(&p, &sky_sweep(&params, &az, 200)?)?;
+    io::write_png_rgb8(&p, &sky_sweep(&params, &az, 160)?)?;
     files.push(p.display().to_string());
     let rayleigh = SkyParams {
         model: crate::sky::PolarizationModel::Rayleigh,
