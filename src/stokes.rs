@@ -27,8 +27,9 @@ pub fn from_channels(i0: f32, i45: f32, i90: f32, i135: f32) -> (f32, f32, f32) 
 /// Degree of linear polarization, √(S1² + S2²)/S0; 0 where S0 ≤ 0 (or is NaN).
 #[inline(always)]
 pub fn dolp(s0: f32, s1: f32, s2: f32) -> f32 {
+    let d = (s1 * s1 + s2 * s2).sqrt() / s0;
     if s0 > 0.0 {
-        (s1 * s1 + s2 * s2).sqrt() / s0
+        d
     } else {
         0.0
     }
@@ -45,15 +46,17 @@ pub fn debiased_dolp(s0: f32, s1: f32, s2: f32, sigma: f32) -> f32 {
 }
 
 /// atan2 in f32, max error about 2e-7 rad (octant reduction, then |z| ≤ tan(π/8) and the
-/// Taylor series of atan to z¹⁵). Branch-free enough to vectorise; atan2(0, 0) = 0.
+/// Taylor series of atan to z¹⁵). Written with selects only, so loops over it vectorise;
+/// atan2(0, 0) = 0.
 #[inline(always)]
 pub fn fast_atan2(y: f32, x: f32) -> f32 {
     use std::f32::consts::{FRAC_PI_2, FRAC_PI_4, PI};
     let (ax, ay) = (x.abs(), y.abs());
     let (mn, mx) = (ax.min(ay), ax.max(ay));
-    let t = if mx > 0.0 { mn / mx } else { 0.0 };
+    let t = mn / mx.max(f32::MIN_POSITIVE);
     let big = t > 0.414_213_57;
-    let z = if big { (t - 1.0) / (t + 1.0) } else { t };
+    let zb = (t - 1.0) / (t + 1.0);
+    let z = if big { zb } else { t };
     let z2 = z * z;
     let p = -1.0 / 15.0;
     let p = p * z2 + 1.0 / 13.0;
@@ -62,16 +65,9 @@ pub fn fast_atan2(y: f32, x: f32) -> f32 {
     let p = p * z2 - 1.0 / 7.0;
     let p = p * z2 + 1.0 / 5.0;
     let p = p * z2 - 1.0 / 3.0;
-    let mut a = z + z * z2 * p;
-    if big {
-        a += FRAC_PI_4;
-    }
-    if ay > ax {
-        a = FRAC_PI_2 - a;
-    }
-    if x < 0.0 {
-        a = PI - a;
-    }
+    let a = z + z * z2 * p + if big { FRAC_PI_4 } else { 0.0 };
+    let a = if ay > ax { FRAC_PI_2 - a } else { a };
+    let a = if x < 0.0 { PI - a } else { a };
     if y < 0.0 {
         -a
     } else {
@@ -83,7 +79,7 @@ pub fn fast_atan2(y: f32, x: f32) -> f32 {
 #[inline(always)]
 pub fn aolp_deg(s1: f32, s2: f32) -> f32 {
     let d = fast_atan2(s2, s1) * (90.0 / std::f32::consts::PI);
-    let d = if d < 0.0 { d + 180.0 } else { d };
+    let d = d + if d < 0.0 { 180.0 } else { 0.0 };
     if d >= 180.0 {
         0.0
     } else {

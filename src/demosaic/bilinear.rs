@@ -60,39 +60,51 @@ impl Mix {
     }
 }
 
-/// Scratch rows of one worker: vertically filtered, reflect-padded by the kernel radius.
+/// Scratch rows of one worker: vertically filtered rows (reflect-padded by the kernel radius)
+/// and the four horizontally filtered planes of the current row.
 struct Scratch {
     v0: Vec<f32>,
     v1: Vec<f32>,
+    q: [Vec<f32>; 4],
+    /// +1, −1, +1, … (the column carrier sign).
+    signs: Vec<f32>,
 }
 
-/// Vertical pass for output row `r`: v0 = Σ h_k raw[r+k], v1 = Σ (−1)^k h_k raw[r+k].
+impl Scratch {
+    fn new(w: usize, r: usize) -> Scratch {
+        Scratch {
+            v0: vec![0f32; w + 2 * r],
+            v1: vec![0f32; w + 2 * r],
+            q: std::array::from_fn(|_| vec![0f32; w]),
+            signs: (0..w)
+                .map(|c| if c % 2 == 0 { 1.0 } else { -1.0 })
+                .collect(),
+        }
+    }
+}
+
+/// Vertical pass for output row `r`: v0 = Σ h_k raw[r+k], v1 = Σ (−1)^k h_k raw[r+k]
+/// (one tap at a time over whole rows, so the loops vectorise).
 #[inline(always)]
 fn vertical<T: RawPixel, const R: usize>(raw: &Image<T>, r: usize, k: &Kernel, s: &mut Scratch) {
     let (w, h) = (raw.width, raw.height);
-    let rows: [&[T]; 7] = std::array::from_fn(|i| {
-        let off = i as isize - 3;
-        if off.unsigned_abs() <= R {
-            raw.row(reflect101(r as isize + off, h))
-        } else {
-            raw.row(r)
-        }
-    });
     let v0 = &mut s.v0[R..R + w];
     let v1 = &mut s.v1[R..R + w];
-    let centre = rows[3];
-    for c in 0..w {
-        let x = centre[c].to_f32();
-        let mut a = k.h[0] * x;
-        let mut b = k.h[0] * x;
-        for j in 1..=R {
-            let p = rows[3 - j][c].to_f32() + rows[3 + j][c].to_f32();
-            let t = k.h[j] * p;
-            a += t;
-            b += if j % 2 == 1 { -t } else { t };
+    for ((a, b), x) in v0.iter_mut().zip(v1.iter_mut()).zip(raw.row(r)) {
+        let x = k.h[0] * x.to_f32();
+        *a = x;
+        *b = x;
+    }
+    for j in 1..=R {
+        let up = raw.row(reflect101(r as isize - j as isize, h));
+        let dn = raw.row(reflect101(r as isize + j as isize, h));
+        let hj = k.h[j];
+        let sg = if j % 2 == 1 { -hj } else { hj };
+        for (((a, b), u), d) in v0.iter_mut().zip(v1.iter_mut()).zip(up).zip(dn) {
+            let p = u.to_f32() + d.to_f32();
+            *a += hj * p;
+            *b += sg * p;
         }
-        v0[c] = a;
-        v1[c] = b;
     }
     // reflect101 padding keeps the column parity
     for j in 1..=R {
@@ -103,36 +115,44 @@ fn vertical<T: RawPixel, const R: usize>(raw: &Image<T>, r: usize, k: &Kernel, s
     }
 }
 
-/// Horizontal pass at column c (padded index c + R): (base, A, B, C) before the ± signs.
+/// Horizontal pass: q = [base, A, B, C] before the carrier signs, one tap at a time.
 #[inline(always)]
-fn horizontal<const R: usize>(
-    v0: &[f32],
-    v1: &[f32],
-    c: usize,
-    k: &Kernel,
-) -> (f32, f32, f32, f32) {
-    let i = c + R;
-    let (mut base, mut a, mut b, mut d) = (
-        k.h[0] * v0[i],
-        k.h[0] * v1[i],
-        k.h[0] * v0[i],
-        k.h[0] * v1[i],
-    );
+fn horizontal<const R: usize>(s: &mut Scratch, w: usize, k: &Kernel) {
+    let (v0, v1) = (&s.v0, &s.v1);
+    let [qb, qa, qc, qd] = &mut s.q;
+    let h0 = k.h[0];
+    for ((((o0, oa), ob), od), (x0, x1)) in qb
+        .iter_mut()
+        .zip(qa.iter_mut())
+        .zip(qc.iter_mut())
+        .zip(qd.iter_mut())
+        .zip(v0[R..R + w].iter().zip(&v1[R..R + w]))
+    {
+        *o0 = h0 * x0;
+        *oa = h0 * x1;
+        *ob = h0 * x0;
+        *od = h0 * x1;
+    }
     for j in 1..=R {
-        let p0 = v0[i - j] + v0[i + j];
-        let p1 = v1[i - j] + v1[i + j];
-        let (t0, t1) = (k.h[j] * p0, k.h[j] * p1);
-        base += t0;
-        a += t1;
-        if j % 2 == 1 {
-            b -= t0;
-            d -= t1;
-        } else {
-            b += t0;
-            d += t1;
+        let hj = k.h[j];
+        let sg = if j % 2 == 1 { -hj } else { hj };
+        let (l0, r0) = (&v0[R - j..R - j + w], &v0[R + j..R + j + w]);
+        let (l1, r1) = (&v1[R - j..R - j + w], &v1[R + j..R + j + w]);
+        for (i, (((o0, oa), ob), od)) in qb
+            .iter_mut()
+            .zip(qa.iter_mut())
+            .zip(qc.iter_mut())
+            .zip(qd.iter_mut())
+            .enumerate()
+        {
+            let p0 = l0[i] + r0[i];
+            let p1 = l1[i] + r1[i];
+            *o0 += hj * p0;
+            *oa += hj * p1;
+            *ob += sg * p0;
+            *od += sg * p1;
         }
     }
-    (base, a, b, d)
 }
 
 type RowOut<'a> = (
@@ -150,42 +170,37 @@ fn row_kernel<T: RawPixel, const R: usize>(
     s: &mut Scratch,
     out: RowOut,
 ) {
+    let w = raw.width;
     vertical::<T, R>(raw, r, k, s);
+    horizontal::<R>(s, w, k);
     let (o0, o1, o2, dl) = out;
     let sr = if r % 2 == 0 { 1.0f32 } else { -1.0 };
-    let w = raw.width;
-    let (v0, v1) = (&s.v0[..], &s.v1[..]);
-    // fold the row sign into the coefficients; the column sign alternates
+    // fold the row sign into the coefficients; the column sign comes from `signs`
     let m1 = [mix.s1[0] * sr, mix.s1[1], mix.s1[2] * sr];
     let m2 = [mix.s2[0] * sr, mix.s2[1], mix.s2[2] * sr];
-    let px = |c: usize| {
-        let sc = if c % 2 == 0 { 1.0f32 } else { -1.0 };
-        let (base, a, b, d) = horizontal::<R>(v0, v1, c, k);
-        let (b, d) = (b * sc, d * sc);
-        (
-            2.0 * base,
-            m1[0] * a + m1[1] * b + m1[2] * d,
-            m2[0] * a + m2[1] * b + m2[2] * d,
-        )
-    };
-    match dl {
-        None => {
-            for c in 0..w {
-                let (s0, s1, s2) = px(c);
-                o0[c] = s0;
-                o1[c] = s1;
-                o2[c] = s2;
-            }
-        }
-        Some((od, oa)) => {
-            for c in 0..w {
-                let (s0, s1, s2) = px(c);
-                o0[c] = s0;
-                o1[c] = s1;
-                o2[c] = s2;
-                od[c] = crate::stokes::dolp(s0, s1, s2);
-                oa[c] = crate::stokes::aolp_deg(s1, s2);
-            }
+    let [qb, qa, qc, qd] = &s.q;
+    for (i, ((p0, p1), p2)) in o0
+        .iter_mut()
+        .zip(o1.iter_mut())
+        .zip(o2.iter_mut())
+        .enumerate()
+    {
+        let sc = s.signs[i];
+        let (a, b, d) = (qa[i], qc[i] * sc, qd[i] * sc);
+        *p0 = 2.0 * qb[i];
+        *p1 = m1[0] * a + m1[1] * b + m1[2] * d;
+        *p2 = m2[0] * a + m2[1] * b + m2[2] * d;
+    }
+    if let Some((od, oa)) = dl {
+        for ((((d, a), s0), s1), s2) in od
+            .iter_mut()
+            .zip(oa.iter_mut())
+            .zip(o0.iter())
+            .zip(o1.iter())
+            .zip(o2.iter())
+        {
+            *d = crate::stokes::dolp(*s0, *s1, *s2);
+            *a = crate::stokes::aolp_deg(*s1, *s2);
         }
     }
 }
@@ -195,19 +210,23 @@ fn run<T: RawPixel, const R: usize>(
     layout: MosaicLayout,
     k: &Kernel,
     fused: bool,
-) -> PolarImages {
+    out: &mut PolarImages,
+) {
     let (w, h) = (raw.width, raw.height);
     let mix = Mix::new(&layout);
-    let mut st = StokesImage::zeros(w, h);
-    let (mut dolp, mut aolp) = if fused {
-        (Image::new(w, h), Image::new(w, h))
-    } else {
-        (Image::new(0, 0), Image::new(0, 0))
+    let fit = |img: &mut Image<f32>, w: usize, h: usize| {
+        if img.width != w || img.height != h || img.data.len() != w * h {
+            *img = Image::new(w, h);
+        }
     };
-    let init = || Scratch {
-        v0: vec![0f32; w + 2 * R],
-        v1: vec![0f32; w + 2 * R],
-    };
+    fit(&mut out.stokes.s0, w, h);
+    fit(&mut out.stokes.s1, w, h);
+    fit(&mut out.stokes.s2, w, h);
+    let (dw, dh) = if fused { (w, h) } else { (0, 0) };
+    fit(&mut out.dolp, dw, dh);
+    fit(&mut out.aolp_deg, dw, dh);
+    let init = || Scratch::new(w, R);
+    let st = &mut out.stokes;
     let planes = st
         .s0
         .data
@@ -217,7 +236,12 @@ fn run<T: RawPixel, const R: usize>(
         .enumerate();
     if fused {
         planes
-            .zip(dolp.data.par_chunks_mut(w).zip(aolp.data.par_chunks_mut(w)))
+            .zip(
+                out.dolp
+                    .data
+                    .par_chunks_mut(w)
+                    .zip(out.aolp_deg.data.par_chunks_mut(w)),
+            )
             .with_min_len(4)
             .for_each_init(init, |s, ((r, ((o0, o1), o2)), (od, oa))| {
                 row_kernel::<T, R>(raw, r, k, &mix, s, (o0, o1, o2, Some((od, oa))))
@@ -229,10 +253,20 @@ fn run<T: RawPixel, const R: usize>(
                 row_kernel::<T, R>(raw, r, k, &mix, s, (o0, o1, o2, None))
             });
     }
-    PolarImages {
-        stokes: st,
-        dolp,
-        aolp_deg: aolp,
+}
+
+/// Demodulates into `out`, reusing its buffers when they have the right size.
+pub(crate) fn demodulate_into<T: RawPixel>(
+    raw: &Image<T>,
+    layout: MosaicLayout,
+    k: &Kernel,
+    fused: bool,
+    out: &mut PolarImages,
+) {
+    match k.radius {
+        1 => run::<T, 1>(raw, layout, k, fused, out),
+        2 => run::<T, 2>(raw, layout, k, fused, out),
+        _ => run::<T, 3>(raw, layout, k, fused, out),
     }
 }
 
@@ -244,11 +278,13 @@ pub(crate) fn demodulate<T: RawPixel>(
     k: &Kernel,
     fused: bool,
 ) -> PolarImages {
-    match k.radius {
-        1 => run::<T, 1>(raw, layout, k, fused),
-        2 => run::<T, 2>(raw, layout, k, fused),
-        _ => run::<T, 3>(raw, layout, k, fused),
-    }
+    let mut out = PolarImages {
+        stokes: StokesImage::zeros(0, 0),
+        dolp: Image::new(0, 0),
+        aolp_deg: Image::new(0, 0),
+    };
+    demodulate_into(raw, layout, k, fused, &mut out);
+    out
 }
 
 /// Channel images I0, I45, I90, I135 of the demodulator (equal to per-channel interpolation).
@@ -267,10 +303,7 @@ pub(crate) fn channels<T: RawPixel>(
         .zip(c2.par_chunks_mut(w).zip(c3.par_chunks_mut(w)))
         .enumerate()
         .for_each_init(
-            || Scratch {
-                v0: vec![0f32; w + 2 * rr],
-                v1: vec![0f32; w + 2 * rr],
-            },
+            || Scratch::new(w, rr),
             |s, (r, ((o0, o1), (o2, o3)))| {
                 let outs = [o0, o1, o2, o3];
                 match rr {
@@ -291,15 +324,17 @@ fn chan_row<T: RawPixel, const R: usize>(
     s: &mut Scratch,
     mut outs: [&mut [f32]; 4],
 ) {
+    let w = raw.width;
     vertical::<T, R>(raw, r, k, s);
+    horizontal::<R>(s, w, k);
     let sr = if r % 2 == 0 { 1.0f32 } else { -1.0 };
-    for c in 0..raw.width {
-        let sc = if c % 2 == 0 { 1.0f32 } else { -1.0 };
-        let (base, a, b, d) = horizontal::<R>(&s.v0, &s.v1, c, k);
-        let (a, b, d) = (a * sr, b * sc, d * sr * sc);
+    let [qb, qa, qc, qd] = &s.q;
+    for c in 0..w {
+        let sc = s.signs[c];
+        let (a, b, d) = (qa[c] * sr, qc[c] * sc, qd[c] * sr * sc);
         for (kk, o) in outs.iter_mut().enumerate() {
             let e = mix.e[kk];
-            o[c] = base + e[0] * a + e[1] * b + e[2] * d;
+            o[c] = qb[c] + e[0] * a + e[1] * b + e[2] * d;
         }
     }
 }
