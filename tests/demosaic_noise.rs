@@ -11,7 +11,11 @@ use rand_distr::{Distribution, Poisson};
 fn poisson_mosaic(w: usize, h: usize, n: f64, seed: u64) -> Image<f32> {
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let p = Poisson::new(n).unwrap();
-    Image::from_vec(w, h, (0..w * h).map(|_| p.sample(&mut rng) as f32).collect())
+    Image::from_vec(
+        w,
+        h,
+        (0..w * h).map(|_| p.sample(&mut rng) as f32).collect(),
+    )
 }
 
 #[test]
@@ -21,14 +25,20 @@ fn superpixel_dolp_bias_follows_rice_law_and_debias_removes_it() {
         let raw = poisson_mosaic(256, 256, n, 7);
         let half = demosaic::superpixel_half(&raw, layout).unwrap();
         let m = half.s0.data.len() as f64;
-        let mean = |f: &dyn Fn(usize) -> f32| (0..half.s0.data.len()).map(|i| f(i) as f64).sum::<f64>() / m;
+        let mean = |f: &dyn Fn(usize) -> f32| {
+            (0..half.s0.data.len()).map(|i| f(i) as f64).sum::<f64>() / m
+        };
         let biased = mean(&|i| dolp(half.s0.data[i], half.s1.data[i], half.s2.data[i]));
         let theory = 0.886 / n.sqrt();
         println!("N = {n}: mean DoLP {biased:.4}, theory {theory:.4}");
-        assert!((biased / theory - 1.0).abs() < 0.1, "N {n}: {biased} vs {theory}");
+        assert!(
+            (biased / theory - 1.0).abs() < 0.1,
+            "N {n}: {biased} vs {theory}"
+        );
         // σ(S1) = σ(S2) = √(2N) for Poisson samples
         let sigma = (2.0 * n).sqrt() as f32;
-        let deb = mean(&|i| debiased_dolp(half.s0.data[i], half.s1.data[i], half.s2.data[i], sigma));
+        let deb =
+            mean(&|i| debiased_dolp(half.s0.data[i], half.s1.data[i], half.s2.data[i], sigma));
         println!("N = {n}: debiased mean DoLP {deb:.4}");
         assert!(deb < 0.5 * biased);
     }
@@ -38,7 +48,10 @@ fn superpixel_dolp_bias_follows_rice_law_and_debias_removes_it() {
 fn results_do_not_depend_on_thread_count() {
     let raw = poisson_mosaic(64, 48, 500.0, 3);
     let layout = MosaicLayout::IMX250MZR;
-    let pool = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+    let pool = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap();
     for m in Method::ALL {
         let a = demosaic::full_chain(&raw, layout, m).unwrap();
         let b = pool.install(|| demosaic::full_chain(&raw, layout, m).unwrap());

@@ -317,6 +317,7 @@ pub fn full_chain<T: RawPixel>(
     match method {
         Method::Bilinear => Ok(bilinear::demodulate(raw, layout, &bilinear::LP3, true)),
         Method::Bicubic => Ok(bilinear::demodulate(raw, layout, &bicubic::LP7, true)),
+        Method::Superpixel => Ok(superpixel::full_chain(raw, layout)),
         _ => {
             let stokes = demosaic(raw, layout, method)?;
             let (dolp, aolp_deg) = crate::stokes::dolp_aolp_images(&stokes);

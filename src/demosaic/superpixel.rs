@@ -38,10 +38,44 @@ pub fn superpixel_half<T: RawPixel>(raw: &Image<T>, layout: MosaicLayout) -> Res
     Ok(st)
 }
 
+/// Replicates a half-resolution plane to w x h (a trailing odd row/column repeats the last block).
+pub(crate) fn replicate(half: &Image<f32>, w: usize, h: usize) -> Image<f32> {
+    let mut out = Image::new(w, h);
+    let hw = half.width;
+    out.data.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
+        let src = half.row((r / 2).min(half.height - 1));
+        for (c, o) in row.iter_mut().enumerate() {
+            *o = src[(c / 2).min(hw - 1)];
+        }
+    });
+    out
+}
+
 /// Full-size planes: each block's Stokes vector replicated to its four pixels.
 pub(crate) fn superpixel_full<T: RawPixel>(raw: &Image<T>, layout: MosaicLayout) -> StokesImage {
-    let [a, b, c, d] = channels(raw, layout);
-    super::stokes_from_channel_vecs([&a, &b, &c, &d], raw.width, raw.height)
+    let half = superpixel_half(raw, layout).expect("checked by the caller");
+    let (w, h) = (raw.width, raw.height);
+    StokesImage {
+        s0: replicate(&half.s0, w, h),
+        s1: replicate(&half.s1, w, h),
+        s2: replicate(&half.s2, w, h),
+    }
+}
+
+/// Full chain at half resolution, then replicated (DoLP/AoLP computed once per block).
+pub(crate) fn full_chain<T: RawPixel>(raw: &Image<T>, layout: MosaicLayout) -> super::PolarImages {
+    let half = superpixel_half(raw, layout).expect("checked by the caller");
+    let (d, a) = crate::stokes::dolp_aolp_images(&half);
+    let (w, h) = (raw.width, raw.height);
+    super::PolarImages {
+        stokes: StokesImage {
+            s0: replicate(&half.s0, w, h),
+            s1: replicate(&half.s1, w, h),
+            s2: replicate(&half.s2, w, h),
+        },
+        dolp: replicate(&d, w, h),
+        aolp_deg: replicate(&a, w, h),
+    }
 }
 
 /// Channel images: every pixel of a block gets the block's four samples.
