@@ -466,7 +466,7 @@ mod tests {
 
     #[test]
     fn least_squares_recovers_with_calibrated_angles_and_er() {
-        let (w, h) = (8, 6);
+        let (w, h) = (16, 12);
         let layout = MosaicLayout::IMX250MZR;
         let mut cal = Calibration::with_extinction_ratio(w, h, layout, 60.0).unwrap();
         for (k, a) in cal.angle_deg.iter_mut().enumerate() {
@@ -485,15 +485,16 @@ mod tests {
             raw.data[k] = v as f32;
         }
         let st = least_squares_stokes(&raw, &cal, 2).unwrap();
-        assert_eq!((st.width(), st.height()), (4, 3));
-        for i in 0..12 {
+        assert_eq!((st.width(), st.height()), (8, 6));
+        for i in 0..48 {
             assert!((st.s0.data[i] as f64 - s0).abs() < 1e-2);
             assert!((st.s1.data[i] as f64 - s1).abs() < 1e-2);
             assert!((st.s2.data[i] as f64 - s2).abs() < 1e-2);
         }
-        // the uncalibrated superpixel is off by far more
-        let sp = crate::demosaic::superpixel_half(&raw, layout);
-        assert!(sp.is_err()); // 8 x 6 is below the demosaic minimum size: an error, not a panic
+        // the uncalibrated superpixel is off by far more (ER 60 alone: S1, S2 3.3 % low)
+        let sp = crate::demosaic::superpixel_half(&raw, layout).unwrap();
+        let worst = (0..48).map(|i| (sp.s1.data[i] as f64 - s1).abs()).fold(0.0, f64::max);
+        assert!(worst > 5.0, "superpixel S1 error {worst}");
         assert!(least_squares_stokes(&raw, &cal, 3).is_err());
     }
 
