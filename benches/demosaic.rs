@@ -13,7 +13,7 @@ fn frame() -> Image<u16> {
     // smooth content plus a deterministic hash texture, 12-bit codes
     for r in 0..h {
         for c in 0..w {
-            let x = (r * 2654435761usize ^ c * 40503) % 257;
+            let x = ((r * 2654435761usize) ^ (c * 40503)) % 257;
             img.data[r * w + c] = (1000 + (r + c) % 1500 + x) as u16;
         }
     }

@@ -391,8 +391,8 @@ pub fn mosaic_from_stokes(st: &StokesImage, layout: MosaicLayout) -> Image<f32> 
             let i = r * w + c;
             let v = 0.5
                 * (st.s0.data[i] as f64
-                    + st.s1.data[i] as f64 * th.cos().round_ties_even_if_exact()
-                    + st.s2.data[i] as f64 * th.sin().round_ties_even_if_exact());
+                    + st.s1.data[i] as f64 * th.cos().snap_integer()
+                    + st.s2.data[i] as f64 * th.sin().snap_integer());
             *o = v as f32;
         }
     });
@@ -401,11 +401,11 @@ pub fn mosaic_from_stokes(st: &StokesImage, layout: MosaicLayout) -> Image<f32> 
 
 /// cos/sin of multiples of 90° come out as ±1e-16; snap them so ideal mosaics are exact.
 trait SnapExact {
-    fn round_ties_even_if_exact(self) -> f64;
+    fn snap_integer(self) -> f64;
 }
 impl SnapExact for f64 {
     #[inline]
-    fn round_ties_even_if_exact(self) -> f64 {
+    fn snap_integer(self) -> f64 {
         let r = self.round();
         if (self - r).abs() < 1e-12 {
             r
