@@ -1,0 +1,104 @@
+//! Superpixel (2 x 2 block) Stokes: the four samples of each block are taken as I0, I45, I90,
+//! I135 of one scene point. Half resolution; cheapest method; suffers the IFOV error (the four
+//! samples see four scene points, spec `demosaic.md` §3).
+
+use super::{check_raw, RawPixel};
+use crate::error::Result;
+use crate::image::{Image, StokesImage};
+use crate::sensor::mosaic::MosaicLayout;
+use rayon::prelude::*;
+
+/// Offsets within the block of channels 0°, 45°, 90°, 135°.
+fn offsets(layout: &MosaicLayout) -> [(usize, usize); 4] {
+    std::array::from_fn(|k| layout.position_of(k))
+}
+
+/// Half-resolution Stokes planes, (width / 2) x (height / 2); block (i, j) covers rows 2i, 2i + 1
+/// and columns 2j, 2j + 1 (a trailing odd row or column is dropped).
+pub fn superpixel_half<T: RawPixel>(raw: &Image<T>, layout: MosaicLayout) -> Result<StokesImage> {
+    check_raw(raw)?;
+    let (hw, hh) = (raw.width / 2, raw.height / 2);
+    let off = offsets(&layout);
+    let mut st = StokesImage::zeros(hw, hh);
+    st.s0
+        .data
+        .par_chunks_mut(hw)
+        .zip(st.s1.data.par_chunks_mut(hw))
+        .zip(st.s2.data.par_chunks_mut(hw))
+        .enumerate()
+        .for_each(|(i, ((o0, o1), o2))| {
+            let rows = [raw.row(2 * i), raw.row(2 * i + 1)];
+            for j in 0..hw {
+                let v = off.map(|(dr, dc)| rows[dr][2 * j + dc].to_f32());
+                o0[j] = 0.5 * ((v[0] + v[2]) + (v[1] + v[3]));
+                o1[j] = v[0] - v[2];
+                o2[j] = v[1] - v[3];
+            }
+        });
+    Ok(st)
+}
+
+/// Replicates a half-resolution plane to w x h (a trailing odd row/column repeats the last block).
+pub(crate) fn replicate(half: &Image<f32>, w: usize, h: usize) -> Image<f32> {
+    let mut out = Image::new(w, h);
+    let hw = half.width;
+    out.data.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
+        let src = half.row((r / 2).min(half.height - 1));
+        for (c, o) in row.iter_mut().enumerate() {
+            *o = src[(c / 2).min(hw - 1)];
+        }
+    });
+    out
+}
+
+/// Full-size planes: each block's Stokes vector replicated to its four pixels.
+pub(crate) fn superpixel_full<T: RawPixel>(raw: &Image<T>, layout: MosaicLayout) -> StokesImage {
+    let half = superpixel_half(raw, layout).expect("checked by the caller");
+    let (w, h) = (raw.width, raw.height);
+    StokesImage {
+        s0: replicate(&half.s0, w, h),
+        s1: replicate(&half.s1, w, h),
+        s2: replicate(&half.s2, w, h),
+    }
+}
+
+/// Full chain at half resolution, then replicated (DoLP/AoLP computed once per block).
+pub(crate) fn full_chain<T: RawPixel>(raw: &Image<T>, layout: MosaicLayout) -> super::PolarImages {
+    let half = superpixel_half(raw, layout).expect("checked by the caller");
+    let (d, a) = crate::stokes::dolp_aolp_images(&half);
+    let (w, h) = (raw.width, raw.height);
+    super::PolarImages {
+        stokes: StokesImage {
+            s0: replicate(&half.s0, w, h),
+            s1: replicate(&half.s1, w, h),
+            s2: replicate(&half.s2, w, h),
+        },
+        dolp: replicate(&d, w, h),
+        aolp_deg: replicate(&a, w, h),
+    }
+}
+
+/// Channel images: every pixel of a block gets the block's four samples.
+pub(crate) fn channels<T: RawPixel>(raw: &Image<T>, layout: MosaicLayout) -> [Vec<f32>; 4] {
+    let (w, h) = (raw.width, raw.height);
+    let off = offsets(&layout);
+    let mut out: [Vec<f32>; 4] = std::array::from_fn(|_| vec![0f32; w * h]);
+    let [c0, c1, c2, c3] = &mut out;
+    c0.par_chunks_mut(w)
+        .zip(c1.par_chunks_mut(w))
+        .zip(c2.par_chunks_mut(w).zip(c3.par_chunks_mut(w)))
+        .enumerate()
+        .for_each(|(r, ((o0, o1), (o2, o3)))| {
+            // clamp a trailing odd row/column onto the last complete block
+            let br = (r / 2).min(h / 2 - 1) * 2;
+            let mut outs = [o0, o1, o2, o3];
+            for c in 0..w {
+                let bc = (c / 2).min(w / 2 - 1) * 2;
+                for (k, o) in outs.iter_mut().enumerate() {
+                    let (dr, dc) = off[k];
+                    o[c] = raw.data[(br + dr) * w + bc + dc].to_f32();
+                }
+            }
+        });
+    out
+}
