@@ -491,9 +491,14 @@ pub fn bench_sky_to_dir(cfg: &SceneConfig, dir: &Path, runs: usize) -> Result<Ve
     let views = [
         ("zenith", cfg.camera.attitude),
         ("horizon", Attitude::enu(sun.azimuth_deg + 90.0, 60.0, 0.0)),
-        ("sun-in-view", Attitude::enu(sun.azimuth_deg, -(sun.zenith_deg - 20.0), 0.0)),
+        (
+            "sun-in-view",
+            Attitude::enu(sun.azimuth_deg, -(sun.zenith_deg - 20.0), 0.0),
+        ),
     ];
-    let mut csv = String::from("view,step,ms_per_frame,max_rel_s0,max_dop_err,max_aop_err_deg,p99_aop_err_deg\n");
+    let mut csv = String::from(
+        "view,step,ms_per_frame,max_rel_s0,max_dop_err,max_aop_err_deg,p99_aop_err_deg\n",
+    );
     for (name, att) in views {
         let mut c = cfg.clone();
         c.camera.attitude = att;

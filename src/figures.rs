@@ -55,7 +55,11 @@ pub fn sky_dome_panels(sky: &Sky, size: usize) -> Image<[u8; 3]> {
     };
     let mask = Image::from_vec(size, size, px.iter().map(|p| p.3).collect());
     // AOP is undefined where DOP = 0 (neutral points, clamped regions): black
-    let pol_mask = Image::from_vec(size, size, px.iter().map(|p| (p.3 != 0 && p.1 > 0.0) as u8).collect());
+    let pol_mask = Image::from_vec(
+        size,
+        size,
+        px.iter().map(|p| (p.3 != 0 && p.1 > 0.0) as u8).collect(),
+    );
     let li = img(0);
     let white = vis::quantile(&li, 0.995);
     let li_rgb = vis::gray_rgb(&vis::gray8(&li, white));

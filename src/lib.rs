@@ -15,6 +15,7 @@
 
 pub mod angle;
 pub mod app;
+pub mod bench;
 pub mod camera;
 pub mod config;
 pub mod demosaic;

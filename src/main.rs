@@ -95,6 +95,23 @@ enum Cmd {
         #[arg(long, default_value = ".")]
         out: PathBuf,
     },
+    /// Demosaic a raw mosaic (PNG/TIFF) or a stream frame into S0, S1, S2, DoLP, AoLP.
+    Demosaic {
+        /// Raw PNG/TIFF or psns stream file.
+        input: PathBuf,
+        /// Method: superpixel, bilinear, bicubic, ppid, newton, eari.
+        #[arg(long, default_value = "bilinear", value_parser = parse_method)]
+        method: psns::demosaic::Method,
+        /// Output directory.
+        #[arg(long, default_value = "out")]
+        out: PathBuf,
+        /// Frame index (stream input).
+        #[arg(long)]
+        frame: Option<u64>,
+        /// Mosaic layout of a PNG/TIFF input, e.g. "90,45/135,0".
+        #[arg(long, default_value = "90,45/135,0", value_parser = parse_layout)]
+        layout: psns::sensor::mosaic::MosaicLayout,
+    },
     /// Benchmarks that chart speed against accuracy.
     Bench {
         #[command(subcommand)]
@@ -108,8 +125,29 @@ enum Cmd {
     },
 }
 
+fn parse_method(s: &str) -> Result<psns::demosaic::Method, String> {
+    s.parse().map_err(|e: psns::Error| e.to_string())
+}
+
+fn parse_layout(s: &str) -> Result<psns::sensor::mosaic::MosaicLayout, String> {
+    s.parse().map_err(|e: psns::Error| e.to_string())
+}
+
 #[derive(Subcommand)]
 enum BenchCmd {
+    /// Time every demosaic method on full-size frames and score it on the named scenes; writes
+    /// demosaic.csv, the speed-vs-accuracy chart and stability maps.
+    Demosaic {
+        /// Output directory.
+        #[arg(long, default_value = "docs/bench")]
+        out: PathBuf,
+        /// Timed runs per method (median reported).
+        #[arg(long, default_value_t = 7)]
+        runs: usize,
+        /// Small frames and few runs (a quick look; not for the docs).
+        #[arg(long)]
+        quick: bool,
+    },
     /// Exact vs coarse-grid sky evaluation: time per full frame and error (writes sky_grid.csv).
     Sky {
         #[command(flatten)]
@@ -708,7 +746,31 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 eprintln!("wrote {f}");
             }
         }
+        Cmd::Demosaic {
+            input,
+            method,
+            out,
+            frame,
+            layout,
+        } => {
+            let opts = psns::bench::DemosaicOptions {
+                input,
+                method,
+                out,
+                frame,
+                layout,
+            };
+            for f in psns::bench::demosaic_to_dir(&opts)? {
+                eprintln!("wrote {f}");
+            }
+        }
         Cmd::Bench { what } => match what {
+            BenchCmd::Demosaic { out, runs, quick } => {
+                let opts = psns::bench::BenchOptions { out, runs, quick };
+                for f in psns::bench::bench_demosaic(&opts)? {
+                    eprintln!("wrote {f}");
+                }
+            }
             BenchCmd::Sky { scene, out, runs } => {
                 let cfg = scene.scene()?;
                 for f in psns::app::bench_sky_to_dir(&cfg, &out, runs)? {
