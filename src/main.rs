@@ -201,7 +201,7 @@ enum FrameArg {
 
 /// Scene options shared by `render`, `sky` (and later commands). Every option overrides the
 /// value from `--config`.
-#[derive(Args, Clone, Default)]
+#[derive(Args, Clone)]
 struct SceneArgs {
     /// Scene file (TOML or JSON, e.g. a previous run's scene.json).
     #[arg(long, value_name = "FILE")]
@@ -227,18 +227,8 @@ struct SceneArgs {
     /// Observer height above the ellipsoid, metres (for --time).
     #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "M")]
     observer_height: Option<f64>,
-    /// ΔT = TT − UT in seconds (default: estimated).
-    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "S")]
-    delta_t: Option<f64>,
-    /// Apply atmospheric refraction to the SPA position.
-    #[arg(long)]
-    refraction: bool,
-    /// Pressure for --refraction, hPa.
-    #[arg(long, value_parser = finite, default_value_t = 1010.0, value_name = "HPA")]
-    pressure: f64,
-    /// Temperature for --refraction, °C.
-    #[arg(long, value_parser = finite, default_value_t = 10.0, allow_negative_numbers = true, value_name = "C")]
-    temperature: f64,
+    #[command(flatten)]
+    spa: SpaArgs,
     /// Polarization model.
     #[arg(long, value_enum)]
     model: Option<ModelArg>,
@@ -344,14 +334,11 @@ impl SceneArgs {
             }
             s.place = Some(p);
         }
-        if self.delta_t.is_some() {
-            s.delta_t_s = self.delta_t;
+        if self.spa.delta_t.is_some() {
+            s.delta_t_s = self.spa.delta_t;
         }
-        if self.refraction {
-            s.refraction = Some(Refraction {
-                pressure_hpa: self.pressure,
-                temperature_c: self.temperature,
-            });
+        if let Some(r) = self.spa.refraction() {
+            s.refraction = Some(r);
         }
         let k = &mut c.sky;
         if let Some(m) = self.model {
@@ -619,6 +606,32 @@ impl RawArgs {
     }
 }
 
+/// SPA settings shared by every command that takes --time.
+#[derive(Args, Clone)]
+struct SpaArgs {
+    /// ΔT = TT − UT in seconds (default: the crate's estimate for the date).
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "S")]
+    delta_t: Option<f64>,
+    /// Apply atmospheric refraction (default: geometric position).
+    #[arg(long)]
+    refraction: bool,
+    /// Pressure for --refraction, hPa.
+    #[arg(long, value_parser = finite, default_value_t = 1010.0, value_name = "HPA")]
+    pressure: f64,
+    /// Temperature for --refraction, °C.
+    #[arg(long, value_parser = finite, default_value_t = 10.0, allow_negative_numbers = true, value_name = "C")]
+    temperature: f64,
+}
+
+impl SpaArgs {
+    fn refraction(&self) -> Option<Refraction> {
+        self.refraction.then_some(Refraction {
+            pressure_hpa: self.pressure,
+            temperature_c: self.temperature,
+        })
+    }
+}
+
 #[derive(Args)]
 struct SunArgs {
     /// UTC time, ISO 8601 (e.g. 2003-10-17T19:30:30Z).
@@ -633,18 +646,8 @@ struct SunArgs {
     /// Height above the ellipsoid, metres.
     #[arg(long, value_parser = finite, default_value_t = 0.0, allow_negative_numbers = true)]
     height: f64,
-    /// ΔT = TT − UT in seconds (default: the crate's estimate for the date).
-    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "S")]
-    delta_t: Option<f64>,
-    /// Apply atmospheric refraction (default: geometric position).
-    #[arg(long)]
-    refraction: bool,
-    /// Pressure for --refraction, hPa.
-    #[arg(long, value_parser = finite, default_value_t = 1010.0, value_name = "HPA")]
-    pressure: f64,
-    /// Temperature for --refraction, °C.
-    #[arg(long, value_parser = finite, default_value_t = 10.0, allow_negative_numbers = true, value_name = "C")]
-    temperature: f64,
+    #[command(flatten)]
+    spa: SpaArgs,
 }
 
 fn run(cli: Cli) -> anyhow::Result<()> {
@@ -793,11 +796,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 lon_deg: a.lon,
                 height_m: a.height,
             };
-            let r = a.refraction.then_some(Refraction {
-                pressure_hpa: a.pressure,
-                temperature_c: a.temperature,
-            });
-            let s = psns::sun::spa(&t, &place, a.delta_t, r)?;
+            let s = psns::sun::spa(&t, &place, a.spa.delta_t, a.spa.refraction())?;
             let mut out = std::io::stdout().lock();
             writeln!(
                 out,

@@ -152,24 +152,11 @@ impl Stages {
     }
 }
 
-mod layout_serde {
-    use super::MosaicLayout;
-    use serde::{Deserialize, Deserializer, Serializer};
-    pub fn serialize<S: Serializer>(l: &MosaicLayout, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(&l.to_string())
-    }
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<MosaicLayout, D::Error> {
-        let s = String::deserialize(d)?;
-        s.parse().map_err(serde::de::Error::custom)
-    }
-}
-
 /// Every sensor parameter, defaults of `sensor.md` §7 (the `camera` preset).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct SensorConfig {
     /// 2 × 2 polarizer layout (default `90,45/135,0`).
-    #[serde(with = "layout_serde")]
     pub layout: MosaicLayout,
     /// Lens f-number N, 1..16 (default 2).
     pub f_number: f64,

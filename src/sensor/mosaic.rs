@@ -116,6 +116,20 @@ impl fmt::Display for MosaicLayout {
     }
 }
 
+/// Serialized as its string form, e.g. `"90,45/135,0"`.
+impl serde::Serialize for MosaicLayout {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        s.serialize_str(&self.to_string())
+    }
+}
+
+impl<'de> serde::Deserialize<'de> for MosaicLayout {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let s = <String as serde::Deserialize>::deserialize(d)?;
+        s.parse().map_err(serde::de::Error::custom)
+    }
+}
+
 impl FromStr for MosaicLayout {
     type Err = Error;
     /// Parses `"90,45/135,0"` (row 0 / row 1, angles 0, 45, 90, 135 each once).

@@ -139,18 +139,6 @@ impl CameraConstants {
     }
 }
 
-mod layout_serde {
-    use crate::sensor::mosaic::MosaicLayout;
-    use serde::{Deserialize, Deserializer, Serializer};
-    pub fn serialize<S: Serializer>(l: &MosaicLayout, s: S) -> Result<S::Ok, S::Error> {
-        s.serialize_str(&l.to_string())
-    }
-    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<MosaicLayout, D::Error> {
-        let s = String::deserialize(d)?;
-        s.parse().map_err(serde::de::Error::custom)
-    }
-}
-
 /// The 4096-byte file header (sensor description).
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 pub struct FileHeader {
@@ -167,7 +155,6 @@ pub struct FileHeader {
     /// Mono16 only: values shifted left by 16 − `bits_valid`.
     pub msb_aligned: bool,
     /// Polarizer layout of the 2 x 2 superpixel.
-    #[serde(with = "layout_serde")]
     pub layout: MosaicLayout,
     /// Angle sense: +1 = from +x (columns) toward +y (rows, down); −1 the other way.
     pub angle_sense: i16,
