@@ -143,10 +143,12 @@ fn seconds_to_ns(t_s: f64) -> Result<i64> {
 
 impl FrameMaker {
     fn sun_at(&self, pose: &Pose, mid_ns: i64) -> Result<SunPosition> {
-        let place = pose.place.or(match self.sun {
-            SunSource::Fixed(s) => return Ok(s),
-            SunSource::Spa(p) => p,
-        });
+        // a place in the trajectory always means SPA; otherwise the scene decides
+        let place = match (pose.place, self.sun) {
+            (Some(p), _) => Some(p),
+            (None, SunSource::Fixed(s)) => return Ok(s),
+            (None, SunSource::Spa(p)) => p,
+        };
         let place = place.ok_or_else(|| {
             Error::Invalid(
                 "a moving sun needs a place: give --lat/--lon or lat_deg,lon_deg,height_m columns"
