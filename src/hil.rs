@@ -394,27 +394,45 @@ impl Output {
     }
 }
 
-/// Opens the trajectory: `(poses, lookahead)`. Lookahead (to flag the last frame) only for a
-/// regular file, where reading one pose ahead costs no latency.
-fn open_trajectory(opts: &StreamOptions) -> Result<(Poses, bool)> {
+/// An opened trajectory.
+struct Trajectory {
+    poses: Poses,
+    /// Read one pose ahead to flag the last frame: only for a regular file, where it costs no
+    /// latency.
+    lookahead: bool,
+    /// Every pose carries a place.
+    has_place: bool,
+}
+
+fn open_trajectory(opts: &StreamOptions) -> Result<Trajectory> {
     match &opts.trajectory {
         None => {
             crate::error::check_range("frame-interval-ms", opts.frame_interval_ms, 1e-3, 3.6e6)?;
             crate::error::check_range("yaw-rate", opts.yaw_rate_deg_s, -1e6, 1e6)?;
-            Ok((
-                Box::new(turning(opts.yaw_rate_deg_s, opts.frame_interval_ms * 1e-3)),
-                false,
-            ))
+            Ok(Trajectory {
+                poses: Box::new(turning(opts.yaw_rate_deg_s, opts.frame_interval_ms * 1e-3)),
+                lookahead: false,
+                has_place: false,
+            })
         }
-        Some(p) if p.as_os_str() == "-" => Ok((
-            Box::new(CsvTrajectory::new(BufReader::new(std::io::stdin()))?),
-            false,
-        )),
+        Some(p) if p.as_os_str() == "-" => {
+            let t = CsvTrajectory::new(BufReader::new(std::io::stdin()))?;
+            Ok(Trajectory {
+                has_place: t.has_place(),
+                poses: Box::new(t),
+                lookahead: false,
+            })
+        }
         Some(p) => {
             let f = std::fs::File::open(p)
                 .map_err(|e| Error::io(format!("opening trajectory {}", p.display()), e))?;
             let regular = f.metadata().map(|m| m.is_file()).unwrap_or(false);
-            Ok((Box::new(CsvTrajectory::new(BufReader::new(f))?), regular))
+            let t = CsvTrajectory::new(BufReader::new(f))?;
+            Ok(Trajectory {
+                has_place: t.has_place(),
+                poses: Box::new(t),
+                lookahead: regular,
+            })
         }
     }
 }
@@ -437,15 +455,28 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
     let start_ns = start
         .timestamp_nanos_opt()
         .ok_or_else(|| Error::Invalid(format!("start time {start_s} is out of range")))?;
+    let pipe = RawPipeline::new(cfg)?;
+    let sc = pipe.sensor_config().clone();
+    let Trajectory {
+        poses,
+        lookahead,
+        has_place,
+    } = open_trajectory(opts)?;
     let sun_src = if cfg.sun.time.is_some() {
-        cfg.sun.resolve()?; // the scene's own time and place must be consistent
+        // the scene's time and place must be consistent; the trajectory may bring the place
+        let mut check = cfg.sun.clone();
+        if has_place && check.place.is_none() {
+            check.place = Some(Place {
+                lat_deg: 0.0,
+                lon_deg: 0.0,
+                height_m: 0.0,
+            });
+        }
+        check.resolve()?;
         SunSource::Spa(cfg.sun.place)
     } else {
         SunSource::Fixed(cfg.sun.resolve()?)
     };
-    let pipe = RawPipeline::new(cfg)?;
-    let sc = pipe.sensor_config().clone();
-    let (poses, lookahead) = open_trajectory(opts)?;
     let traj_kind = match &opts.trajectory {
         None => serde_json::json!({
             "turning": {"yaw_rate_deg_s": opts.yaw_rate_deg_s, "frame_interval_ms": opts.frame_interval_ms}
@@ -518,7 +549,17 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
         })
         .map_err(|e| Error::io("starting the render thread", e))?;
 
-    let mut out = Output::open(&opts.out, &header)?;
+    let mut out = match Output::open(&opts.out, &header) {
+        Ok(o) => o,
+        Err(e) if e.is_broken_pipe() => {
+            drop(producer);
+            return Ok(StreamSummary {
+                reader_closed: true,
+                ..Default::default()
+            });
+        }
+        Err(e) => return Err(e),
+    };
     let t_open = Instant::now();
     let res = write_loop(&mut out, &rx, opts);
     drop(rx); // a producer blocked on send ends now

@@ -399,6 +399,17 @@ fn sun_moves_with_a_place_in_the_trajectory() {
     assert!(f[2].meta.sun_elevation_deg > f[0].meta.sun_elevation_deg + 1.0);
     // the sky pattern follows the sun: same attitude, different frames
     assert_ne!(f[0].payload, f[2].payload);
+    // --time as the start and the trajectory's place: the same frames
+    let o2 = run(&["--trajectory", s(&t), "--time", start]);
+    assert!(o2.status.success(), "{}", stderr(&o2));
+    let (_, f2) = frames(&o2.stdout);
+    assert_eq!(f2, f);
+    // --time without any place is refused before anything is written
+    let none = d.path().join("none.psns");
+    let o3 = run(&["--frames", "1", "--time", start, "--out", s(&none)]);
+    assert_eq!(o3.status.code(), Some(2), "{}", stderr(&o3));
+    assert!(stderr(&o3).contains("--lat"), "{}", stderr(&o3));
+    assert!(!none.exists());
 }
 
 #[test]
