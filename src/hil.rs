@@ -1,9 +1,50 @@
 //! Hardware-in-the-loop streaming (`psns stream`): poses in, raw frames out, as a camera would
-//! deliver them. (Being implemented.)
+//! deliver them.
+//!
+//! A trajectory (CSV read line by line from a file or stdin, or the built-in turning camera) gives
+//! timed ENU attitudes and optionally a place. Each pose goes through the full chain of
+//! [`RawPipeline`] (sky model → pinhole camera → IMX250MZR raw mosaic) and becomes one record of a
+//! stream in format v1 (`docs/stream-format.md`) written to a file, a FIFO or stdout.
+//!
+//! Time: every timestamp comes from the trajectory's clock, `start_time + t_s`, never from the
+//! host, so the same options and seed give the same bytes (run to run, file or FIFO) — except the
+//! frame count a regular file gets patched into its header on close, and the host monotonic clock
+//! if `--stamp-host-time` asks for it.
+//!
+//! Sun: given directly by the scene (`cfg.sun.time` unset, no place in the trajectory) it stays
+//! fixed; with a place (scene `sun.place` + `sun.time`, or the trajectory's lat/lon columns) it is
+//! NREL SPA at mid-exposure `start_time + t_s + exposure/2` (the configured fixed exposure; with
+//! auto-exposure the exposure is not known before rendering, so at exposure start). A sun below the
+//! horizon gives a dark frame flagged `SKY_INVALID`.
+//!
+//! Concurrency: a render thread turns pose k+1 into a packed payload while the calling thread
+//! writes frame k (`sync_channel(1)`); the order and bytes do not depend on the timing.
 
+use crate::camera::camera_to_enu_quaternion;
 use crate::config::SceneConfig;
 use crate::error::{Error, Result};
-use std::path::PathBuf;
+use crate::pipeline::RawPipeline;
+use crate::sensor::packing::{self, PixelFormat};
+use crate::sensor::Exposure;
+use crate::stream::{
+    CameraConstants, FileHeader, FileStreamWriter, FrameMeta, StreamWriter, FLAG_AUTO_EXPOSURE,
+    FLAG_EXPOSURE_CLIPPED, FLAG_GROUND_IN_VIEW, FLAG_LAST, FLAG_SATURATION, FLAG_SKY_INVALID,
+    FLAG_SUN_IN_VIEW, JSON_MAX,
+};
+use crate::sun::{self, Place, SunPosition};
+use crate::trajectory::{turning, CsvTrajectory, Pose};
+use chrono::{DateTime, Utc};
+use glam::DMat3;
+use std::io::{BufReader, BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::mpsc::{sync_channel, Receiver};
+use std::time::{Duration, Instant};
+
+/// Trajectory start time when neither `--start-time` nor the scene's `sun.time` gives one.
+pub const DEFAULT_START_TIME: &str = "2025-06-21T10:00:00Z";
+
+/// A frame counts as late under `--rate` when it is ready this long after its due time.
+pub const LATE_TOLERANCE: Duration = Duration::from_millis(1);
 
 /// Options of `psns stream` besides the scene and sensor.
 #[derive(Clone, Debug, PartialEq)]
@@ -14,9 +55,11 @@ pub struct StreamOptions {
     pub out: PathBuf,
     /// Stop after this many frames.
     pub frames: Option<u64>,
-    /// Pace output in real time at this rate against the trajectory clock; `None` = unpaced.
+    /// Pace output in real time at this rate; `None` = unpaced. Frame k is due at
+    /// `t0 + k / rate`, t0 = when frame 0 is ready (after the camera set-up and the first render).
     pub rate_fps: Option<f64>,
-    /// Trajectory time zero, ISO 8601 UTC; `None` = the scene's `sun.time`, else 2025-06-21T10:00:00Z.
+    /// Trajectory time zero, ISO 8601 UTC; `None` = the scene's `sun.time`, else
+    /// [`DEFAULT_START_TIME`].
     pub start_time: Option<String>,
     /// Built-in generator: yaw rate, degrees per second.
     pub yaw_rate_deg_s: f64,
@@ -48,14 +91,593 @@ pub struct StreamSummary {
     pub frames: u64,
     /// Frames that were late against `--rate`.
     pub late_frames: u64,
-    /// Wall-clock seconds.
+    /// Wall-clock seconds from the file header written to the stream closed.
     pub seconds: f64,
     /// True when the reader closed the output early.
     pub reader_closed: bool,
 }
 
+/// One rendered frame, ready to write.
+struct Rendered {
+    meta: FrameMeta,
+    payload: Vec<u8>,
+}
+
+type Poses = Box<dyn Iterator<Item = Result<Pose>> + Send>;
+
+/// Where the sun comes from.
+#[derive(Clone, Copy, Debug)]
+enum SunSource {
+    /// Given directly by the scene: fixed.
+    Fixed(SunPosition),
+    /// SPA at the frame's time, at the pose's place or else this one (None: the pose must carry one).
+    Spa(Option<Place>),
+}
+
+/// Everything the render thread needs besides the pipeline.
+struct FrameMaker {
+    pipe: RawPipeline,
+    sun: SunSource,
+    place: Option<Place>,
+    start_ns: i64,
+    start: DateTime<Utc>,
+    delta_t_s: Option<f64>,
+    refraction: Option<sun::Refraction>,
+    /// Half the fixed exposure, ns (0 for auto-exposure).
+    half_exposure_ns: i64,
+    fmt: PixelFormat,
+    bits_valid: u8,
+    turbidity: f32,
+    albedo: f32,
+}
+
+fn seconds_to_ns(t_s: f64) -> Result<i64> {
+    let ns = (t_s * 1e9).round();
+    if !(ns.is_finite() && ns.abs() < 9.0e18) {
+        return Err(Error::Invalid(format!(
+            "trajectory time {t_s} s does not fit the stream clock"
+        )));
+    }
+    Ok(ns as i64)
+}
+
+impl FrameMaker {
+    fn sun_at(&self, pose: &Pose, mid_ns: i64) -> Result<SunPosition> {
+        // a place in the trajectory always means SPA; otherwise the scene decides
+        let place = match (pose.place, self.sun) {
+            (Some(p), _) => Some(p),
+            (None, SunSource::Fixed(s)) => return Ok(s),
+            (None, SunSource::Spa(p)) => p,
+        };
+        let place = place.ok_or_else(|| {
+            Error::Invalid(
+                "a moving sun needs a place: give --lat/--lon or lat_deg,lon_deg,height_m columns"
+                    .into(),
+            )
+        })?;
+        let t = self.start + chrono::Duration::nanoseconds(mid_ns - self.start_ns);
+        sun::spa(&t, &place, self.delta_t_s, self.refraction)
+    }
+
+    fn render(&self, index: u64, pose: &Pose, last: bool) -> Result<Rendered> {
+        let t_ns = self
+            .start_ns
+            .checked_add(seconds_to_ns(pose.t_s)?)
+            .ok_or_else(|| {
+                Error::Invalid(format!(
+                    "trajectory time {} s does not fit the stream clock",
+                    pose.t_s
+                ))
+            })?;
+        let sun = self.sun_at(pose, t_ns.saturating_add(self.half_exposure_ns))?;
+        let (stokes, info) = self.pipe.stokes(sun, &pose.attitude)?;
+        let frame = self.pipe.frame(&stokes, index)?;
+        let mut payload = Vec::new();
+        packing::pack(
+            &frame.codes.data,
+            frame.bit_depth,
+            self.fmt,
+            false,
+            &mut payload,
+        )?;
+        let m = pose.attitude.enu_to_camera(sun.azimuth_deg);
+        let sun_c = m * sun.vector();
+        let intr = self.pipe.config().camera.intrinsics;
+        let mut flags = 0;
+        if frame.saturated.iter().any(|&n| n > 0) {
+            flags |= FLAG_SATURATION;
+        }
+        if !info.sky_valid {
+            flags |= FLAG_SKY_INVALID;
+        }
+        if sun_in_view(&intr, sun_c, sun.elevation_deg()) || info.sun_pixels > 0 {
+            flags |= FLAG_SUN_IN_VIEW;
+        }
+        if ground_in_view(&intr, &m) {
+            flags |= FLAG_GROUND_IN_VIEW;
+        }
+        if frame.auto_exposed {
+            flags |= FLAG_AUTO_EXPOSURE;
+        }
+        if frame.exposure_clipped {
+            flags |= FLAG_EXPOSURE_CLIPPED;
+        }
+        if last {
+            flags |= FLAG_LAST;
+        }
+        let place = pose.place.or(self.place);
+        let exposure_ns = seconds_to_ns(frame.exposure_us * 1e-6)?;
+        // payload DN: Mono8 keeps the top 8 of `bit_depth` bits
+        let black_scale = 2f64.powi(self.bits_valid as i32 - frame.bit_depth as i32);
+        let meta = FrameMeta {
+            index,
+            flags,
+            exposure_start_ns: t_ns,
+            exposure_end_ns: t_ns.saturating_add(exposure_ns),
+            host_time_ns: 0,
+            exposure_us: frame.exposure_us,
+            gain_db: frame.gain_db,
+            black_level: frame.black_level_dn * black_scale,
+            temperature_c: self.pipe.sensor_config().temperature_c,
+            sun_azimuth_deg: sun.azimuth_deg,
+            sun_elevation_deg: sun.elevation_deg(),
+            sun_camera: sun_c.to_array(),
+            attitude_wxyz: camera_to_enu_quaternion(&m),
+            lat_deg: place.map_or(0.0, |p| p.lat_deg),
+            lon_deg: place.map_or(0.0, |p| p.lon_deg),
+            height_m: place.map_or(0.0, |p| p.height_m),
+            saturated: frame.saturated,
+            turbidity: self.turbidity,
+            albedo: self.albedo,
+        };
+        Ok(Rendered { meta, payload })
+    }
+}
+
+/// The sun's centre projects inside the image (and the sun is above the horizon).
+fn sun_in_view(intr: &crate::camera::Intrinsics, sun_c: glam::DVec3, elevation_deg: f64) -> bool {
+    if elevation_deg < 0.0 {
+        return false;
+    }
+    match intr.project(sun_c) {
+        Some((c, r)) => {
+            (-0.5..=intr.width as f64 - 0.5).contains(&c)
+                && (-0.5..=intr.height as f64 - 0.5).contains(&r)
+        }
+        None => false,
+    }
+}
+
+/// Some pixel looks below the horizon. The up component of a ray is linear over the image plane,
+/// so its minimum over the image is at a corner.
+fn ground_in_view(intr: &crate::camera::Intrinsics, enu_to_camera: &DMat3) -> bool {
+    let cam_to_enu = enu_to_camera.transpose();
+    let (w, h) = (intr.width as f64 - 0.5, intr.height as f64 - 0.5);
+    [(-0.5, -0.5), (w, -0.5), (-0.5, h), (w, h)]
+        .iter()
+        .any(|&(c, r)| (cam_to_enu * intr.ray(c, r)).z < 0.0)
+}
+
+/// The file header for a scene: sensor description, camera constants, seed and the scene as JSON.
+pub fn stream_header(
+    cfg: &SceneConfig,
+    pipe: &RawPipeline,
+    json_extra: serde_json::Value,
+) -> Result<FileHeader> {
+    let sc = pipe.sensor_config();
+    let intr = cfg.camera.intrinsics;
+    let fmt = cfg.raw.pixel_format;
+    let (pc, pr) = intr.principal();
+    let mut h = FileHeader {
+        width: u32::try_from(intr.width)
+            .map_err(|_| Error::range("width", intr.width as f64, "1..65535"))?,
+        height: u32::try_from(intr.height)
+            .map_err(|_| Error::range("height", intr.height as f64, "1..65535"))?,
+        pixel_format: fmt,
+        bits_valid: packing::bits_valid(fmt, sc.bit_depth),
+        msb_aligned: false,
+        layout: sc.layout,
+        angle_sense: 1,
+        frame_count: 0,
+        seed: cfg.raw.seed,
+        camera: CameraConstants {
+            pixel_pitch_um: intr.pixel_pitch_um,
+            focal_length_mm: intr.focal_length_mm,
+            f_number: sc.f_number,
+            wavelength_nm: sc.filter_center_nm,
+            bandwidth_nm: sc.filter_width_nm,
+            full_well_e: sc.full_well_e,
+            k0_dn_per_e: sc.k0,
+            read_noise_e: sc.read_noise_e,
+            principal_col: pc,
+            principal_row: pr,
+        },
+        preset: cfg.raw.preset.to_string(),
+        ..FileHeader::default()
+    };
+    h.json = header_json(cfg, pipe, json_extra);
+    h.validate()?;
+    Ok(h)
+}
+
+/// Compact JSON of the scene (with the sensor in force) and the stream settings, shortened to fit
+/// the header: first without the full sensor configuration, then the stream settings alone.
+fn header_json(cfg: &SceneConfig, pipe: &RawPipeline, extra: serde_json::Value) -> String {
+    let mut scene = cfg.clone();
+    scene.derived = None;
+    let with_sensor = {
+        let mut s = scene.clone();
+        s.raw.sensor = Some(pipe.sensor_config().clone());
+        s
+    };
+    let doc = |s: Option<&SceneConfig>| {
+        let mut m = serde_json::Map::new();
+        if let Some(s) = s {
+            m.insert(
+                "scene".into(),
+                serde_json::to_value(s).unwrap_or(serde_json::Value::Null),
+            );
+        }
+        m.insert("stream".into(), extra.clone());
+        serde_json::to_string(&serde_json::Value::Object(m)).unwrap_or_default()
+    };
+    [doc(Some(&with_sensor)), doc(Some(&scene)), doc(None)]
+        .into_iter()
+        .find(|j| j.len() <= JSON_MAX && !j.contains('\0'))
+        .unwrap_or_default()
+}
+
+/// Host CLOCK_MONOTONIC in ns (Linux); 0 elsewhere.
+fn host_monotonic_ns() -> i64 {
+    #[cfg(target_os = "linux")]
+    {
+        #[repr(C)]
+        struct Timespec {
+            tv_sec: i64,
+            tv_nsec: i64,
+        }
+        extern "C" {
+            fn clock_gettime(clk: i32, tp: *mut Timespec) -> i32;
+        }
+        const CLOCK_MONOTONIC: i32 = 1;
+        let mut ts = Timespec {
+            tv_sec: 0,
+            tv_nsec: 0,
+        };
+        // SAFETY: libc's clock_gettime writes one timespec (two 64-bit fields on 64-bit Linux)
+        // through a valid pointer to a live local.
+        if cfg!(target_pointer_width = "64")
+            && unsafe { clock_gettime(CLOCK_MONOTONIC, &mut ts) } == 0
+        {
+            return ts
+                .tv_sec
+                .saturating_mul(1_000_000_000)
+                .saturating_add(ts.tv_nsec);
+        }
+        0
+    }
+    #[cfg(not(target_os = "linux"))]
+    {
+        0
+    }
+}
+
+/// The output: stdout, or a path (regular file, FIFO, device) with the count patched on close.
+enum Output {
+    Stdout(StreamWriter<BufWriter<std::io::StdoutLock<'static>>>),
+    Path(FileStreamWriter),
+}
+
+impl Output {
+    fn open(path: &Path, header: &FileHeader) -> Result<Self> {
+        if path.as_os_str() == "-" {
+            let w = BufWriter::with_capacity(1 << 20, std::io::stdout().lock());
+            Ok(Output::Stdout(StreamWriter::new(w, header)?))
+        } else {
+            Ok(Output::Path(FileStreamWriter::create(path, header)?))
+        }
+    }
+    fn write(&mut self, r: &Rendered) -> Result<()> {
+        match self {
+            Output::Stdout(w) => w.write_payload(&r.meta, &r.payload),
+            Output::Path(w) => w.write_payload(&r.meta, &r.payload),
+        }
+    }
+    fn finish(self) -> Result<()> {
+        match self {
+            Output::Stdout(w) => w
+                .finish()?
+                .flush()
+                .map_err(|e| Error::io("flushing stdout", e)),
+            Output::Path(w) => w.finish().map(|_| ()),
+        }
+    }
+}
+
+/// An opened trajectory.
+struct Trajectory {
+    poses: Poses,
+    /// Read one pose ahead to flag the last frame: only for a regular file, where it costs no
+    /// latency.
+    lookahead: bool,
+    /// Every pose carries a place.
+    has_place: bool,
+}
+
+fn open_trajectory(opts: &StreamOptions) -> Result<Trajectory> {
+    match &opts.trajectory {
+        None => {
+            crate::error::check_range("frame-interval-ms", opts.frame_interval_ms, 1e-3, 3.6e6)?;
+            crate::error::check_range("yaw-rate", opts.yaw_rate_deg_s, -1e6, 1e6)?;
+            Ok(Trajectory {
+                poses: Box::new(turning(opts.yaw_rate_deg_s, opts.frame_interval_ms * 1e-3)),
+                lookahead: false,
+                has_place: false,
+            })
+        }
+        Some(p) if p.as_os_str() == "-" => {
+            let t = CsvTrajectory::new(BufReader::new(std::io::stdin()))?;
+            Ok(Trajectory {
+                has_place: t.has_place(),
+                poses: Box::new(t),
+                lookahead: false,
+            })
+        }
+        Some(p) => {
+            let f = std::fs::File::open(p)
+                .map_err(|e| Error::io(format!("opening trajectory {}", p.display()), e))?;
+            let regular = f.metadata().map(|m| m.is_file()).unwrap_or(false);
+            let t = CsvTrajectory::new(BufReader::new(f))?;
+            Ok(Trajectory {
+                has_place: t.has_place(),
+                poses: Box::new(t),
+                lookahead: regular,
+            })
+        }
+    }
+}
+
 /// Runs `psns stream`.
+///
+/// Everything is validated (scene, sensor, options, trajectory header) before the output is
+/// opened. A malformed trajectory line ends the stream cleanly after the frames before it and
+/// returns the line's [`Error::Invalid`]; a closed reader returns `Ok` with `reader_closed`.
 pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSummary> {
-    let _ = (cfg, opts);
-    Err(Error::Invalid("psns stream is not implemented yet".into()))
+    if let Some(r) = opts.rate_fps {
+        crate::error::check_range("rate", r, 1e-6, 1e6)?;
+    }
+    let start_s = opts
+        .start_time
+        .clone()
+        .or_else(|| cfg.sun.time.clone())
+        .unwrap_or_else(|| DEFAULT_START_TIME.to_string());
+    let start = sun::parse_time(&start_s)?;
+    let start_ns = start
+        .timestamp_nanos_opt()
+        .ok_or_else(|| Error::Invalid(format!("start time {start_s} is out of range")))?;
+    let pipe = RawPipeline::new(cfg)?;
+    let sc = pipe.sensor_config().clone();
+    let Trajectory {
+        poses,
+        lookahead,
+        has_place,
+    } = open_trajectory(opts)?;
+    let sun_src = if cfg.sun.time.is_some() {
+        // the scene's time and place must be consistent; the trajectory may bring the place
+        let mut check = cfg.sun.clone();
+        if has_place && check.place.is_none() {
+            check.place = Some(Place {
+                lat_deg: 0.0,
+                lon_deg: 0.0,
+                height_m: 0.0,
+            });
+        }
+        check.resolve()?;
+        SunSource::Spa(cfg.sun.place)
+    } else {
+        SunSource::Fixed(cfg.sun.resolve()?)
+    };
+    let traj_kind = match &opts.trajectory {
+        None => serde_json::json!({
+            "turning": {"yaw_rate_deg_s": opts.yaw_rate_deg_s, "frame_interval_ms": opts.frame_interval_ms}
+        }),
+        Some(_) => serde_json::json!("csv"),
+    };
+    let extra = serde_json::json!({
+        "start_time": start.to_rfc3339_opts(chrono::SecondsFormat::AutoSi, true),
+        "trajectory": traj_kind,
+        "attitude_frame": "enu",
+    });
+    let header = stream_header(cfg, &pipe, extra)?;
+    let maker = FrameMaker {
+        sun: sun_src,
+        place: cfg.sun.place,
+        start_ns,
+        start,
+        delta_t_s: cfg.sun.delta_t_s,
+        refraction: cfg.sun.refraction,
+        half_exposure_ns: match sc.exposure {
+            Exposure::Fixed { us } => seconds_to_ns(us * 0.5e-6)?,
+            Exposure::Auto { .. } => 0,
+        },
+        fmt: header.pixel_format,
+        bits_valid: header.bits_valid,
+        turbidity: cfg.sky.turbidity as f32,
+        albedo: cfg.sky.albedo as f32,
+        pipe,
+    };
+    // render thread: pose k+1 while frame k is written
+    let (tx, rx) = sync_channel::<Result<Rendered>>(1);
+    let limit = opts.frames;
+    let producer = std::thread::Builder::new()
+        .name("psns-render".into())
+        .spawn(move || {
+            let mut poses = poses;
+            let mut peeked: Option<Option<Result<Pose>>> = None;
+            let mut k: u64 = 0;
+            loop {
+                if limit == Some(k) {
+                    return;
+                }
+                let Some(item) = peeked.take().unwrap_or_else(|| poses.next()) else {
+                    return;
+                };
+                let pose = match item {
+                    Ok(p) => p,
+                    Err(e) => {
+                        let _ = tx.send(Err(e));
+                        return;
+                    }
+                };
+                let last = if limit == Some(k + 1) {
+                    true
+                } else if lookahead {
+                    let next = poses.next();
+                    let end = next.is_none();
+                    peeked = Some(next);
+                    end
+                } else {
+                    false
+                };
+                let r = maker.render(k, &pose, last);
+                let failed = r.is_err();
+                if tx.send(r).is_err() || failed {
+                    return; // writer gone (reader closed) or render error sent
+                }
+                k += 1;
+            }
+        })
+        .map_err(|e| Error::io("starting the render thread", e))?;
+
+    let mut out = match Output::open(&opts.out, &header) {
+        Ok(o) => o,
+        Err(e) if e.is_broken_pipe() => {
+            drop(producer);
+            return Ok(StreamSummary {
+                reader_closed: true,
+                ..Default::default()
+            });
+        }
+        Err(e) => return Err(e),
+    };
+    let t_open = Instant::now();
+    let res = write_loop(&mut out, &rx, opts);
+    drop(rx); // a producer blocked on send ends now
+    let mut summary = StreamSummary::default();
+    let err = match res {
+        Ok((n, late)) => {
+            summary.frames = n;
+            summary.late_frames = late;
+            None
+        }
+        Err((n, late, e)) => {
+            summary.frames = n;
+            summary.late_frames = late;
+            Some(e)
+        }
+    };
+    if let Some(e) = &err {
+        if e.is_broken_pipe() {
+            // reader gone; the render thread may be waiting for a trajectory line: leave it
+            summary.reader_closed = true;
+            summary.seconds = t_open.elapsed().as_secs_f64();
+            drop(producer);
+            return Ok(summary);
+        }
+    }
+    let fin = out.finish();
+    let _ = producer.join();
+    summary.seconds = t_open.elapsed().as_secs_f64();
+    match (err, fin) {
+        (Some(e), _) => Err(e),
+        (None, Err(e)) if e.is_broken_pipe() => {
+            summary.reader_closed = true;
+            Ok(summary)
+        }
+        (None, Err(e)) => Err(e),
+        (None, Ok(())) => Ok(summary),
+    }
+}
+
+/// Writes frames as they arrive, paced by `--rate`. Returns (frames, late) or the error with them.
+fn write_loop(
+    out: &mut Output,
+    rx: &Receiver<Result<Rendered>>,
+    opts: &StreamOptions,
+) -> std::result::Result<(u64, u64), (u64, u64, Error)> {
+    let (mut n, mut late) = (0u64, 0u64);
+    let mut t0: Option<Instant> = None;
+    for r in rx.iter() {
+        let mut r = match r {
+            Ok(r) => r,
+            Err(e) => return Err((n, late, e)),
+        };
+        if let Some(rate) = opts.rate_fps {
+            let now = Instant::now();
+            let t0 = *t0.get_or_insert(now);
+            let due = t0 + Duration::from_secs_f64(n as f64 / rate);
+            if now > due + LATE_TOLERANCE {
+                late += 1;
+            } else if due > now {
+                std::thread::sleep(due - now);
+            }
+        }
+        if opts.stamp_host_time {
+            r.meta.host_time_ns = host_monotonic_ns();
+        }
+        if let Err(e) = out.write(&r) {
+            return Err((n, late, e));
+        }
+        n += 1;
+    }
+    Ok((n, late))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::{Attitude, Intrinsics};
+
+    #[test]
+    fn ground_in_view_by_corners() {
+        let i = Intrinsics {
+            width: 64,
+            height: 48,
+            pixel_pitch_um: 130.0,
+            ..Default::default()
+        };
+        let up = Attitude::enu(0.0, 0.0, 0.0).enu_to_camera(0.0);
+        assert!(!ground_in_view(&i, &up));
+        let tilted = Attitude::enu(0.0, 80.0, 0.0).enu_to_camera(0.0);
+        assert!(ground_in_view(&i, &tilted));
+    }
+
+    #[test]
+    fn sun_at_zenith_is_in_view() {
+        let i = Intrinsics {
+            width: 64,
+            height: 48,
+            pixel_pitch_um: 130.0,
+            ..Default::default()
+        };
+        let m = Attitude::enu(0.0, 0.0, 0.0).enu_to_camera(0.0);
+        let s = SunPosition::new(1.0, 100.0);
+        assert!(sun_in_view(&i, m * s.vector(), s.elevation_deg()));
+        let s = SunPosition::new(85.0, 100.0);
+        assert!(!sun_in_view(&i, m * s.vector(), s.elevation_deg()));
+    }
+
+    #[test]
+    fn header_json_fits() {
+        let mut cfg = SceneConfig::default();
+        cfg.camera.intrinsics.width = 64;
+        cfg.camera.intrinsics.height = 48;
+        let pipe = RawPipeline::new(&cfg).unwrap();
+        let h = stream_header(&cfg, &pipe, serde_json::json!({"start_time": "x"})).unwrap();
+        assert!(h.json.contains("\"stream\""), "{}", h.json);
+        assert!(h.json.contains("\"scene\""), "{}", h.json);
+        assert!(h.json.len() <= JSON_MAX);
+        assert_eq!(h.width, 64);
+        assert_eq!(h.bits_valid, 12);
+    }
 }

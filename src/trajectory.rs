@@ -79,6 +79,11 @@ impl<R: BufRead> CsvTrajectory<R> {
         })
     }
 
+    /// True when the header has the `lat_deg,lon_deg,height_m` columns.
+    pub fn has_place(&self) -> bool {
+        self.has_place
+    }
+
     /// Number of columns per data line.
     fn ncols(&self) -> usize {
         1 + match self.att {
