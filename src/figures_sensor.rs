@@ -59,18 +59,21 @@ pub fn ptc_sensor_config() -> SensorConfig {
     cfg
 }
 
-/// Exposure levels as fractions of the exposure that fills the full well: 20 evenly spaced up to
-/// 90 %, 8 fine steps (1.5 %) from 92 % to 102.5 % to locate the variance maximum, and two levels
-/// past saturation where the variance collapses.
+/// Exposure levels as fractions of the exposure that fills the full well: 5 low levels (0.1 % to
+/// 2 %, the read-noise-limited part of the SNR curve), 20 evenly spaced up to 90 %, 8 fine steps
+/// (1.5 %) from 92 % to 102.5 % to locate the variance maximum, and two levels past saturation
+/// where the variance collapses.
 pub fn ptc_fractions() -> Vec<f64> {
-    let mut f: Vec<f64> = (1..=20).map(|i| 0.9 * i as f64 / 20.0).collect();
+    let mut f = vec![0.001, 0.002, 0.005, 0.01, 0.02];
+    f.extend((1..=20).map(|i| 0.9 * i as f64 / 20.0));
     f.extend((0..8).map(|i| 0.92 + 0.015 * i as f64));
     f.extend([1.1, 1.25]);
     f
 }
 
 /// Photon-transfer measurement of camera `seed` with sensor `cfg` on a `width` × `height`
-/// unpolarized flat field of radiance 0.1: a dark pair at 20 µs and one level per
+/// unpolarized flat field of radiance 0.01 (full well in about 25 ms with the default optics, so
+/// the shortest level stays above the 20 µs minimum exposure): a dark pair at 20 µs and one level per
 /// [`ptc_fractions`] entry, each the average of `pairs` independent frame pairs; evaluated with
 /// [`photon_transfer`]. Pure: same inputs, same result (no dependence on the thread count).
 pub fn photon_transfer_data(
@@ -89,7 +92,7 @@ pub fn photon_transfer_data(
         ..Default::default()
     };
     cfg.validate(width, height)?;
-    let radiance = 0.1;
+    let radiance = 0.01;
     let light = flat_field(width, height, radiance, 0.0, 0.0)?;
     let dark = flat_field(width, height, 0.0, 0.0, 0.0)?;
     let probe = Sensor::new(cfg, &intr, seed)?;
@@ -193,6 +196,8 @@ fn draw_ptc(d: &PtcData, svg: &mut String) -> std::result::Result<(), Box<dyn st
     ch.configure_mesh()
         .x_desc("mean above dark (DN)")
         .y_desc("temporal variance (DN²)")
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .y_label_formatter(&|v| format!("{v:.0}"))
         .label_style(("sans-serif", 12))
         .draw()?;
     ch.draw_series(
@@ -247,6 +252,10 @@ fn draw_ptc(d: &PtcData, svg: &mut String) -> std::result::Result<(), Box<dyn st
     ch.configure_mesh()
         .x_desc("mean above dark (DN)")
         .y_desc("SNR = mean / σ")
+        .x_labels(5)
+        .y_labels(5)
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .y_label_formatter(&|v| format!("{v:.0}"))
         .label_style(("sans-serif", 12))
         .draw()?;
     let xs: Vec<f64> = (0..=100)
@@ -291,6 +300,8 @@ fn draw_ptc(d: &PtcData, svg: &mut String) -> std::result::Result<(), Box<dyn st
     ch.configure_mesh()
         .x_desc("exposure time (ms)")
         .y_desc("mean above dark (DN)")
+        .x_label_formatter(&|v| format!("{v:.0}"))
+        .y_label_formatter(&|v| format!("{v:.0}"))
         .label_style(("sans-serif", 12))
         .draw()?;
     let ts: Vec<f64> = (0..=200).map(|i| tmax * i as f64 / 200.0).collect();
@@ -376,6 +387,39 @@ fn codes_rgb_saturation(codes: &Image<u16>, white: f64, max: u16) -> Image<[u8; 
                 }
             })
             .collect(),
+    )
+}
+
+/// Box-downsampled grey view (`white` → 255) with every block that holds a pixel at the maximum
+/// code painted red.
+fn saturation_overview(codes: &Image<u16>, factor: usize, white: f64, max: u16) -> Image<[u8; 3]> {
+    let g = vis::gray8(&vis::downsample(codes, factor), white);
+    let (w, h) = (g.width, g.height);
+    let data = (0..w * h)
+        .map(|i| {
+            let (r, c) = (i / w, i % w);
+            let sat = (0..factor).any(|dr| {
+                codes.row(r * factor + dr)[c * factor..(c + 1) * factor]
+                    .iter()
+                    .any(|&v| v >= max)
+            });
+            if sat {
+                [230, 30, 30]
+            } else {
+                let v = g.data[i];
+                [v, v, v]
+            }
+        })
+        .collect();
+    Image::from_vec(w, h, data)
+}
+
+/// First channel of an RGB image (for grey pictures assembled with the RGB stacking helpers).
+fn rgb_to_gray(img: &Image<[u8; 3]>) -> Image<u8> {
+    Image::from_vec(
+        img.width,
+        img.height,
+        img.data.iter().map(|p| p[0]).collect(),
     )
 }
 
@@ -500,21 +544,41 @@ pub fn sensor_figures(dir: &Path) -> Result<Vec<String>> {
     let (att, pitch, sx, sy) =
         sun_view.ok_or_else(|| Error::Invalid("sun figure: the sun is not in view".into()))?;
     let (st, info) = pipe.stokes(sun, &att)?;
-    let sun_frame = pipe.frame(&st, 0)?;
+    let sun_frame = pipe.frame(&st, 0)?; // default exposure 1 ms
+                                         // the same camera (seed) at a short exposure: only the disc and its rim saturate
+    let short_us = 50.0;
+    let mut short_cfg = cfg.clone();
+    let mut s = SensorConfig::preset(Preset::Camera);
+    s.exposure = Exposure::Fixed { us: short_us };
+    short_cfg.raw.sensor = Some(s);
+    let short = RawPipeline::new(&short_cfg)?.frame(&st, 0)?;
     let n = 32;
     let (r0, c0) = (
         ((sy.round() as usize).saturating_sub(n / 2)) & !1,
         ((sx.round() as usize).saturating_sub(n / 2)) & !1,
     );
-    let sun_crop = crop(&sun_frame.codes, r0, c0, n, n);
-    let sun_rgb = enlarge(&codes_rgb_saturation(&sun_crop, max as f64, max), 9);
+    let sun_crop = crop(&short.codes, r0, c0, n, n);
+    // display white: the brightest sky pixel of the crop (codes far below full scale), so the
+    // aureole shows; brighter pixels clip to white, pixels at the maximum code are red
+    let sun_white = sun_crop
+        .data
+        .iter()
+        .copied()
+        .filter(|&v| (v as f64) < 0.5 * max as f64)
+        .max()
+        .unwrap_or(max)
+        .max(1) as f64;
+    let sun_rgb = enlarge(&codes_rgb_saturation(&sun_crop, sun_white, max), 9);
     io::write_png_rgb8(
         &put("raw_mosaic_zoom.png"),
         &vis::hstack(&[&zoom_rgb, &sun_rgb], 8),
     )?;
-    let sun_small = vis::downsample(&codes_gray(&sun_frame.codes, bits), 8);
-    let sun_small = vis::gray8(&sun_small, 255.0);
-    io::write_png_gray8(&put("raw_sun_frame.png"), &sun_small)?;
+    let long_view = saturation_overview(&sun_frame.codes, 8, max as f64, max);
+    let short_view = saturation_overview(&short.codes, 8, max as f64 / 16.0, max);
+    io::write_png_rgb8(
+        &put("raw_sun_frame.png"),
+        &vis::hstack(&[&long_view, &short_view], 4),
+    )?;
     numbers.insert(
         "mosaic_zoom".into(),
         serde_json::json!({
@@ -528,8 +592,13 @@ pub fn sensor_figures(dir: &Path) -> Result<Vec<String>> {
             "attitude_enu_yaw_deg": sun.azimuth_deg, "pitch_deg": pitch,
             "sun_col": sx, "sun_row": sy, "crop_row": r0, "crop_col": c0, "crop_size": n,
             "sun_disc_pixels": info.sun_pixels,
-            "saturated_pixels": sun_frame.saturated,
-            "saturated_in_crop": sun_crop.data.iter().filter(|&&v| v >= max).count(),
+            "saturated_pixels_1ms": sun_frame.saturated,
+            "short_exposure_us": short_us,
+            "saturated_pixels_short": short.saturated,
+            "saturated_in_crop_short": sun_crop.data.iter().filter(|&&v| v >= max).count(),
+            "above_half_scale_in_crop_short": sun_crop.data.iter().filter(|&&v| v as f64 >= 0.5 * max as f64).count(),
+            "min_code_above_half_scale_in_crop_short": sun_crop.data.iter().copied().filter(|&v| v as f64 >= 0.5 * max as f64).min(),
+            "crop_display_white_code": sun_white,
         }),
     );
 
@@ -540,9 +609,10 @@ pub fn sensor_figures(dir: &Path) -> Result<Vec<String>> {
             sub_lattice(&frame.codes, r, c)
         })
         .collect();
+    let ch_white = frame.codes.data.iter().copied().max().unwrap_or(1).max(1) as f64;
     let row1: Vec<Image<[u8; 3]>> = subs
         .iter()
-        .map(|s| vis::gray_rgb(&vis::gray8(&vis::downsample(s, 4), max as f64)))
+        .map(|s| vis::gray_rgb(&vis::gray8(&vis::downsample(s, 4), ch_white)))
         .collect();
     let mean4: Vec<f64> = (0..subs[0].data.len())
         .map(|i| subs.iter().map(|s| s.data[i] as f64).sum::<f64>() / 4.0)
@@ -572,7 +642,14 @@ pub fn sensor_figures(dir: &Path) -> Result<Vec<String>> {
     let r1: Vec<&Image<[u8; 3]>> = row1.iter().collect();
     let r2: Vec<&Image<[u8; 3]>> = row2.iter().collect();
     let (a, b) = (vis::hstack(&r1, 4), vis::hstack(&r2, 4));
-    io::write_png_rgb8(&put("raw_channels.png"), &vis::vstack(&[&a, &b], 4))?;
+    io::write_png_gray8(
+        &put("raw_channels.png"),
+        &rgb_to_gray(&vis::vstack(&[&a, &b], 4)),
+    )?;
+    numbers.insert(
+        "channels".into(),
+        serde_json::json!({ "display_white_code": ch_white }),
+    );
 
     // 4. PSNS presets and the camera, same sky: full frames /8 and a 152 × 128 corner crop ×2
     let mut top = Vec::new();
@@ -597,7 +674,10 @@ pub fn sensor_figures(dir: &Path) -> Result<Vec<String>> {
     let t: Vec<&Image<[u8; 3]>> = top.iter().collect();
     let bt: Vec<&Image<[u8; 3]>> = bottom.iter().collect();
     let (a, b) = (vis::hstack(&t, 6), vis::hstack(&bt, 8));
-    io::write_png_rgb8(&put("psns_presets.png"), &vis::vstack(&[&a, &b], 6))?;
+    io::write_png_gray8(
+        &put("psns_presets.png"),
+        &rgb_to_gray(&vis::vstack(&[&a, &b], 6)),
+    )?;
 
     // 5. photon transfer
     let ptc = photon_transfer_data(&ptc_sensor_config(), 256, 256, 2024, 2)?;
@@ -629,12 +709,12 @@ pub fn sensor_figures(dir: &Path) -> Result<Vec<String>> {
         est.data
             .iter()
             .zip(&tru.data)
-            .map(|(&e, &t)| ((e - t) / 0.2 + 0.5) as f32)
+            .map(|(&e, &t)| ((e - t) / 0.1 + 0.5) as f32)
             .collect(),
     );
-    let a = vis::dop_rgb(&vis::downsample(&tru, 4), None);
-    let b = vis::dop_rgb(&vis::downsample(&est, 4), None);
-    let c = vis::gray_rgb(&vis::gray8(&vis::downsample(&diff, 4), 1.0));
+    let a = vis::dop_rgb(&vis::downsample(&tru, 6), None);
+    let b = vis::dop_rgb(&vis::downsample(&est, 6), None);
+    let c = vis::gray_rgb(&vis::gray8(&vis::downsample(&diff, 6), 1.0));
     io::write_png_rgb8(
         &put("dolp_truth_vs_superpixel.png"),
         &vis::hstack(&[&a, &b, &c], 4),
