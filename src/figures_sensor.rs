@@ -53,8 +53,10 @@ pub struct PtcData {
 /// The camera preset prepared for EMVA 1288: black level 16 DN so dark pixels do not clip, and
 /// no relative illumination so the field is uniform.
 pub fn ptc_sensor_config() -> SensorConfig {
-    let mut cfg = SensorConfig::default();
-    cfg.black_level_dn = 16.0;
+    let mut cfg = SensorConfig {
+        black_level_dn: 16.0,
+        ..Default::default()
+    };
     cfg.stages.ri = false;
     cfg
 }
@@ -709,7 +711,7 @@ pub fn sensor_figures(dir: &Path) -> Result<Vec<String>> {
         est.data
             .iter()
             .zip(&tru.data)
-            .map(|(&e, &t)| ((e - t) / 0.1 + 0.5) as f32)
+            .map(|(&e, &t)| (e - t) / 0.1 + 0.5)
             .collect(),
     );
     let a = vis::dop_rgb(&vis::downsample(&tru, 6), None);
