@@ -371,7 +371,8 @@ pub struct RawFrame {
     /// Noise-free Stokes (S0, S1, S2) of an ideal pixel at every pixel's own position, output DN
     /// above the black level.
     pub truth: StokesImage,
-    /// Pixels at the maximum code per mosaic position (0,0), (0,1), (1,0), (1,1).
+    /// Saturated pixels per mosaic position (0,0), (0,1), (1,0), (1,1): at the maximum code, or with
+    /// the full well reached (which reads a few DN below the top code after read noise and DSNU).
     pub saturated: [u32; 4],
     /// The exposure came from auto-exposure.
     pub auto_exposed: bool,
@@ -674,6 +675,9 @@ impl Sensor {
                         } else {
                             mean
                         };
+                        // with K0 = 4095/FWC a full well reads 4092..4095 after read noise: count it
+                        // as saturated too, not only the top code
+                        let well_full = st.fwc_clip && n >= fwc;
                         if st.fwc_clip {
                             n = n.min(fwc);
                         }
@@ -698,7 +702,7 @@ impl Sensor {
                             a[c] = v as f32;
                         }
                         *code = adc::quantize(v, max);
-                        if *code == max {
+                        if *code == max || well_full {
                             sat[((r & 1) << 1) | (c & 1)] += 1;
                         }
                     }
