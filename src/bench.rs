@@ -260,7 +260,9 @@ pub fn saturation_mask(codes: &Image<u16>, max: u16, radius: usize) -> Vec<bool>
 }
 
 /// Scores like [`crate::stokes::score`], skipping pixels where `exclude` is true (every score,
-/// including the S0 PSNR and the pixel counts).
+/// including the S0 PSNR and the pixel counts), with the estimated DoLP clipped to ≤ 1: where a
+/// kernel rings to S0 ≈ 0 in a dark region the raw ratio reaches 10³ and a handful of pixels
+/// would own the RMSE (they are counted separately by [`score_scene`]).
 pub fn score_masked(
     est: &StokesImage,
     truth: &StokesImage,
@@ -312,7 +314,7 @@ pub fn score_masked(
                     truth.s2.data[i] as f64,
                 );
                 acc[0] += (e0 - t0) * (e0 - t0);
-                let (de, dt) = (d(e0, e1, e2), d(t0, t1, t2));
+                let (de, dt) = (d(e0, e1, e2).min(1.0), d(t0, t1, t2));
                 acc[1] += (de - dt) * (de - dt);
                 acc[2] += de - dt;
                 acc[6] += 1.0;
@@ -434,16 +436,18 @@ pub struct BenchRow {
     pub aolp_rmse_all_deg: f64,
     /// Pixels excluded as saturated (inside the border).
     pub n_saturated_excluded: usize,
+    /// Scored pixels whose estimated DoLP exceeds 1 (clipped to 1 for the DoLP scores).
+    pub n_dolp_above_1: usize,
 }
 
 /// The CSV header of `demosaic.csv`.
-pub const CSV_HEADER: &str = "method,scene,bits,width,height,ms_per_frame,ms_per_frame_fresh,s0_psnr_db,dolp_rmse,dolp_bias,aolp_rmse_deg,aolp_mae_deg,aolp_rmse_all_deg,n_aolp_px,n_sat_excluded_px";
+pub const CSV_HEADER: &str = "method,scene,bits,width,height,ms_per_frame,ms_per_frame_fresh,s0_psnr_db,dolp_rmse,dolp_bias,aolp_rmse_deg,aolp_mae_deg,aolp_rmse_all_deg,n_aolp_px,n_sat_excluded_px,n_dolp_above_1_px";
 
 impl BenchRow {
     fn csv(&self) -> String {
         let s = &self.scores;
         format!(
-            "{},{},{},{},{},{:.2},{:.2},{:.2},{:.5},{:.5},{:.3},{:.3},{:.3},{},{}",
+            "{},{},{},{},{},{:.2},{:.2},{:.2},{:.5},{:.5},{:.3},{:.3},{:.3},{},{},{}",
             self.method,
             self.scene,
             self.bits,
@@ -458,18 +462,29 @@ impl BenchRow {
             s.aolp_mean_abs_deg,
             self.aolp_rmse_all_deg,
             s.n_aolp_pixels,
-            self.n_saturated_excluded
+            self.n_saturated_excluded,
+            self.n_dolp_above_1
         )
     }
 }
 
-/// Scores one method on one rendered scene: (scores without saturated pixels, AoLP RMSE with
-/// them, excluded pixel count, the demosaiced images).
-pub fn score_scene(
-    sf: &SceneFrame,
-    method: Method,
-    sat: &[bool],
-) -> Result<(crate::stokes::Scores, f64, usize, PolarImages)> {
+/// What [`score_scene`] measured.
+#[derive(Clone, Debug)]
+pub struct SceneScore {
+    /// Scores with saturated neighbourhoods excluded.
+    pub scores: crate::stokes::Scores,
+    /// AoLP RMSE with them.
+    pub aolp_rmse_all_deg: f64,
+    /// Pixels excluded as saturated (inside the border).
+    pub n_saturated_excluded: usize,
+    /// Scored pixels with estimated DoLP > 1.
+    pub n_dolp_above_1: usize,
+    /// The demosaiced images.
+    pub images: PolarImages,
+}
+
+/// Scores one method on one rendered scene; `sat` marks the pixels to exclude.
+pub fn score_scene(sf: &SceneFrame, method: Method, sat: &[bool]) -> Result<SceneScore> {
     let f = &sf.frame;
     let layout = sf
         .config
@@ -481,8 +496,21 @@ pub fn score_scene(
     let peak = ((1u32 << f.bit_depth) - 1) as f64;
     let s = score_masked(&p.stokes, &f.truth, peak, DOLP_THRESHOLD, BORDER, Some(sat))?;
     let all = score_masked(&p.stokes, &f.truth, peak, DOLP_THRESHOLD, BORDER, None)?;
-    let n_sat = all.n_pixels - s.n_pixels;
-    Ok((s, all.aolp_rmse_deg, n_sat, p))
+    let (w, h) = (f.codes.width, f.codes.height);
+    let n_dolp_above_1 = (BORDER..h - BORDER)
+        .map(|r| {
+            (BORDER..w - BORDER)
+                .filter(|&c| !sat[r * w + c] && p.dolp.data[r * w + c] > 1.0)
+                .count()
+        })
+        .sum();
+    Ok(SceneScore {
+        scores: s,
+        aolp_rmse_all_deg: all.aolp_rmse_deg,
+        n_saturated_excluded: all.n_pixels - s.n_pixels,
+        n_dolp_above_1,
+        images: p,
+    })
 }
 
 fn sat_mask_of(f: &RawFrame) -> Vec<bool> {
@@ -517,17 +545,71 @@ pub fn aolp_error_map(est: &StokesImage, truth: &StokesImage) -> Image<f32> {
 /// Error bins of the stability maps, degrees (upper edges).
 pub const ERROR_BINS_DEG: [f64; 5] = [1.0, 2.0, 5.0, 10.0, 20.0];
 
-/// Colour of an AoLP error: six viridis steps (< 1°, 1–2, 2–5, 5–10, 10–20, ≥ 20°); black where
-/// not scored (NaN).
-pub fn error_colour(e: f32) -> [u8; 3] {
+/// Palette index of an AoLP error: 1..=6 for the bins < 1°, 1–2, 2–5, 5–10, 10–20, ≥ 20°;
+/// 0 (black) where not scored (NaN). Index 7 (white) separates panels.
+pub fn error_index(e: f32) -> u8 {
     if !e.is_finite() {
-        return [0, 0, 0];
+        return 0;
     }
-    let k = ERROR_BINS_DEG
+    1 + ERROR_BINS_DEG
         .iter()
         .position(|&b| (e as f64) < b)
-        .unwrap_or(ERROR_BINS_DEG.len());
-    vis::viridis(k as f64 / ERROR_BINS_DEG.len() as f64)
+        .unwrap_or(ERROR_BINS_DEG.len()) as u8
+}
+
+/// The stability-map palette: black, six viridis steps, white.
+pub fn error_palette() -> [[u8; 3]; 8] {
+    let mut p = [[0u8; 3]; 8];
+    for (k, c) in p.iter_mut().enumerate().skip(1).take(6) {
+        *c = vis::viridis((k - 1) as f64 / 5.0);
+    }
+    p[7] = [255, 255, 255];
+    p
+}
+
+/// Writes an indexed-colour PNG (small files for maps with few colours).
+pub fn write_png_indexed(path: &Path, img: &Image<u8>, palette: &[[u8; 3]]) -> Result<()> {
+    let err = |e: png::EncodingError| Error::Format(format!("writing {}: {e}", path.display()));
+    io::write_atomic(path, |w| {
+        let mut enc = png::Encoder::new(w, img.width as u32, img.height as u32);
+        enc.set_color(png::ColorType::Indexed);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_palette(palette.iter().flatten().copied().collect::<Vec<u8>>());
+        enc.set_compression(png::Compression::High);
+        let mut wr = enc.write_header().map_err(err)?;
+        wr.write_image_data(&img.data).map_err(err)?;
+        wr.finish().map_err(err)
+    })
+}
+
+/// Places index images side by side (`gap` columns of `fill`), top-aligned.
+fn hstack_idx(imgs: &[Image<u8>], gap: usize, fill: u8) -> Image<u8> {
+    let h = imgs.iter().map(|i| i.height).max().unwrap_or(0);
+    let w = imgs.iter().map(|i| i.width).sum::<usize>() + gap * imgs.len().saturating_sub(1);
+    let mut out = Image::from_vec(w, h, vec![fill; w * h]);
+    let mut x0 = 0;
+    for img in imgs {
+        for r in 0..img.height {
+            out.data[r * w + x0..r * w + x0 + img.width].copy_from_slice(img.row(r));
+        }
+        x0 += img.width + gap;
+    }
+    out
+}
+
+/// Stacks index images vertically (`gap` rows of `fill`), left-aligned.
+fn vstack_idx(imgs: &[Image<u8>], gap: usize, fill: u8) -> Image<u8> {
+    let w = imgs.iter().map(|i| i.width).max().unwrap_or(0);
+    let h = imgs.iter().map(|i| i.height).sum::<usize>() + gap * imgs.len().saturating_sub(1);
+    let mut out = Image::from_vec(w, h, vec![fill; w * h]);
+    let mut y0 = 0;
+    for img in imgs {
+        for r in 0..img.height {
+            out.data[(y0 + r) * w..(y0 + r) * w + img.width].copy_from_slice(img.row(r));
+        }
+        y0 += img.height + gap;
+    }
+    out
 }
 
 /// Max-pools an error map by `factor` (NaN ignored; NaN when the whole block is), so 1-pixel
@@ -565,11 +647,11 @@ fn crop(img: &Image<f32>, r0: usize, c0: usize, size: usize) -> Image<f32> {
     out
 }
 
-fn colour(img: &Image<f32>) -> Image<[u8; 3]> {
+fn index_map(img: &Image<f32>) -> Image<u8> {
     Image::from_vec(
         img.width,
         img.height,
-        img.data.iter().map(|&e| error_colour(e)).collect(),
+        img.data.iter().map(|&e| error_index(e)).collect(),
     )
 }
 
@@ -989,21 +1071,22 @@ pub fn bench_demosaic(opts: &BenchOptions) -> Result<Vec<String>> {
         };
         let sat = sat_mask_of(&sf.frame);
         let maps = bits == 12 && matches!(scene, Scene::OccluderEdge | Scene::SunInView);
-        let factor = (w / 306).max(1);
+        let factor = (w / 256).max(1);
         let detail = (w / 10).clamp(64, 200);
         let (dr, dc) = detail_origin(scene, w, h, detail);
         let mut pooled = Vec::new();
         let mut crops = Vec::new();
         for &(m, reused, fresh) in &timing {
-            let (s, all, n_sat, p) = score_scene(&sf, m, &sat)?;
+            let sc = score_scene(&sf, m, &sat)?;
+            let (s, all, p) = (sc.scores, sc.aolp_rmse_all_deg, &sc.images);
             eprintln!(
                 "{m:>10} {scene:>14} {bits:>2} bit: S0 {:6.2} dB, DoLP RMSE {:.4} bias {:+.4}, AoLP RMSE {:7.3} deg (all {:7.3})",
                 s.s0_psnr_db, s.dolp_rmse, s.dolp_bias, s.aolp_rmse_deg, all
             );
             if maps {
                 let e = aolp_error_map(&p.stokes, &sf.frame.truth);
-                pooled.push(colour(&max_pool(&e, factor)));
-                crops.push(colour(&crop(&e, dr, dc, detail)));
+                pooled.push(index_map(&max_pool(&e, factor)));
+                crops.push(index_map(&crop(&e, dr, dc, detail)));
             }
             rows.push(BenchRow {
                 method: m,
@@ -1015,17 +1098,16 @@ pub fn bench_demosaic(opts: &BenchOptions) -> Result<Vec<String>> {
                 ms_per_frame_fresh: fresh,
                 scores: s,
                 aolp_rmse_all_deg: all,
-                n_saturated_excluded: n_sat,
+                n_saturated_excluded: sc.n_saturated_excluded,
+                n_dolp_above_1: sc.n_dolp_above_1,
             });
         }
         if maps {
-            let top: Vec<&Image<[u8; 3]>> = pooled.iter().collect();
-            let bottom: Vec<&Image<[u8; 3]>> = crops.iter().collect();
-            let top = vis::hstack(&top, 4);
-            let bottom = vis::hstack(&bottom, 4);
-            let img = vis::vstack(&[&top, &bottom], 6);
+            let top = hstack_idx(&pooled, 4, 7);
+            let bottom = hstack_idx(&crops, 4, 7);
+            let img = vstack_idx(&[top, bottom], 6, 7);
             let p = opts.out.join(format!("demosaic_aolp_error_{scene}.png"));
-            io::write_png_rgb8(&p, &img)?;
+            write_png_indexed(&p, &img, &error_palette())?;
             check_size(&p)?;
             files.push(p.display().to_string());
         }
