@@ -293,3 +293,22 @@ fn demosaic_command_reads_png_tiff_and_streams() {
     })
     .is_err());
 }
+
+#[test]
+fn fused_superpixel_chain_matches_demosaic_then_stokes() {
+    // odd sizes exercise the repeated last block; reused buffers of another size are refitted
+    for (w, h) in [(64usize, 48usize), (37, 29)] {
+        let data: Vec<u16> = (0..w * h)
+            .map(|k| ((k * 7919 + k / w * 13) % 4000) as u16)
+            .collect();
+        let raw = Image::from_vec(w, h, data);
+        let layout = MosaicLayout::IMX250MZR;
+        let st = psns::demosaic::demosaic(&raw, layout, Method::Superpixel).unwrap();
+        let (d, a) = psns::stokes::dolp_aolp_images(&st);
+        let mut out = full_chain(&Image::<u16>::new(16, 16), layout, Method::Superpixel).unwrap();
+        psns::demosaic::full_chain_into(&raw, layout, Method::Superpixel, &mut out).unwrap();
+        assert_eq!(out.stokes, st);
+        assert_eq!(out.dolp, d);
+        assert_eq!(out.aolp_deg, a);
+    }
+}
