@@ -655,18 +655,18 @@ fn index_map(img: &Image<f32>) -> Image<u8> {
     )
 }
 
-/// Native-resolution crop (top-left row, column) shown under the max-pooled map of a scene.
-fn detail_origin(scene: Scene, w: usize, h: usize, size: usize) -> (usize, usize) {
+/// Native-resolution crop (top-left row, column) shown under the max-pooled map of a scene:
+/// the crossing of the straight wire and the mast for `occluder-edge`; centred on the leftmost
+/// clipped pixel (the rim of the saturated region) otherwise.
+fn detail_origin(scene: Scene, w: usize, h: usize, size: usize, sat: &[bool]) -> (usize, usize) {
     let (r, c) = match scene {
-        // the mast, the straight wire and the right-hand building's roof
-        Scene::OccluderEdge => (0.62 * h as f64, 0.60 * w as f64),
-        // around the sun (20° above the optical axis: up in the image)
+        Scene::OccluderEdge => (0.30 * h as f64, 0.62 * w as f64),
         _ => {
-            let f = scenes::intrinsics(w, h).focal_px();
-            (
-                h as f64 / 2.0 - f * 20f64.to_radians().tan(),
-                w as f64 / 2.0,
-            )
+            let k = (0..w)
+                .flat_map(|c| (0..h).map(move |r| (r, c)))
+                .find(|&(r, c)| sat[r * w + c])
+                .unwrap_or((h / 2, w / 2));
+            (k.0 as f64, k.1 as f64 + SAT_RADIUS as f64)
         }
     };
     let r = (r - size as f64 / 2.0).clamp(0.0, (h - size) as f64) as usize;
@@ -835,6 +835,7 @@ pub fn speed_chart_svg(rows: &[BenchRow], title: &str) -> Result<String> {
             .configure_mesh()
             .x_desc("ms per full frame (raw -> S0, S1, S2, DoLP, AoLP; median, buffers reused)")
             .y_desc("AoLP RMSE, degrees (true DoLP > 0.05)")
+            .light_line_style(RGBColor(238, 238, 238))
             .label_style(("sans-serif", 13))
             .draw()
             .map_err(perr)?;
@@ -869,18 +870,20 @@ pub fn speed_chart_svg(rows: &[BenchRow], title: &str) -> Result<String> {
                 methods.push((r.method, r.ms_per_frame));
             }
         }
+        methods.sort_by(|a, b| a.1.total_cmp(&b.1));
+        // stagger the names so neighbours in time do not overlap
         chart
-            .draw_series(methods.iter().map(|&(m, x)| {
+            .draw_series(methods.iter().enumerate().map(|(k, &(m, x))| {
                 Text::new(
                     m.name().to_string(),
-                    (x, y1 / 1.25),
+                    (x, y1 / 1.15 / 1.35f64.powi((k % 3) as i32)),
                     ("sans-serif", 13).into_font().color(&BLACK),
                 )
             }))
             .map_err(perr)?;
         chart
             .configure_series_labels()
-            .position(SeriesLabelPosition::LowerRight)
+            .position(SeriesLabelPosition::Coordinate(250, 330))
             .border_style(BLACK)
             .background_style(WHITE.mix(0.85))
             .label_font(("sans-serif", 13))
@@ -1073,7 +1076,7 @@ pub fn bench_demosaic(opts: &BenchOptions) -> Result<Vec<String>> {
         let maps = bits == 12 && matches!(scene, Scene::OccluderEdge | Scene::SunInView);
         let factor = (w / 256).max(1);
         let detail = (w / 10).clamp(64, 200);
-        let (dr, dc) = detail_origin(scene, w, h, detail);
+        let (dr, dc) = detail_origin(scene, w, h, detail, &sat);
         let mut pooled = Vec::new();
         let mut crops = Vec::new();
         for &(m, reused, fresh) in &timing {
