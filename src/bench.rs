@@ -1,11 +1,44 @@
 //! `psns demosaic` and `psns bench demosaic`: demosaic files and streams, score every method on
-//! named scenes against the emulator's ground truth, chart speed against accuracy.
-//! (Being implemented.)
+//! the named scenes of [`crate::scenes`] against the emulator's ground truth, chart speed against
+//! accuracy, and map where each method fails.
+//!
+//! Scoring (spec `demosaic.md` §2): the estimate is the demosaic of (codes − black level); the
+//! truth is [`RawFrame::truth`] (ideal polarizer, no noise, output DN above black). S0 PSNR uses
+//! peak = 2^bits − 1; DoLP RMSE and bias are over every pixel; AoLP RMSE (axial, mod 180°) is over
+//! pixels with true DoLP > [`DOLP_THRESHOLD`]; an 8-pixel border is excluded. Pixels within
+//! [`SAT_RADIUS`] of a clipped code are excluded from the main scores (the truth is not clipped,
+//! so no demosaicker can be right there); `aolp_rmse_all_deg` keeps them.
+//!
+//! Timing: the median of `runs` calls of [`full_chain_into`] with output buffers reused across
+//! runs (raw u16 mosaic in memory → S0, S1, S2, DoLP, AoLP f32 in memory), and, as a second
+//! column, [`full_chain`] with fresh output allocation; both on the full clear-sky frame.
+//!
+//! Noise laws (spec §4): [`noise_sweep`] renders uniform flat fields through the emulator with
+//! shot and read noise only and measures the mean DoLP at p = 0 (theory 0.886/√N) and the AoLP
+//! spread at p > 0 (theory 20.3°/(p√N)).
 
-use crate::demosaic::Method;
+use crate::angle::SensorAngle;
+use crate::demosaic::{full_chain, full_chain_into, Method, PolarImages, RawPixel};
 use crate::error::{Error, Result};
+use crate::image::{Image, StokesImage};
+use crate::scenes::{self, Scene, SceneFrame};
 use crate::sensor::mosaic::MosaicLayout;
+use crate::sensor::{self, Exposure, RawFrame, Sensor, SensorConfig, Stages};
+use crate::{io, vis};
+use rayon::prelude::*;
+use std::io::Write;
 use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// AoLP is scored where the true DoLP exceeds this.
+pub const DOLP_THRESHOLD: f64 = 0.05;
+/// Border excluded from the scores, pixels.
+pub const BORDER: usize = 8;
+/// Pixels closer than this (Chebyshev distance) to a clipped code are excluded from the main
+/// scores: the widest kernel (EARI, Keys) reaches 3 pixels.
+pub const SAT_RADIUS: usize = 3;
+/// Largest file the benchmark may write into docs/, bytes.
+pub const MAX_FILE_BYTES: usize = 300_000;
 
 /// Options of `psns demosaic`.
 #[derive(Clone, Debug, PartialEq)]
@@ -22,12 +55,351 @@ pub struct DemosaicOptions {
     pub layout: MosaicLayout,
 }
 
+/// A raw mosaic loaded from a file or a stream.
+#[derive(Clone, Debug)]
+pub struct LoadedRaw {
+    /// Codes.
+    pub codes: Image<u16>,
+    /// Layout (the stream's header, else the caller's).
+    pub layout: MosaicLayout,
+    /// Black level in code units (stream metadata; 0 for PNG/TIFF).
+    pub black_level: f64,
+    /// Significant bits (stream header; 8 or 16 for PNG/TIFF).
+    pub bits: u8,
+    /// Frame index for stream input.
+    pub frame: Option<u64>,
+}
+
+fn create_dir(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(format!("creating {}", dir.display()), e))
+}
+
+fn write_text(path: &Path, text: &str) -> Result<()> {
+    io::write_atomic(path, |w| {
+        w.write_all(text.as_bytes())
+            .map_err(|e| Error::io(format!("writing {}", path.display()), e))
+    })
+}
+
+/// Reads a raw PNG/TIFF or a psns frame stream (recognised by its magic bytes).
+pub fn load_raw(input: &Path, layout: MosaicLayout, frame: Option<u64>) -> Result<LoadedRaw> {
+    let mut head = [0u8; 8];
+    {
+        use std::io::Read;
+        let mut f = std::fs::File::open(input)
+            .map_err(|e| Error::io(format!("opening {}", input.display()), e))?;
+        let n = f
+            .read(&mut head)
+            .map_err(|e| Error::io(format!("reading {}", input.display()), e))?;
+        if n < 8 {
+            return Err(Error::Format(format!(
+                "{}: too short for a raw image or stream",
+                input.display()
+            )));
+        }
+    }
+    if head == crate::stream::FILE_MAGIC {
+        return load_stream(input, frame);
+    }
+    let g = if head.starts_with(b"\x89PNG") {
+        io::read_png_gray(input)?
+    } else if head.starts_with(b"II*\0") || head.starts_with(b"MM\0*") {
+        io::read_tiff_gray(input)?
+    } else {
+        return Err(Error::Format(format!(
+            "{}: not a PNG, TIFF or psns stream",
+            input.display()
+        )));
+    };
+    if frame.is_some() {
+        return Err(Error::Invalid(
+            "--frame applies to stream input only".into(),
+        ));
+    }
+    Ok(LoadedRaw {
+        codes: g.image,
+        layout,
+        black_level: 0.0,
+        bits: g.bits,
+        frame: None,
+    })
+}
+
+fn load_stream(input: &Path, frame: Option<u64>) -> Result<LoadedRaw> {
+    use crate::stream::{Event, StreamReader};
+    let mut rd = StreamReader::new(crate::app::open_input(input)?)?;
+    while let Some(ev) = rd.next_event()? {
+        let Event::Frame(fr) = ev else { continue };
+        if frame.is_some_and(|n| n != fr.meta.index) || !fr.payload_crc_ok {
+            if frame == Some(fr.meta.index) {
+                return Err(Error::Format(format!(
+                    "frame {}: payload CRC mismatch",
+                    fr.meta.index
+                )));
+            }
+            continue;
+        }
+        let h = rd.header().clone();
+        let codes = fr.codes(&h)?;
+        let (w, hh) = (h.width as usize, h.height as usize);
+        // the black level is in DN of the payload; MSB-aligned payloads are unpacked to LSB
+        let black = if h.msb_aligned {
+            fr.meta.black_level / 2f64.powi(16 - h.bits_valid as i32)
+        } else {
+            fr.meta.black_level
+        };
+        return Ok(LoadedRaw {
+            codes: Image::from_vec(w, hh, codes),
+            layout: h.layout,
+            black_level: black,
+            bits: h.bits_valid,
+            frame: Some(fr.meta.index),
+        });
+    }
+    Err(Error::Invalid(match frame {
+        Some(n) => format!("frame {n} is not in the stream"),
+        None => "the stream holds no intact frame".into(),
+    }))
+}
+
+/// Demosaics codes minus a black level (u16 directly when the black level is 0).
+pub fn demosaic_codes(
+    codes: &Image<u16>,
+    black_level: f64,
+    layout: MosaicLayout,
+    method: Method,
+) -> Result<PolarImages> {
+    if black_level == 0.0 {
+        full_chain(codes, layout, method)
+    } else {
+        let b = black_level as f32;
+        let f = Image::from_vec(
+            codes.width,
+            codes.height,
+            codes.data.par_iter().map(|&v| v as f32 - b).collect(),
+        );
+        full_chain(&f, layout, method)
+    }
+}
+
 /// `psns demosaic`: writes s0/s1/s2/dolp/aolp `.npy` plus visualisations; returns the files.
+///
+/// Visualisations: `s0.png` (grey, 99.9 % quantile white), `dolp.png` (viridis over [0, 1]),
+/// `aolp.png` (cyclic hue), `aolp_dolp.png` (AoLP as hue, DoLP as brightness, full at 0.5);
+/// `demosaic.json` records the input, method, layout, black level and time.
 pub fn demosaic_to_dir(opts: &DemosaicOptions) -> Result<Vec<String>> {
-    let _ = opts;
-    Err(Error::Invalid(
-        "psns demosaic is not implemented yet".into(),
-    ))
+    let raw = load_raw(&opts.input, opts.layout, opts.frame)?;
+    crate::demosaic::check_raw(&raw.codes)?;
+    let t0 = Instant::now();
+    let p = demosaic_codes(&raw.codes, raw.black_level, raw.layout, opts.method)?;
+    let ms = t0.elapsed().as_secs_f64() * 1e3;
+    create_dir(&opts.out)?;
+    let mut files = Vec::new();
+    let mut put = |name: &str| {
+        let p = opts.out.join(name);
+        files.push(p.display().to_string());
+        p
+    };
+    io::write_npy(&put("s0.npy"), &p.stokes.s0)?;
+    io::write_npy(&put("s1.npy"), &p.stokes.s1)?;
+    io::write_npy(&put("s2.npy"), &p.stokes.s2)?;
+    io::write_npy(&put("dolp.npy"), &p.dolp)?;
+    io::write_npy(&put("aolp.npy"), &p.aolp_deg)?;
+    let white = vis::quantile(&p.stokes.s0, 0.999);
+    io::write_png_gray8(&put("s0.png"), &vis::gray8(&p.stokes.s0, white))?;
+    io::write_png_rgb8(&put("dolp.png"), &vis::dop_rgb(&p.dolp, None))?;
+    io::write_png_rgb8(&put("aolp.png"), &vis::aop_rgb(&p.aolp_deg, None))?;
+    io::write_png_rgb8(
+        &put("aolp_dolp.png"),
+        &vis::aolp_dolp_rgb(&p.aolp_deg, &p.dolp, 0.5),
+    )?;
+    let meta = serde_json::json!({
+        "input": opts.input.display().to_string(),
+        "frame": raw.frame,
+        "method": opts.method.name(),
+        "layout": raw.layout.to_string(),
+        "width": raw.codes.width,
+        "height": raw.codes.height,
+        "bits": raw.bits,
+        "black_level": raw.black_level,
+        "aolp_units": "degrees, [0, 180), from +x (columns) toward +y (rows, down)",
+        "demosaic_ms": ms,
+    });
+    write_text(
+        &put("demosaic.json"),
+        &serde_json::to_string_pretty(&meta).expect("json"),
+    )?;
+    Ok(files)
+}
+
+/// Pixels within `radius` (Chebyshev) of a code ≥ `max` (separable dilation).
+pub fn saturation_mask(codes: &Image<u16>, max: u16, radius: usize) -> Vec<bool> {
+    let (w, h) = (codes.width, codes.height);
+    let mut rows = vec![false; w * h];
+    rows.par_chunks_mut(w).enumerate().for_each(|(r, out)| {
+        let src = codes.row(r);
+        for (c, &v) in src.iter().enumerate() {
+            if v >= max {
+                let lo = c.saturating_sub(radius);
+                let hi = (c + radius).min(w - 1);
+                out[lo..=hi].iter_mut().for_each(|x| *x = true);
+            }
+        }
+    });
+    let mut out = vec![false; w * h];
+    out.par_chunks_mut(w).enumerate().for_each(|(r, o)| {
+        let lo = r.saturating_sub(radius);
+        let hi = (r + radius).min(h - 1);
+        for rr in lo..=hi {
+            for (x, &s) in o.iter_mut().zip(&rows[rr * w..(rr + 1) * w]) {
+                *x |= s;
+            }
+        }
+    });
+    out
+}
+
+/// Scores like [`crate::stokes::score`], skipping pixels where `exclude` is true (every score,
+/// including the S0 PSNR and the pixel counts), with the estimated DoLP clipped to ≤ 1: where a
+/// kernel rings to S0 ≈ 0 in a dark region the raw ratio reaches 10³ and a handful of pixels
+/// would own the RMSE (they are counted separately by [`score_scene`]).
+pub fn score_masked(
+    est: &StokesImage,
+    truth: &StokesImage,
+    peak: f64,
+    dolp_threshold: f64,
+    border: usize,
+    exclude: Option<&[bool]>,
+) -> Result<crate::stokes::Scores> {
+    let (w, h) = (truth.width(), truth.height());
+    if est.width() != w || est.height() != h {
+        return Err(Error::Invalid(format!(
+            "estimate {} x {} does not match the truth {} x {}",
+            est.width(),
+            est.height(),
+            w,
+            h
+        )));
+    }
+    if exclude.is_some_and(|m| m.len() != w * h) {
+        return Err(Error::Invalid("mask does not match the image".into()));
+    }
+    crate::error::check_positive("peak", peak)?;
+    if 2 * border >= w || 2 * border >= h {
+        return Err(Error::range(
+            "border",
+            border as f64,
+            "less than half the image size",
+        ));
+    }
+    let d = |s0: f64, s1: f64, s2: f64| if s0 > 0.0 { s1.hypot(s2) / s0 } else { 0.0 };
+    // per-row partial sums in a fixed order: independent of the thread count
+    let rows: Vec<[f64; 7]> = (border..h - border)
+        .into_par_iter()
+        .map(|r| {
+            let mut acc = [0f64; 7];
+            for c in border..w - border {
+                let i = r * w + c;
+                if exclude.is_some_and(|m| m[i]) {
+                    continue;
+                }
+                let (e0, e1, e2) = (
+                    est.s0.data[i] as f64,
+                    est.s1.data[i] as f64,
+                    est.s2.data[i] as f64,
+                );
+                let (t0, t1, t2) = (
+                    truth.s0.data[i] as f64,
+                    truth.s1.data[i] as f64,
+                    truth.s2.data[i] as f64,
+                );
+                acc[0] += (e0 - t0) * (e0 - t0);
+                let (de, dt) = (d(e0, e1, e2).min(1.0), d(t0, t1, t2));
+                acc[1] += (de - dt) * (de - dt);
+                acc[2] += de - dt;
+                acc[6] += 1.0;
+                if dt > dolp_threshold {
+                    let err =
+                        SensorAngle::from_stokes(e1, e2).diff(SensorAngle::from_stokes(t1, t2));
+                    acc[3] += err * err;
+                    acc[4] += err;
+                    acc[5] += 1.0;
+                }
+            }
+            acc
+        })
+        .collect();
+    let mut s = [0f64; 7];
+    for a in &rows {
+        for k in 0..7 {
+            s[k] += a[k];
+        }
+    }
+    let n = s[6].max(1.0);
+    let mse = s[0] / n;
+    let na = s[5];
+    Ok(crate::stokes::Scores {
+        s0_psnr_db: if mse > 0.0 {
+            10.0 * (peak * peak / mse).log10()
+        } else {
+            f64::INFINITY
+        },
+        dolp_rmse: (s[1] / n).sqrt(),
+        dolp_bias: s[2] / n,
+        aolp_rmse_deg: if na > 0.0 {
+            (s[3] / na).sqrt()
+        } else {
+            f64::NAN
+        },
+        aolp_mean_abs_deg: if na > 0.0 { s[4] / na } else { f64::NAN },
+        n_aolp_pixels: na as usize,
+        n_pixels: s[6] as usize,
+    })
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    let n = v.len();
+    if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Median ms per full chain (raw → S0, S1, S2, DoLP, AoLP) over `runs` runs after one warm-up:
+/// (with output buffers reused across runs, with fresh output allocation each run).
+pub fn time_full_chain<T: RawPixel>(
+    raw: &Image<T>,
+    layout: MosaicLayout,
+    method: Method,
+    runs: usize,
+) -> Result<(f64, f64)> {
+    let runs = runs.max(1);
+    let (w, h) = (raw.width, raw.height);
+    let mut out = PolarImages {
+        stokes: StokesImage::zeros(w, h),
+        dolp: Image::new(w, h),
+        aolp_deg: Image::new(w, h),
+    };
+    full_chain_into(raw, layout, method, &mut out)?;
+    let mut reused = Vec::with_capacity(runs);
+    for _ in 0..runs {
+        let t0 = Instant::now();
+        full_chain_into(raw, layout, method, &mut out)?;
+        reused.push(t0.elapsed().as_secs_f64() * 1e3);
+    }
+    drop(out);
+    let mut fresh = Vec::with_capacity(runs);
+    for _ in 0..runs {
+        let t0 = Instant::now();
+        let p = full_chain(raw, layout, method)?;
+        fresh.push(t0.elapsed().as_secs_f64() * 1e3);
+        drop(p); // freeing is not part of the timed chain
+    }
+    Ok((median(&mut reused), median(&mut fresh)))
 }
 
 /// Options of `psns bench demosaic`.
@@ -41,10 +413,757 @@ pub struct BenchOptions {
     pub quick: bool,
 }
 
+/// One row of `demosaic.csv`: one method on one scene.
+#[derive(Clone, Debug)]
+pub struct BenchRow {
+    /// Method.
+    pub method: Method,
+    /// Scene.
+    pub scene: Scene,
+    /// Output bit depth of the scene's frame.
+    pub bits: u8,
+    /// Frame width.
+    pub width: usize,
+    /// Frame height.
+    pub height: usize,
+    /// Median ms per full chain, buffers reused (timed on the clear-sky frame).
+    pub ms_per_frame: f64,
+    /// Median ms per full chain with fresh output allocation.
+    pub ms_per_frame_fresh: f64,
+    /// Scores with saturated neighbourhoods excluded.
+    pub scores: crate::stokes::Scores,
+    /// AoLP RMSE over every pixel with true DoLP above the threshold, saturated ones included.
+    pub aolp_rmse_all_deg: f64,
+    /// Pixels excluded as saturated (inside the border).
+    pub n_saturated_excluded: usize,
+    /// Scored pixels whose estimated DoLP exceeds 1 (clipped to 1 for the DoLP scores).
+    pub n_dolp_above_1: usize,
+}
+
+/// The CSV header of `demosaic.csv`.
+pub const CSV_HEADER: &str = "method,scene,bits,width,height,ms_per_frame,ms_per_frame_fresh,s0_psnr_db,dolp_rmse,dolp_bias,aolp_rmse_deg,aolp_mae_deg,aolp_rmse_all_deg,n_aolp_px,n_sat_excluded_px,n_dolp_above_1_px";
+
+impl BenchRow {
+    fn csv(&self) -> String {
+        let s = &self.scores;
+        format!(
+            "{},{},{},{},{},{:.2},{:.2},{:.2},{:.5},{:.5},{:.3},{:.3},{:.3},{},{},{}",
+            self.method,
+            self.scene,
+            self.bits,
+            self.width,
+            self.height,
+            self.ms_per_frame,
+            self.ms_per_frame_fresh,
+            s.s0_psnr_db,
+            s.dolp_rmse,
+            s.dolp_bias,
+            s.aolp_rmse_deg,
+            s.aolp_mean_abs_deg,
+            self.aolp_rmse_all_deg,
+            s.n_aolp_pixels,
+            self.n_saturated_excluded,
+            self.n_dolp_above_1
+        )
+    }
+}
+
+/// What [`score_scene`] measured.
+#[derive(Clone, Debug)]
+pub struct SceneScore {
+    /// Scores with saturated neighbourhoods excluded.
+    pub scores: crate::stokes::Scores,
+    /// AoLP RMSE with them.
+    pub aolp_rmse_all_deg: f64,
+    /// Pixels excluded as saturated (inside the border).
+    pub n_saturated_excluded: usize,
+    /// Scored pixels with estimated DoLP > 1.
+    pub n_dolp_above_1: usize,
+    /// The demosaiced images.
+    pub images: PolarImages,
+}
+
+/// Scores one method on one rendered scene; `sat` marks the pixels to exclude.
+pub fn score_scene(sf: &SceneFrame, method: Method, sat: &[bool]) -> Result<SceneScore> {
+    let f = &sf.frame;
+    let layout = sf
+        .config
+        .raw
+        .sensor
+        .as_ref()
+        .map_or(MosaicLayout::IMX250MZR, |s| s.layout);
+    let p = demosaic_codes(&f.codes, f.black_level_dn, layout, method)?;
+    let peak = ((1u32 << f.bit_depth) - 1) as f64;
+    let s = score_masked(&p.stokes, &f.truth, peak, DOLP_THRESHOLD, BORDER, Some(sat))?;
+    let all = score_masked(&p.stokes, &f.truth, peak, DOLP_THRESHOLD, BORDER, None)?;
+    let (w, h) = (f.codes.width, f.codes.height);
+    let n_dolp_above_1 = (BORDER..h - BORDER)
+        .map(|r| {
+            (BORDER..w - BORDER)
+                .filter(|&c| !sat[r * w + c] && p.dolp.data[r * w + c] > 1.0)
+                .count()
+        })
+        .sum();
+    Ok(SceneScore {
+        scores: s,
+        aolp_rmse_all_deg: all.aolp_rmse_deg,
+        n_saturated_excluded: all.n_pixels - s.n_pixels,
+        n_dolp_above_1,
+        images: p,
+    })
+}
+
+fn sat_mask_of(f: &RawFrame) -> Vec<bool> {
+    saturation_mask(
+        &f.codes,
+        crate::sensor::adc::max_code(f.bit_depth),
+        SAT_RADIUS,
+    )
+}
+
+/// Axial AoLP error (degrees) per pixel, NaN where the true DoLP ≤ threshold.
+pub fn aolp_error_map(est: &StokesImage, truth: &StokesImage) -> Image<f32> {
+    let (w, h) = (truth.width(), truth.height());
+    let mut out = Image::new(w, h);
+    out.data.par_iter_mut().enumerate().for_each(|(i, o)| {
+        let (t0, t1, t2) = (
+            truth.s0.data[i] as f64,
+            truth.s1.data[i] as f64,
+            truth.s2.data[i] as f64,
+        );
+        let dt = if t0 > 0.0 { t1.hypot(t2) / t0 } else { 0.0 };
+        *o = if dt > DOLP_THRESHOLD {
+            SensorAngle::from_stokes(est.s1.data[i] as f64, est.s2.data[i] as f64)
+                .diff(SensorAngle::from_stokes(t1, t2)) as f32
+        } else {
+            f32::NAN
+        };
+    });
+    out
+}
+
+/// Error bins of the stability maps, degrees (upper edges).
+pub const ERROR_BINS_DEG: [f64; 5] = [1.0, 2.0, 5.0, 10.0, 20.0];
+
+/// Palette index of an AoLP error: 1..=6 for the bins < 1°, 1–2, 2–5, 5–10, 10–20, ≥ 20°;
+/// 0 (black) where not scored (NaN). Index 7 (white) separates panels.
+pub fn error_index(e: f32) -> u8 {
+    if !e.is_finite() {
+        return 0;
+    }
+    1 + ERROR_BINS_DEG
+        .iter()
+        .position(|&b| (e as f64) < b)
+        .unwrap_or(ERROR_BINS_DEG.len()) as u8
+}
+
+/// The stability-map palette: black, six viridis steps, white.
+pub fn error_palette() -> [[u8; 3]; 8] {
+    let mut p = [[0u8; 3]; 8];
+    for (k, c) in p.iter_mut().enumerate().skip(1).take(6) {
+        *c = vis::viridis((k - 1) as f64 / 5.0);
+    }
+    p[7] = [255, 255, 255];
+    p
+}
+
+/// Writes an indexed-colour PNG (small files for maps with few colours).
+pub fn write_png_indexed(path: &Path, img: &Image<u8>, palette: &[[u8; 3]]) -> Result<()> {
+    let err = |e: png::EncodingError| Error::Format(format!("writing {}: {e}", path.display()));
+    io::write_atomic(path, |w| {
+        let mut enc = png::Encoder::new(w, img.width as u32, img.height as u32);
+        enc.set_color(png::ColorType::Indexed);
+        enc.set_depth(png::BitDepth::Eight);
+        enc.set_palette(palette.iter().flatten().copied().collect::<Vec<u8>>());
+        enc.set_compression(png::Compression::High);
+        let mut wr = enc.write_header().map_err(err)?;
+        wr.write_image_data(&img.data).map_err(err)?;
+        wr.finish().map_err(err)
+    })
+}
+
+/// Places index images side by side (`gap` columns of `fill`), top-aligned.
+fn hstack_idx(imgs: &[Image<u8>], gap: usize, fill: u8) -> Image<u8> {
+    let h = imgs.iter().map(|i| i.height).max().unwrap_or(0);
+    let w = imgs.iter().map(|i| i.width).sum::<usize>() + gap * imgs.len().saturating_sub(1);
+    let mut out = Image::from_vec(w, h, vec![fill; w * h]);
+    let mut x0 = 0;
+    for img in imgs {
+        for r in 0..img.height {
+            out.data[r * w + x0..r * w + x0 + img.width].copy_from_slice(img.row(r));
+        }
+        x0 += img.width + gap;
+    }
+    out
+}
+
+/// Stacks index images vertically (`gap` rows of `fill`), left-aligned.
+fn vstack_idx(imgs: &[Image<u8>], gap: usize, fill: u8) -> Image<u8> {
+    let w = imgs.iter().map(|i| i.width).max().unwrap_or(0);
+    let h = imgs.iter().map(|i| i.height).sum::<usize>() + gap * imgs.len().saturating_sub(1);
+    let mut out = Image::from_vec(w, h, vec![fill; w * h]);
+    let mut y0 = 0;
+    for img in imgs {
+        for r in 0..img.height {
+            out.data[(y0 + r) * w..(y0 + r) * w + img.width].copy_from_slice(img.row(r));
+        }
+        y0 += img.height + gap;
+    }
+    out
+}
+
+/// Max-pools an error map by `factor` (NaN ignored; NaN when the whole block is), so 1-pixel
+/// failures stay visible in a small picture.
+pub fn max_pool(img: &Image<f32>, factor: usize) -> Image<f32> {
+    let f = factor.max(1);
+    let (w, h) = (img.width / f, img.height / f);
+    let mut out = Image::from_vec(w, h, vec![f32::NAN; w * h]);
+    out.data
+        .par_chunks_mut(w.max(1))
+        .enumerate()
+        .for_each(|(r, row)| {
+            for (c, o) in row.iter_mut().enumerate() {
+                let mut m = f32::NAN;
+                for dr in 0..f {
+                    for dc in 0..f {
+                        let v = *img.get(r * f + dr, c * f + dc);
+                        if v.is_finite() && !(v <= m) {
+                            m = v;
+                        }
+                    }
+                }
+                *o = m;
+            }
+        });
+    out
+}
+
+fn crop(img: &Image<f32>, r0: usize, c0: usize, size: usize) -> Image<f32> {
+    let s = size.min(img.width - c0).min(img.height - r0);
+    let mut out = Image::new(s, s);
+    for r in 0..s {
+        out.data[r * s..(r + 1) * s].copy_from_slice(&img.row(r0 + r)[c0..c0 + s]);
+    }
+    out
+}
+
+fn index_map(img: &Image<f32>) -> Image<u8> {
+    Image::from_vec(
+        img.width,
+        img.height,
+        img.data.iter().map(|&e| error_index(e)).collect(),
+    )
+}
+
+/// Native-resolution crop (top-left row, column) shown under the max-pooled map of a scene:
+/// the crossing of the straight wire and the mast for `occluder-edge`; centred on the leftmost
+/// clipped pixel (the rim of the saturated region) otherwise.
+fn detail_origin(scene: Scene, w: usize, h: usize, size: usize, sat: &[bool]) -> (usize, usize) {
+    let (r, c) = match scene {
+        Scene::OccluderEdge => (0.30 * h as f64, 0.62 * w as f64),
+        _ => {
+            let k = (0..w)
+                .flat_map(|c| (0..h).map(move |r| (r, c)))
+                .find(|&(r, c)| sat[r * w + c])
+                .unwrap_or((h / 2, w / 2));
+            (k.0 as f64, k.1 as f64 + SAT_RADIUS as f64)
+        }
+    };
+    let r = (r - size as f64 / 2.0).clamp(0.0, (h - size) as f64) as usize;
+    let c = (c - size as f64 / 2.0).clamp(0.0, (w - size) as f64) as usize;
+    (r & !1, c & !1)
+}
+
+/// One row of the noise-law sweep.
+#[derive(Clone, Copy, Debug)]
+pub struct SweepRow {
+    /// Method.
+    pub method: Method,
+    /// Mean electrons per pixel N.
+    pub electrons: f64,
+    /// True DoLP of the flat field.
+    pub dolp: f64,
+    /// Mean estimated DoLP.
+    pub mean_dolp: f64,
+    /// RMS axial AoLP error, degrees.
+    pub aolp_sigma_deg: f64,
+    /// 0.886/√N (the p = 0 bias law).
+    pub theory_bias: f64,
+    /// 20.3°/(p√N), capped at 90°/√3 (uniform AoLP), NaN at p = 0.
+    pub theory_sigma_deg: f64,
+}
+
+/// True AoLP of the sweep's flat fields, degrees.
+pub const SWEEP_AOLP_DEG: f64 = 30.0;
+
+/// The sweep's sensor: the camera with shot and read noise (2.5 e⁻) only, ideal polarizer, no RI,
+/// no fixed patterns, no rounding or full-well clip, 1 DN per electron.
+pub fn sweep_sensor() -> SensorConfig {
+    SensorConfig {
+        stages: Stages {
+            shot: true,
+            read: true,
+            ..Stages::none()
+        },
+        k0: 1.0,
+        full_well_e: 1e6,
+        exposure: Exposure::Fixed { us: 1000.0 },
+        ..SensorConfig::default()
+    }
+}
+
+/// Exposure sweep on uniform flat fields (`size` x `size`, DoLP `dolp`, AoLP 30°): for each mean
+/// electron count N and method, the mean DoLP and the RMS AoLP error over the frame minus the
+/// border. Seeded; one frame per N.
+pub fn noise_sweep(
+    size: usize,
+    electrons: &[f64],
+    dolp: f64,
+    methods: &[Method],
+    seed: u64,
+) -> Result<Vec<SweepRow>> {
+    let intr = scenes::intrinsics(size, size);
+    let cfg = sweep_sensor();
+    let sensor = Sensor::new(&cfg, &intr, seed)?;
+    let unit = sensor::flat_field(size, size, 1.0, 0.0, 0.0)?;
+    let rate = sensor.electron_rate(&unit)?;
+    let per_radiance = rate[0] * 1e-3; // electrons per pixel per unit radiance at 1000 µs
+    let mut rows = Vec::new();
+    for (k, &n) in electrons.iter().enumerate() {
+        crate::error::check_range("electrons", n, 1.0, 1e5)?;
+        let st = sensor::flat_field(size, size, n / per_radiance, dolp, SWEEP_AOLP_DEG)?;
+        let fr = sensor.frame(&st, k as u64)?;
+        let analog = fr
+            .analog
+            .ok_or_else(|| Error::Invalid("sweep sensor must keep analog values".into()))?;
+        let truth = fr.truth;
+        for &m in methods {
+            let p = full_chain(&analog, cfg.layout, m)?;
+            let (mut sd, mut se, mut cnt) = (0f64, 0f64, 0f64);
+            let t = SensorAngle::from_stokes(truth.s1.data[0] as f64, truth.s2.data[0] as f64);
+            for r in BORDER..size - BORDER {
+                for c in BORDER..size - BORDER {
+                    let i = r * size + c;
+                    let (s0, s1, s2) = (
+                        p.stokes.s0.data[i] as f64,
+                        p.stokes.s1.data[i] as f64,
+                        p.stokes.s2.data[i] as f64,
+                    );
+                    sd += if s0 > 0.0 { s1.hypot(s2) / s0 } else { 0.0 };
+                    let e = if dolp > 0.0 {
+                        SensorAngle::from_stokes(s1, s2).diff(t)
+                    } else {
+                        // p = 0: spread about the (arbitrary) configured angle
+                        SensorAngle::from_stokes(s1, s2).diff(SensorAngle::from_deg(SWEEP_AOLP_DEG))
+                    };
+                    se += e * e;
+                    cnt += 1.0;
+                }
+            }
+            let uniform = 90.0 / 3f64.sqrt();
+            rows.push(SweepRow {
+                method: m,
+                electrons: n,
+                dolp,
+                mean_dolp: sd / cnt,
+                aolp_sigma_deg: (se / cnt).sqrt(),
+                theory_bias: 0.886 / n.sqrt(),
+                theory_sigma_deg: if dolp > 0.0 {
+                    (20.3 / (dolp * n.sqrt())).min(uniform)
+                } else {
+                    f64::NAN
+                },
+            });
+        }
+    }
+    Ok(rows)
+}
+
+type PlotErr<E> = plotters::drawing::DrawingAreaErrorKind<E>;
+fn perr<E: std::error::Error + Send + Sync>(e: PlotErr<E>) -> Error {
+    Error::Invalid(format!("plotting: {e}"))
+}
+
+const PALETTE: [(u8, u8, u8); 8] = [
+    (31, 119, 180),
+    (255, 127, 14),
+    (44, 160, 44),
+    (214, 39, 40),
+    (148, 103, 189),
+    (140, 86, 75),
+    (227, 119, 194),
+    (90, 90, 90),
+];
+
+/// Speed-vs-accuracy chart: ms per full frame (log) against AoLP RMSE (log), one point per
+/// method and scene, colour = scene, method names along the top.
+pub fn speed_chart_svg(rows: &[BenchRow], title: &str) -> Result<String> {
+    use plotters::prelude::*;
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (900, 560)).into_drawing_area();
+        root.fill(&WHITE).map_err(perr)?;
+        let xs: Vec<f64> = rows
+            .iter()
+            .map(|r| r.ms_per_frame)
+            .filter(|v| *v > 0.0)
+            .collect();
+        let ys: Vec<f64> = rows
+            .iter()
+            .map(|r| r.scores.aolp_rmse_deg)
+            .filter(|v| v.is_finite() && *v > 0.0)
+            .collect();
+        let (x0, x1) = (
+            xs.iter().copied().fold(f64::MAX, f64::min) / 1.6,
+            xs.iter().copied().fold(0.0, f64::max) * 1.6,
+        );
+        let (y0, y1) = (
+            ys.iter().copied().fold(f64::MAX, f64::min) / 1.5,
+            ys.iter().copied().fold(0.0, f64::max) * 2.5,
+        );
+        if xs.is_empty() || ys.is_empty() {
+            return Err(Error::Invalid("nothing to chart".into()));
+        }
+        let mut chart = ChartBuilder::on(&root)
+            .caption(title, ("sans-serif", 18))
+            .margin(12)
+            .x_label_area_size(45)
+            .y_label_area_size(60)
+            .build_cartesian_2d((x0..x1).log_scale(), (y0..y1).log_scale())
+            .map_err(perr)?;
+        chart
+            .configure_mesh()
+            .x_desc("ms per full frame (raw -> S0, S1, S2, DoLP, AoLP; median, buffers reused)")
+            .y_desc("AoLP RMSE, degrees (true DoLP > 0.05)")
+            .light_line_style(RGBColor(238, 238, 238))
+            .label_style(("sans-serif", 13))
+            .draw()
+            .map_err(perr)?;
+        let mut series: Vec<(String, Vec<(f64, f64)>)> = Vec::new();
+        for r in rows {
+            let key = if r.bits == 12 {
+                r.scene.name().to_string()
+            } else {
+                format!("{} {}-bit", r.scene, r.bits)
+            };
+            let y = r.scores.aolp_rmse_deg;
+            if !(y.is_finite() && y > 0.0) {
+                continue;
+            }
+            match series.iter_mut().find(|s| s.0 == key) {
+                Some(s) => s.1.push((r.ms_per_frame, y)),
+                None => series.push((key, vec![(r.ms_per_frame, y)])),
+            }
+        }
+        for (k, (name, pts)) in series.iter().enumerate() {
+            let (r, g, b) = PALETTE[k % PALETTE.len()];
+            let col = RGBColor(r, g, b);
+            chart
+                .draw_series(pts.iter().map(|&p| Circle::new(p, 5, col.filled())))
+                .map_err(perr)?
+                .label(name.as_str())
+                .legend(move |(x, y)| Circle::new((x, y), 5, col.filled()));
+        }
+        let mut methods: Vec<(Method, f64)> = Vec::new();
+        for r in rows {
+            if !methods.iter().any(|m| m.0 == r.method) {
+                methods.push((r.method, r.ms_per_frame));
+            }
+        }
+        methods.sort_by(|a, b| a.1.total_cmp(&b.1));
+        // stagger the names so neighbours in time do not overlap
+        chart
+            .draw_series(methods.iter().enumerate().map(|(k, &(m, x))| {
+                Text::new(
+                    m.name().to_string(),
+                    (x, y1 / 1.15 / 1.35f64.powi((k % 3) as i32)),
+                    ("sans-serif", 13).into_font().color(&BLACK),
+                )
+            }))
+            .map_err(perr)?;
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::Coordinate(250, 330))
+            .border_style(BLACK)
+            .background_style(WHITE.mix(0.85))
+            .label_font(("sans-serif", 13))
+            .draw()
+            .map_err(perr)?;
+        root.present().map_err(perr)?;
+    }
+    Ok(svg)
+}
+
+/// Noise-law chart: mean DoLP at p = 0 and σ_AoLP at p > 0 against N, with the theory lines.
+pub fn sweep_chart_svg(bias: &[SweepRow], sigma: &[SweepRow]) -> Result<String> {
+    use plotters::prelude::*;
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (1000, 460)).into_drawing_area();
+        root.fill(&WHITE).map_err(perr)?;
+        let panels = root.split_evenly((1, 2));
+        let p_sigma = sigma.first().map_or(0.1, |r| r.dolp);
+        for (pi, (area, rows)) in panels.iter().zip([bias, sigma]).enumerate() {
+            let val = |r: &SweepRow| {
+                if pi == 0 {
+                    r.mean_dolp
+                } else {
+                    r.aolp_sigma_deg
+                }
+            };
+            let theory = |n: f64| {
+                if pi == 0 {
+                    0.886 / n.sqrt()
+                } else {
+                    20.3 / (p_sigma * n.sqrt())
+                }
+            };
+            let ns: Vec<f64> = rows.iter().map(|r| r.electrons).collect();
+            let (n0, n1) = (
+                ns.iter().copied().fold(f64::MAX, f64::min) / 1.3,
+                ns.iter().copied().fold(0.0, f64::max) * 1.3,
+            );
+            let vs: Vec<f64> = rows
+                .iter()
+                .map(val)
+                .chain([theory(n0), theory(n1)])
+                .filter(|v| *v > 0.0)
+                .collect();
+            let (v0, v1) = (
+                vs.iter().copied().fold(f64::MAX, f64::min) / 1.5,
+                vs.iter().copied().fold(0.0, f64::max) * 1.5,
+            );
+            let cap = if pi == 0 {
+                "Mean DoLP at true DoLP 0 (Rice bias)".to_string()
+            } else {
+                format!("AoLP spread at true DoLP {p_sigma}")
+            };
+            let mut chart = ChartBuilder::on(area)
+                .caption(cap, ("sans-serif", 16))
+                .margin(10)
+                .x_label_area_size(40)
+                .y_label_area_size(55)
+                .build_cartesian_2d((n0..n1).log_scale(), (v0..v1).log_scale())
+                .map_err(perr)?;
+            chart
+                .configure_mesh()
+                .x_desc("N, mean electrons per pixel")
+                .y_desc(if pi == 0 {
+                    "mean DoLP"
+                } else {
+                    "RMS AoLP error, deg"
+                })
+                .label_style(("sans-serif", 12))
+                .draw()
+                .map_err(perr)?;
+            let line: Vec<(f64, f64)> = (0..=40)
+                .map(|i| {
+                    let n = n0 * (n1 / n0).powf(i as f64 / 40.0);
+                    (n, theory(n))
+                })
+                .collect();
+            let tlabel = if pi == 0 {
+                "theory 0.886/sqrt(N)".to_string()
+            } else {
+                format!("theory 20.3 deg/({p_sigma} sqrt(N))")
+            };
+            chart
+                .draw_series(LineSeries::new(line, BLACK.stroke_width(2)))
+                .map_err(perr)?
+                .label(tlabel)
+                .legend(|(x, y)| {
+                    PathElement::new(vec![(x, y), (x + 18, y)], BLACK.stroke_width(2))
+                });
+            let mut methods: Vec<Method> = Vec::new();
+            for r in rows.iter() {
+                if !methods.contains(&r.method) {
+                    methods.push(r.method);
+                }
+            }
+            for (k, m) in methods.iter().enumerate() {
+                let (r, g, b) = PALETTE[k % PALETTE.len()];
+                let col = RGBColor(r, g, b);
+                let pts: Vec<(f64, f64)> = rows
+                    .iter()
+                    .filter(|r| r.method == *m)
+                    .map(|r| (r.electrons, val(r)))
+                    .filter(|p| p.1 > 0.0)
+                    .collect();
+                chart
+                    .draw_series(LineSeries::new(pts.clone(), col.stroke_width(1)))
+                    .map_err(perr)?;
+                chart
+                    .draw_series(pts.iter().map(|&p| Circle::new(p, 4, col.filled())))
+                    .map_err(perr)?
+                    .label(m.name())
+                    .legend(move |(x, y)| Circle::new((x, y), 4, col.filled()));
+            }
+            chart
+                .configure_series_labels()
+                .position(SeriesLabelPosition::LowerLeft)
+                .border_style(BLACK)
+                .background_style(WHITE.mix(0.85))
+                .label_font(("sans-serif", 12))
+                .draw()
+                .map_err(perr)?;
+        }
+        root.present().map_err(perr)?;
+    }
+    Ok(svg)
+}
+
+fn check_size(path: &Path) -> Result<()> {
+    let n = std::fs::metadata(path)
+        .map_err(|e| Error::io(format!("reading {}", path.display()), e))?
+        .len() as usize;
+    if n > MAX_FILE_BYTES {
+        eprintln!(
+            "warning: {} is {} KB (> {} KB)",
+            path.display(),
+            n / 1000,
+            MAX_FILE_BYTES / 1000
+        );
+    }
+    Ok(())
+}
+
 /// `psns bench demosaic`; returns the files written.
+///
+/// Writes `demosaic.csv` (one row per method and scene, plus clear-sky at 8 bit),
+/// `demosaic_speed_accuracy.svg`, `demosaic_aolp_error_<scene>.png` for `occluder-edge` and
+/// `sun-in-view` (methods left to right in [`Method::ALL`] order, top: whole frame max-pooled;
+/// bottom: a native-resolution crop), `demosaic_noise.csv` and `demosaic_noise.svg`.
 pub fn bench_demosaic(opts: &BenchOptions) -> Result<Vec<String>> {
-    let _ = (opts, Path::new("."));
-    Err(Error::Invalid(
-        "psns bench demosaic is not implemented yet".into(),
-    ))
+    let (w, h, runs, sweep_size) = if opts.quick {
+        (512, 512, opts.runs.clamp(1, 2), 64)
+    } else {
+        (
+            scenes::FULL_WIDTH,
+            scenes::FULL_HEIGHT,
+            opts.runs.max(1),
+            256,
+        )
+    };
+    create_dir(&opts.out)?;
+    let mut files = Vec::new();
+    let methods = Method::ALL;
+    let mut scenes_todo: Vec<(Scene, u8)> = Scene::ALL.iter().map(|&s| (s, 12)).collect();
+    scenes_todo.push((Scene::ClearSky, 8));
+
+    // timing on the clear-sky frame
+    let t_render = Instant::now();
+    let clear = scenes::render(Scene::ClearSky, w, h, 12)?;
+    eprintln!(
+        "clear-sky {w} x {h} rendered in {:.1} s",
+        t_render.elapsed().as_secs_f64()
+    );
+    let layout = MosaicLayout::IMX250MZR;
+    let mut timing = Vec::new();
+    for &m in &methods {
+        let (reused, fresh) = time_full_chain(&clear.frame.codes, layout, m, runs)?;
+        eprintln!("{m:>10}: {reused:8.1} ms/frame (buffers reused), {fresh:8.1} ms (fresh)");
+        timing.push((m, reused, fresh));
+    }
+
+    let mut rows: Vec<BenchRow> = Vec::new();
+    for &(scene, bits) in &scenes_todo {
+        let sf = if scene == Scene::ClearSky && bits == 12 {
+            clear.clone()
+        } else {
+            scenes::render(scene, w, h, bits)?
+        };
+        let sat = sat_mask_of(&sf.frame);
+        let maps = bits == 12 && matches!(scene, Scene::OccluderEdge | Scene::SunInView);
+        let factor = (w / 256).max(1);
+        let detail = (w / 10).clamp(64, 200);
+        let (dr, dc) = detail_origin(scene, w, h, detail, &sat);
+        let mut pooled = Vec::new();
+        let mut crops = Vec::new();
+        for &(m, reused, fresh) in &timing {
+            let sc = score_scene(&sf, m, &sat)?;
+            let (s, all, p) = (sc.scores, sc.aolp_rmse_all_deg, &sc.images);
+            eprintln!(
+                "{m:>10} {scene:>14} {bits:>2} bit: S0 {:6.2} dB, DoLP RMSE {:.4} bias {:+.4}, AoLP RMSE {:7.3} deg (all {:7.3})",
+                s.s0_psnr_db, s.dolp_rmse, s.dolp_bias, s.aolp_rmse_deg, all
+            );
+            if maps {
+                let e = aolp_error_map(&p.stokes, &sf.frame.truth);
+                pooled.push(index_map(&max_pool(&e, factor)));
+                crops.push(index_map(&crop(&e, dr, dc, detail)));
+            }
+            rows.push(BenchRow {
+                method: m,
+                scene,
+                bits,
+                width: w,
+                height: h,
+                ms_per_frame: reused,
+                ms_per_frame_fresh: fresh,
+                scores: s,
+                aolp_rmse_all_deg: all,
+                n_saturated_excluded: sc.n_saturated_excluded,
+                n_dolp_above_1: sc.n_dolp_above_1,
+            });
+        }
+        if maps {
+            let top = hstack_idx(&pooled, 4, 7);
+            let bottom = hstack_idx(&crops, 4, 7);
+            let img = vstack_idx(&[top, bottom], 6, 7);
+            let p = opts.out.join(format!("demosaic_aolp_error_{scene}.png"));
+            write_png_indexed(&p, &img, &error_palette())?;
+            check_size(&p)?;
+            files.push(p.display().to_string());
+        }
+    }
+    let mut csv = String::from(CSV_HEADER);
+    csv.push('\n');
+    for r in &rows {
+        csv.push_str(&r.csv());
+        csv.push('\n');
+    }
+    let p = opts.out.join("demosaic.csv");
+    write_text(&p, &csv)?;
+    files.push(p.display().to_string());
+
+    let title = format!(
+        "Demosaic speed vs AoLP error, {w} x {h}, {} run median{}",
+        runs,
+        if opts.quick { " (quick)" } else { "" }
+    );
+    let p = opts.out.join("demosaic_speed_accuracy.svg");
+    write_text(&p, &speed_chart_svg(&rows, &title)?)?;
+    check_size(&p)?;
+    files.push(p.display().to_string());
+
+    // noise laws
+    let ns: Vec<f64> = if opts.quick {
+        vec![30.0, 300.0, 3000.0]
+    } else {
+        vec![30.0, 100.0, 300.0, 1000.0, 3000.0, 10000.0]
+    };
+    let bias = noise_sweep(sweep_size, &ns, 0.0, &methods, 11)?;
+    let sigma = noise_sweep(sweep_size, &ns, 0.1, &methods, 12)?;
+    let mut csv = String::from(
+        "method,electrons,dolp,mean_dolp,aolp_rms_err_deg,theory_bias,theory_sigma_deg\n",
+    );
+    for r in bias.iter().chain(&sigma) {
+        csv.push_str(&format!(
+            "{},{},{},{:.5},{:.3},{:.5},{:.3}\n",
+            r.method,
+            r.electrons,
+            r.dolp,
+            r.mean_dolp,
+            r.aolp_sigma_deg,
+            r.theory_bias,
+            r.theory_sigma_deg
+        ));
+    }
+    let p = opts.out.join("demosaic_noise.csv");
+    write_text(&p, &csv)?;
+    files.push(p.display().to_string());
+    let p = opts.out.join("demosaic_noise.svg");
+    write_text(&p, &sweep_chart_svg(&bias, &sigma)?)?;
+    check_size(&p)?;
+    files.push(p.display().to_string());
+    Ok(files)
 }

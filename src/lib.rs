@@ -27,6 +27,7 @@ pub mod image;
 pub mod io;
 pub mod pipeline;
 pub mod render;
+pub mod scenes;
 pub mod sensor;
 pub mod sky;
 pub mod stokes;

@@ -331,8 +331,8 @@ pub fn full_chain<T: RawPixel>(
 }
 
 /// [`full_chain`] into caller-owned images (resized when their size differs), so a frame
-/// stream does not pay for fresh allocations and page faults on every frame. Bilinear and
-/// bicubic write in place; the other methods compute and move their results in.
+/// stream does not pay for fresh allocations and page faults on every frame. Superpixel,
+/// bilinear and bicubic write in place; the other methods compute and move their results in.
 pub fn full_chain_into<T: RawPixel>(
     raw: &Image<T>,
     layout: MosaicLayout,
@@ -343,6 +343,7 @@ pub fn full_chain_into<T: RawPixel>(
     match method {
         Method::Bilinear => bilinear::demodulate_into(raw, layout, &bilinear::LP3, true, out),
         Method::Bicubic => bilinear::demodulate_into(raw, layout, &bicubic::LP7, true, out),
+        Method::Superpixel => superpixel::full_chain_into(raw, layout, out),
         _ => *out = full_chain(raw, layout, method)?,
     }
     Ok(())

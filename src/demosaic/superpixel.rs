@@ -64,18 +64,76 @@ pub(crate) fn superpixel_full<T: RawPixel>(raw: &Image<T>, layout: MosaicLayout)
 
 /// Full chain at half resolution, then replicated (DoLP/AoLP computed once per block).
 pub(crate) fn full_chain<T: RawPixel>(raw: &Image<T>, layout: MosaicLayout) -> super::PolarImages {
-    let half = superpixel_half(raw, layout).expect("checked by the caller");
-    let (d, a) = crate::stokes::dolp_aolp_images(&half);
+    let mut out = super::PolarImages {
+        stokes: StokesImage::zeros(0, 0),
+        dolp: Image::new(0, 0),
+        aolp_deg: Image::new(0, 0),
+    };
+    full_chain_into(raw, layout, &mut out);
+    out
+}
+
+/// [`full_chain`] in one pass into caller-owned planes (resized when needed): each block's S0,
+/// S1, S2, DoLP and AoLP are computed once and written to its 2 x 2 pixels; a trailing odd
+/// row/column repeats the last block.
+pub(crate) fn full_chain_into<T: RawPixel>(
+    raw: &Image<T>,
+    layout: MosaicLayout,
+    out: &mut super::PolarImages,
+) {
     let (w, h) = (raw.width, raw.height);
-    super::PolarImages {
-        stokes: StokesImage {
-            s0: replicate(&half.s0, w, h),
-            s1: replicate(&half.s1, w, h),
-            s2: replicate(&half.s2, w, h),
-        },
-        dolp: replicate(&d, w, h),
-        aolp_deg: replicate(&a, w, h),
-    }
+    let (hw, hh) = (w / 2, h / 2);
+    let fit = |img: &mut Image<f32>| {
+        if img.width != w || img.height != h || img.data.len() != w * h {
+            *img = Image::new(w, h);
+        }
+    };
+    fit(&mut out.stokes.s0);
+    fit(&mut out.stokes.s1);
+    fit(&mut out.stokes.s2);
+    fit(&mut out.dolp);
+    fit(&mut out.aolp_deg);
+    let off = offsets(&layout);
+    let st = &mut out.stokes;
+    st.s0
+        .data
+        .par_chunks_mut(2 * w)
+        .zip(st.s1.data.par_chunks_mut(2 * w))
+        .zip(st.s2.data.par_chunks_mut(2 * w))
+        .zip(out.dolp.data.par_chunks_mut(2 * w))
+        .zip(out.aolp_deg.data.par_chunks_mut(2 * w))
+        .enumerate()
+        .for_each(|(i, ((((o0, o1), o2), od), oa))| {
+            let bi = i.min(hh - 1);
+            let rows = [raw.row(2 * bi), raw.row(2 * bi + 1)];
+            for j in 0..hw {
+                let v = off.map(|(dr, dc)| rows[dr][2 * j + dc].to_f32());
+                let s0 = 0.5 * ((v[0] + v[2]) + (v[1] + v[3]));
+                let s1 = v[0] - v[2];
+                let s2 = v[1] - v[3];
+                let d = crate::stokes::dolp(s0, s1, s2);
+                let a = crate::stokes::aolp_deg(s1, s2);
+                for (o, x) in [
+                    (&mut *o0, s0),
+                    (&mut *o1, s1),
+                    (&mut *o2, s2),
+                    (&mut *od, d),
+                    (&mut *oa, a),
+                ] {
+                    o[2 * j] = x;
+                    o[2 * j + 1] = x;
+                }
+            }
+            let n_rows = o0.len() / w;
+            for o in [o0, o1, o2, od, oa] {
+                if w % 2 == 1 {
+                    o[w - 1] = o[w - 2];
+                }
+                if n_rows == 2 {
+                    o.copy_within(0..w, w);
+                }
+            }
+        });
 }
 
 /// Channel images: every pixel of a block gets the block's four samples.
