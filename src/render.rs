@@ -50,7 +50,11 @@ pub fn pixel_sky(sky: &Sky, cam: &Camera, col: f64, row: f64) -> PixelSky {
     let d = cam.pixel_direction(col, row);
     let s = sky.sample(d);
     if !s.valid {
-        return PixelSky::default();
+        // ground: zero, or the configured uniform unpolarized ground radiance (sky.md §8)
+        return PixelSky {
+            li: sky.params().ground_radiance.unwrap_or(0.0),
+            ..PixelSky::default()
+        };
     }
     let e = cam.enu_to_camera * s.e;
     let n2 = e.x * e.x + e.y * e.y;
@@ -81,35 +85,31 @@ pub struct IdealImages {
     pub valid: Image<u8>,
 }
 
-fn rows_par<T: Send, F>(width: usize, height: usize, f: F) -> Vec<Vec<T>>
-where
-    F: Fn(usize, usize) -> T + Sync + Send,
-{
-    (0..height)
-        .into_par_iter()
-        .map(|r| (0..width).map(|c| f(r, c)).collect())
-        .collect()
-}
-
 /// Renders LI, DOP and AOP at every pixel centre.
 pub fn render_ideal(sky: &Sky, cam: &Camera) -> IdealImages {
     let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
-    let rows = rows_par(w, h, |r, c| pixel_sky(sky, cam, c as f64, r as f64));
     let mut out = IdealImages {
         li: Image::new(w, h),
         dop: Image::new(w, h),
         aop_deg: Image::new(w, h),
         valid: Image::new(w, h),
     };
-    for (r, row) in rows.into_iter().enumerate() {
-        for (c, p) in row.into_iter().enumerate() {
-            let i = r * w + c;
-            out.li.data[i] = p.li as f32;
-            out.dop.data[i] = p.dop as f32;
-            out.aop_deg.data[i] = p.aop_deg() as f32;
-            out.valid.data[i] = p.valid as u8;
-        }
-    }
+    out.li
+        .data
+        .par_chunks_mut(w)
+        .zip(out.dop.data.par_chunks_mut(w))
+        .zip(out.aop_deg.data.par_chunks_mut(w))
+        .zip(out.valid.data.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(r, (((li, dop), aop), valid))| {
+            for c in 0..w {
+                let p = pixel_sky(sky, cam, c as f64, r as f64);
+                li[c] = p.li as f32;
+                dop[c] = p.dop as f32;
+                aop[c] = p.aop_deg() as f32;
+                valid[c] = p.valid as u8;
+            }
+        });
     out
 }
 
@@ -164,8 +164,11 @@ fn add_sun_disc(sky: &Sky, cam: &Camera, st: &mut StokesImage) -> usize {
     let Some((sc, sr)) = cam.intrinsics.project(s_c) else {
         return 0;
     };
-    let ifov = 1.0 / cam.intrinsics.focal_px(); // rad per pixel on axis; off axis smaller
-    let reach = (SUN_RADIUS_RAD + 2.0 * ifov) / ifov; // pixels (generous off axis is harmless)
+    // A pixel subtends less angle off axis (radially by cos²ϕ), so the disc spans more pixels:
+    // radial extent of r_sun + 2 IFOV is (r_sun f + 2) / cos²ϕ pixels, plus one for rounding.
+    let f = cam.intrinsics.focal_px();
+    let cos_phi = s_c.normalize().z;
+    let reach = (SUN_RADIUS_RAD * f + 2.0) / (cos_phi * cos_phi) + 1.0;
     let (w, h) = (st.width() as f64, st.height() as f64);
     let c0 = (sc - reach).floor().max(0.0);
     let c1 = (sc + reach).ceil().min(w - 1.0);

@@ -74,6 +74,9 @@ pub struct SkyParams {
     pub dop_max: f64,
     /// DOP normalisation of the Wang model.
     pub dop_norm: DopNorm,
+    /// Uniform unpolarized radiance of ground pixels (rays at or below the horizon), W m⁻² sr⁻¹
+    /// nm⁻¹; `None` = 0 (default). Ground pixels stay marked invalid either way.
+    pub ground_radiance: Option<f64>,
 }
 
 impl Default for SkyParams {
@@ -87,6 +90,7 @@ impl Default for SkyParams {
             brewster_deg: 25.0,
             dop_max: 1.0,
             dop_norm: DopNorm::Clamp,
+            ground_radiance: None,
         }
     }
 }
@@ -100,6 +104,9 @@ impl SkyParams {
         check_range("babinet", self.babinet_deg, 0.0, 60.0)?;
         check_range("brewster", self.brewster_deg, 0.0, 60.0)?;
         check_range("dop-max", self.dop_max, 0.0, 1.0)?;
+        if let Some(g) = self.ground_radiance {
+            check_range("ground-radiance", g, 0.0, 100.0)?;
+        }
         Ok(())
     }
 }
