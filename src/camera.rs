@@ -209,6 +209,16 @@ impl Intrinsics {
         }
         check_positive("focal-length", self.focal_length_mm)?;
         check_positive("pixel-pitch", self.pixel_pitch_um)?;
+        // beyond these the ray arithmetic overflows or the frame cannot be allocated
+        check_range("focal-length", self.focal_length_mm, 0.01, 10_000.0)?;
+        check_range("pixel-pitch", self.pixel_pitch_um, 0.1, 1000.0)?;
+        if self.width * self.height > 100_000_000 {
+            return Err(Error::range(
+                "width x height",
+                (self.width * self.height) as f64,
+                "at most 100000000 pixels",
+            ));
+        }
         if let Some([x, y]) = self.principal_point {
             check_range("principal-point x", x, -1e6, 1e6)?;
             check_range("principal-point y", y, -1e6, 1e6)?;

@@ -225,8 +225,13 @@ pub struct SceneConfig {
 impl SceneConfig {
     /// Reads a TOML (`.toml`) or JSON (anything else that starts with `{`) scene file.
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path)
-            .map_err(|e| Error::io(format!("reading config {}", path.display()), e))?;
+        let text = std::fs::read_to_string(path).map_err(|e| {
+            if e.kind() == std::io::ErrorKind::NotFound {
+                Error::Invalid(format!("config file {} does not exist", path.display()))
+            } else {
+                Error::io(format!("reading config {}", path.display()), e)
+            }
+        })?;
         let mut cfg: SceneConfig = if text.trim_start().starts_with('{') {
             serde_json::from_str(&text).map_err(|e| {
                 Error::Invalid(format!(

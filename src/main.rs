@@ -253,6 +253,9 @@ struct SceneArgs {
     /// Maximum DOP of the Rayleigh model, 0..1.
     #[arg(long, value_parser = finite, allow_negative_numbers = true)]
     dop_max: Option<f64>,
+    /// Uniform unpolarized radiance of ground pixels, W m^-2 sr^-1 nm^-1 (default 0).
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "L")]
+    ground_radiance: Option<f64>,
     /// DOP normalisation of the Wang model (clamp: none; wilkie: 2/π).
     #[arg(long, value_enum)]
     dop_norm: Option<NormArg>,
@@ -305,6 +308,11 @@ impl SceneArgs {
         };
         let s = &mut c.sun;
         if self.sun_zenith.is_some() || self.sun_altitude.is_some() || self.sun_azimuth.is_some() {
+            if s.time.is_some() && self.sun_zenith.is_none() && self.sun_altitude.is_none() {
+                return Err(psns::Error::Invalid(
+                    "the scene gives the sun by --time; to set it directly give --sun-zenith (or --sun-altitude) with --sun-azimuth".into(),
+                ));
+            }
             s.time = None;
             if self.sun_zenith.is_some() || self.sun_altitude.is_some() {
                 s.zenith_deg = self.sun_zenith;
@@ -357,6 +365,9 @@ impl SceneArgs {
         k.babinet_deg = self.babinet.unwrap_or(k.babinet_deg);
         k.brewster_deg = self.brewster.unwrap_or(k.brewster_deg);
         k.dop_max = self.dop_max.unwrap_or(k.dop_max);
+        if self.ground_radiance.is_some() {
+            k.ground_radiance = self.ground_radiance;
+        }
         if let Some(n) = self.dop_norm {
             k.dop_norm = match n {
                 NormArg::Clamp => DopNorm::Clamp,
@@ -368,35 +379,51 @@ impl SceneArgs {
             FrameArg::Solar => AttitudeFrame::Solar,
             FrameArg::Enu => AttitudeFrame::Enu,
         });
-        if let Some(q) = self.quaternion {
-            cam.attitude = Attitude::Quaternion {
-                frame: frame_given.unwrap_or_default(),
-                wxyz: q,
-            };
-        } else if self.yaw.is_some()
-            || self.pitch.is_some()
-            || self.roll.is_some()
-            || frame_given.is_some()
-        {
-            let (mut f, mut y, mut p, mut r) = match cam.attitude {
+        let euler_given = self.yaw.is_some() || self.pitch.is_some() || self.roll.is_some();
+        match (self.quaternion, cam.attitude) {
+            (Some(q), current) => {
+                let frame = match current {
+                    Attitude::Euler { frame, .. } | Attitude::Quaternion { frame, .. } => frame,
+                };
+                cam.attitude = Attitude::Quaternion {
+                    frame: frame_given.unwrap_or(frame),
+                    wxyz: q,
+                };
+            }
+            (None, Attitude::Quaternion { frame, wxyz }) => {
+                if euler_given {
+                    let all = self.yaw.is_some() && self.pitch.is_some() && self.roll.is_some();
+                    if !all {
+                        return Err(psns::Error::Invalid(
+                            "the scene's attitude is a quaternion: give --quaternion, or all of --yaw, --pitch and --roll".into(),
+                        ));
+                    }
+                    cam.attitude = Attitude::Euler {
+                        frame: frame_given.unwrap_or(frame),
+                        yaw_deg: self.yaw.unwrap_or(0.0),
+                        pitch_deg: self.pitch.unwrap_or(0.0),
+                        roll_deg: self.roll.unwrap_or(0.0),
+                    };
+                } else if let Some(f) = frame_given {
+                    cam.attitude = Attitude::Quaternion { frame: f, wxyz };
+                }
+            }
+            (
+                None,
                 Attitude::Euler {
                     frame,
                     yaw_deg,
                     pitch_deg,
                     roll_deg,
-                } => (frame, yaw_deg, pitch_deg, roll_deg),
-                Attitude::Quaternion { frame, .. } => (frame, 0.0, 0.0, 0.0),
-            };
-            f = frame_given.unwrap_or(f);
-            y = self.yaw.unwrap_or(y);
-            p = self.pitch.unwrap_or(p);
-            r = self.roll.unwrap_or(r);
-            cam.attitude = Attitude::Euler {
-                frame: f,
-                yaw_deg: y,
-                pitch_deg: p,
-                roll_deg: r,
-            };
+                },
+            ) => {
+                cam.attitude = Attitude::Euler {
+                    frame: frame_given.unwrap_or(frame),
+                    yaw_deg: self.yaw.unwrap_or(yaw_deg),
+                    pitch_deg: self.pitch.unwrap_or(pitch_deg),
+                    roll_deg: self.roll.unwrap_or(roll_deg),
+                };
+            }
         }
         let i = &mut cam.intrinsics;
         i.focal_length_mm = self.focal_length.unwrap_or(i.focal_length_mm);
@@ -600,6 +627,11 @@ impl RawArgs {
             }
             s = serde_json::from_value(v)
                 .map_err(|e| psns::Error::Invalid(format!("sensor settings: {e}")))?;
+            if self.off.iter().any(|st| st.trim() == "ri") {
+                if let Some(p) = s.psns.as_mut() {
+                    p.relative_illumination = false; // the PSNS presets' own falloff switch
+                }
+            }
         }
         r.sensor = Some(s);
         Ok(())
@@ -831,7 +863,10 @@ fn main() -> ExitCode {
             if lib.is_some_and(|l| l.is_broken_pipe()) || io_pipe {
                 return ExitCode::SUCCESS; // reader went away: end quietly
             }
-            eprintln!("psns: error: {e:#}");
+            match lib {
+                Some(l) => eprintln!("psns: error: {l}"),
+                None => eprintln!("psns: error: {e:#}"),
+            }
             if lib.is_some_and(|l| l.is_usage()) {
                 ExitCode::from(2)
             } else {

@@ -45,6 +45,14 @@ impl RawPipeline {
         sensor::check_size(i.width, i.height)?;
         cfg.sky.validate()?;
         cfg.camera.attitude.validate()?;
+        crate::error::check_range("sky-grid", raw.sky_grid as f64, 1.0, 64.0)?;
+        // the band-pass filter sits on the sky wavelength; the sensor model covers 380..720 nm
+        crate::error::check_range(
+            "wavelength (raw frames)",
+            cfg.sky.wavelength_nm,
+            380.0,
+            720.0,
+        )?;
         let sensor_cfg = raw.effective_sensor(cfg.sky.wavelength_nm);
         sensor_cfg.validate(i.width, i.height)?;
         if let Some(c) = &raw.soft_clouds {

@@ -339,3 +339,61 @@ pub fn render_stokes_grid(
     };
     (out, n_sun)
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::camera::{Attitude, Intrinsics};
+    use crate::sky::{SkyParams, SunPosition};
+
+    /// Solar flux collected by the disc pixels of a 64 × 64 window centred on the sun, for a camera
+    /// whose optical axis is `off_axis_deg` from the sun: Σ ΔS0 · Ω_pixel.
+    fn disc_flux(off_axis_deg: f64) -> (f64, usize) {
+        let sun = SunPosition::new(50.0, 200.0);
+        let sky = Sky::new(sun, &SkyParams::default()).unwrap();
+        // look toward the sun's azimuth, tilted so the sun is off_axis_deg from the axis
+        let att = Attitude::enu(200.0, -(50.0 - off_axis_deg), 0.0);
+        let big = Intrinsics::default();
+        let probe = Camera::new(big, &att, 200.0).unwrap();
+        let (sc, sr) = big.project(probe.enu_to_camera * sun.vector()).unwrap();
+        let (pc, pr) = big.principal();
+        let win = Intrinsics {
+            width: 64,
+            height: 64,
+            principal_point: Some([pc - (sc - 32.0).round(), pr - (sr - 32.0).round()]),
+            ..big
+        };
+        let cam = Camera::new(win, &att, 200.0).unwrap();
+        let (with, n) = render_stokes(&sky, &cam, StokesOptions { sun_disc: true });
+        let (without, _) = render_stokes(&sky, &cam, StokesOptions { sun_disc: false });
+        let f = win.focal_px();
+        let mut flux = 0.0;
+        for r in 0..64 {
+            for c in 0..64 {
+                let d = win.ray(c as f64, r as f64);
+                let cos_phi = d.z / d.length();
+                let omega = cos_phi.powi(3) / (f * f); // solid angle of one pixel
+                let k = r * 64 + c;
+                flux += (with.s0.data[k] - without.s0.data[k]) as f64 * omega;
+            }
+        }
+        (flux, n)
+    }
+
+    #[test]
+    fn sun_disc_flux_is_the_same_on_and_off_axis() {
+        let (on, n_on) = disc_flux(0.0);
+        let (off, n_off) = disc_flux(50.0);
+        assert!(n_on > 50 && n_off > n_on, "{n_on} {n_off}");
+        // the disc spans more pixels off axis (1/cos² radially), but carries the same flux
+        // (a box of on-axis size cut the disc: −1.8 % at 40°, more beyond)
+        assert!(
+            (off / on - 1.0).abs() < 0.005,
+            "flux on axis {on:e}, 50 deg off {off:e}"
+        );
+        // and the flux is the disc's: ∫ L dΩ ≈ L̄ π r² with L̄ between the limb and the centre
+        let hw = crate::sky::hosek::HosekWilkie::new(4.0, 0.1, 40f64.to_radians(), 450.0).unwrap();
+        let area = std::f64::consts::PI * SUN_RADIUS_RAD * SUN_RADIUS_RAD;
+        assert!(on < hw.sun_radiance(0.0) * area && on > 0.5 * hw.sun_radiance(0.0) * area);
+    }
+}

@@ -179,7 +179,9 @@ fn sky_command_matches_default_table() {
         let d = (a - b).rem_euclid(180.0);
         d.min(180.0 - d)
     };
-    for (line, e) in lines.zip(expect.iter()) {
+    let rows: Vec<&str> = lines.collect();
+    assert_eq!(rows.len(), expect.len(), "{text}");
+    for (line, e) in rows.into_iter().zip(expect.iter()) {
         let v: Vec<f64> = line.split(',').map(|s| s.parse().unwrap()).collect();
         assert!((v[2] - e.0).abs() < 1e-3, "{line}");
         assert!((v[3] / e.1 - 1.0).abs() < 1e-4, "{line}: radiance");
@@ -187,6 +189,73 @@ fn sky_command_matches_default_table() {
         assert!(axial(v[5], e.4) < 1e-3, "{line}: aop_m");
         assert!(axial(v[6], e.3) < 1e-3, "{line}: chi");
     }
+}
+
+#[test]
+fn config_values_are_kept_unless_overridden() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = dir.path().join("q.json");
+    std::fs::write(
+        &cfg,
+        r#"{"camera": {"attitude": {"kind": "quaternion", "frame": "enu", "wxyz": [0.9659258262890683, 0.0, 0.0, 0.25881904510252074]}},
+            "sun": {"time": "2025-06-21T10:00:00Z", "place": {"lat_deg": 48.0, "lon_deg": 11.0, "height_m": 0.0}}}"#,
+    )
+    .unwrap();
+    let c = cfg.to_str().unwrap();
+    let scene = |out: &Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(out.join("scene.json")).unwrap()).unwrap()
+    };
+    // --quaternion alone keeps the config's frame
+    let out = dir.path().join("a");
+    let o = psns(&[
+        "render",
+        "--config",
+        c,
+        "--quaternion",
+        "1,0,0,0",
+        "--out",
+        out.to_str().unwrap(),
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(scene(&out)["camera"]["attitude"]["frame"], "enu");
+    // --frame alone changes only the quaternion's frame
+    let out = dir.path().join("b");
+    let o = psns(&[
+        "render",
+        "--config",
+        c,
+        "--frame",
+        "solar",
+        "--out",
+        out.to_str().unwrap(),
+        "--width",
+        "8",
+        "--height",
+        "8",
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let a = &scene(&out)["camera"]["attitude"];
+    assert_eq!(
+        (a["kind"].as_str(), a["frame"].as_str()),
+        (Some("quaternion"), Some("solar"))
+    );
+    // a partial Euler override of a quaternion, or an azimuth alone over a timed sun: refused
+    for extra in [&["--yaw", "10"][..], &["--sun-azimuth", "100"][..]] {
+        let out = dir.path().join("c");
+        let mut args = vec!["render", "--config", c, "--out", out.to_str().unwrap()];
+        args.extend_from_slice(extra);
+        let o = psns(&args);
+        assert_eq!(o.status.code(), Some(2), "{extra:?}: {}", stderr(&o));
+        assert!(!out.exists());
+    }
+    // a missing config file is bad input too
+    let o = psns(&["render", "--config", "/nonexistent/scene.toml"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("does not exist"), "{}", stderr(&o));
 }
 
 #[test]
