@@ -312,8 +312,8 @@ impl Sky {
             return SkySample::GROUND;
         }
         let (cos_t, cos_g, mut s) = self.pol.eval(v);
-        // HW v1.4a dips slightly below zero within ~0.005° of the horizon for some channels
-        // (e.g. 440 nm, T = 4, θ_s = 84°: −3.5e-3 at the horizon); radiance cannot be negative.
+        // HW v1.4a dips slightly below zero within ~0.005° of the horizon for low suns (e.g.
+        // θ_s = 84°, A − A_s = 100°, 450 nm, T = 4; docs/sky.md); radiance cannot be negative.
         s.radiance = self.hw.radiance_cos(cos_t, s.gamma_rad, cos_g).max(0.0);
         s
     }
