@@ -13,6 +13,12 @@ fn root() -> PathBuf {
 }
 
 fn stream(fmt: PixelFormat, w: u32, h: u32, n: u64, msb: bool) -> Vec<u8> {
+    let ix: Vec<u64> = (0..n).collect();
+    stream_ix(fmt, w, h, &ix, msb, 0.0)
+}
+
+/// A stream with the given frame indexes (a jump = dropped frames) and black level.
+fn stream_ix(fmt: PixelFormat, w: u32, h: u32, ix: &[u64], msb: bool, black: f64) -> Vec<u8> {
     let hd = FileHeader {
         width: w,
         height: h,
@@ -25,7 +31,7 @@ fn stream(fmt: PixelFormat, w: u32, h: u32, n: u64, msb: bool) -> Vec<u8> {
         ..Default::default()
     };
     let mut wr = StreamWriter::new(Vec::new(), &hd).unwrap();
-    for i in 0..n {
+    for &i in ix {
         let m = FrameMeta {
             index: i,
             flags: 0,
@@ -33,6 +39,7 @@ fn stream(fmt: PixelFormat, w: u32, h: u32, n: u64, msb: bool) -> Vec<u8> {
             exposure_end_ns: 1_718_000_000_001_000_000 + i as i64 * 100_000_000,
             exposure_us: 1000.0,
             gain_db: 0.1 * i as f64,
+            black_level: black,
             sun_azimuth_deg: 123.456 + i as f64,
             sun_elevation_deg: 33.3,
             sun_camera: [0.3, -0.1, 0.948_683_298],
@@ -56,9 +63,31 @@ fn stream(fmt: PixelFormat, w: u32, h: u32, n: u64, msb: bool) -> Vec<u8> {
 /// Canonical lines from the Rust reader (same format as the tools' `dump`).
 fn rust_dump(bytes: &[u8]) -> String {
     let mut rd = StreamReader::new(Cursor::new(bytes)).unwrap();
-    let h = rd.header().clone();
+    let mut s = header_line(rd.header());
+    while let Some(ev) = rd.next_event().unwrap() {
+        let id = |i: Option<u64>| i.map_or("-".to_string(), |i| i.to_string());
+        match ev {
+            Event::Frame(f) => s += &frame_line(&f, rd.header()),
+            Event::Gap { from, to } => s += &format!("gap {from}..{to}\n"),
+            Event::Corrupt { index, offset, .. } => {
+                s += &format!("corrupt {} {offset}\n", id(index))
+            }
+            Event::Truncated {
+                index,
+                offset,
+                have,
+                need,
+            } => s += &format!("truncated {} {offset} {have} {need}\n", id(index)),
+            Event::Skipped { offset, bytes } => s += &format!("skipped {offset} {bytes}\n"),
+            Event::Restart(h) => s += &format!("restart\n{}", header_line(&h)),
+        }
+    }
+    s
+}
+
+fn header_line(h: &FileHeader) -> String {
     let a = h.layout.angles_deg();
-    let mut s = format!(
+    format!(
         "header {} {} {:08x} {} {} {} {} {} {} {},{},{},{}\n",
         h.width,
         h.height,
@@ -73,38 +102,36 @@ fn rust_dump(bytes: &[u8]) -> String {
         a[1],
         a[2],
         a[3]
-    );
-    while let Some(ev) = rd.next_event().unwrap() {
-        if let Event::Frame(f) = ev {
-            let m = f.meta;
-            let v = f.codes(rd.header()).unwrap();
-            let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
-            let f64s: Vec<String> = m
-                .f64_fields()
-                .iter()
-                .map(|x| format!("{:016x}", x.to_bits()))
-                .collect();
-            s += &format!(
-                "frame {} {} {} {} {} {} {} {},{},{},{} {:08x},{:08x} {} {:08x}\n",
-                m.index,
-                m.flags,
-                f.payload_crc_ok as u8,
-                m.exposure_start_ns,
-                m.exposure_end_ns,
-                m.host_time_ns,
-                f64s.join(","),
-                m.saturated[0],
-                m.saturated[1],
-                m.saturated[2],
-                m.saturated[3],
-                m.turbidity.to_bits(),
-                m.albedo.to_bits(),
-                v.iter().map(|&x| x as u64).sum::<u64>(),
-                crc32(&bytes)
-            );
-        }
-    }
-    s
+    )
+}
+
+fn frame_line(f: &Frame, h: &FileHeader) -> String {
+    let m = f.meta;
+    let v = f.codes(h).unwrap();
+    let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+    let f64s: Vec<String> = m
+        .f64_fields()
+        .iter()
+        .map(|x| format!("{:016x}", x.to_bits()))
+        .collect();
+    format!(
+        "frame {} {} {} {} {} {} {} {},{},{},{} {:08x},{:08x} {} {:08x}\n",
+        m.index,
+        m.flags,
+        f.payload_crc_ok as u8,
+        m.exposure_start_ns,
+        m.exposure_end_ns,
+        m.host_time_ns,
+        f64s.join(","),
+        m.saturated[0],
+        m.saturated[1],
+        m.saturated[2],
+        m.saturated[3],
+        m.turbidity.to_bits(),
+        m.albedo.to_bits(),
+        v.iter().map(|&x| x as u64).sum::<u64>(),
+        crc32(&bytes)
+    )
 }
 
 fn have_numpy() -> bool {
@@ -165,6 +192,75 @@ fn cases() -> Vec<(String, Vec<u8>)> {
     b.extend_from_slice(b"garbage\x89PSNSxx");
     b.extend_from_slice(&tail);
     v.push(("damaged".into(), b));
+    for (name, b) in event_cases() {
+        v.push((name.into(), b));
+    }
+    v
+}
+
+/// Streams exercising gaps, out-of-order indexes, producer restarts (at a record boundary and
+/// inside a record) and a resynchronisation whose magic straddles a 64 KiB read.
+fn event_cases() -> Vec<(&'static str, Vec<u8>)> {
+    let mut v = Vec::new();
+    // dropped frames 2, 3 and 6..8
+    v.push((
+        "gap",
+        stream_ix(PixelFormat::Mono12p, 16, 8, &[0, 1, 4, 5, 9], false, 0.0),
+    ));
+    // record 1 repeated, then record 0 again after 2: both rejected (index not increasing)
+    let s = stream(PixelFormat::Mono12p, 16, 8, 4, false);
+    let rec = |i: usize| s[4096 + i * 4096..4096 + (i + 1) * 4096].to_vec();
+    let mut b = s[..4096].to_vec();
+    for r in [rec(0), rec(1), rec(1), rec(2), rec(0), rec(3)] {
+        b.extend_from_slice(&r);
+    }
+    v.push(("backwards", b));
+    // producer restart at a record boundary, Mono16 -> Mono8 of another size; indexes restart
+    let mut b = stream(PixelFormat::Mono16, 16, 8, 3, false);
+    b.extend_from_slice(&stream_ix(
+        PixelFormat::Mono8,
+        24,
+        6,
+        &[0, 1, 3],
+        false,
+        0.0,
+    ));
+    v.push(("restart", b));
+    // producer died inside record 2 (in its header, its payload, its pad) and restarted
+    for (name, cut) in [
+        ("restart-in-header", 100),
+        ("restart-in-payload", 256 + 100),
+        ("restart-in-pad", 256 + 256 + 10),
+    ] {
+        let mut b = stream(PixelFormat::Mono16, 16, 8, 3, false);
+        b.truncate(4096 + 2 * 4096 + cut);
+        b.extend_from_slice(&stream_ix(
+            PixelFormat::Mono8,
+            24,
+            6,
+            &[5, 6, 8],
+            false,
+            0.0,
+        ));
+        v.push((name, b));
+    }
+    // garbage from record 2 on, record 2's magic 4 bytes before a 64 KiB boundary of the
+    // reader's reads (4096 + 65536 - 4): Python used to skip it
+    let s = stream(PixelFormat::Mono12p, 16, 8, 20, false);
+    let at = 4096 + 65536 - 4;
+    let mut b = s[..4096 + 2 * 4096].to_vec();
+    while b.len() < at {
+        b.push((b.len() * 7 % 251) as u8);
+    }
+    b.extend_from_slice(&s[4096 + 2 * 4096..]);
+    v.push(("straddle", b));
+    // EOF inside a record and a few stray bytes at the end
+    let mut b = stream(PixelFormat::Mono8, 16, 8, 3, false);
+    b.truncate(b.len() - 4000);
+    v.push(("truncated", b));
+    let mut b = stream(PixelFormat::Mono8, 16, 8, 2, false);
+    b.extend_from_slice(b"\x89PS");
+    v.push(("stray-tail", b));
     v
 }
 
