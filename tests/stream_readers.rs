@@ -377,3 +377,350 @@ fn golden_stream_fixture() {
     let rep = verify(Cursor::new(&want)).unwrap();
     assert!(rep.clean() && rep.frames == 3, "{rep}");
 }
+
+/// A stream whose file header is `base` with fields patched (and its CRC recomputed, so only the
+/// field checks can reject it), followed by one record with a valid header and payload CRC sized
+/// by the patched payload/stride fields (capped), so a reader that accepts the header goes on to
+/// unpack a frame.
+fn crafted(patch: &dyn Fn(&mut [u8])) -> Vec<u8> {
+    let base = FileHeader {
+        width: 16,
+        height: 8,
+        pixel_format: PixelFormat::Mono16,
+        bits_valid: 12,
+        ..Default::default()
+    };
+    let mut h = base.encode().unwrap();
+    patch(&mut h);
+    let c = crc32(&h[..4092]);
+    h[4092..].copy_from_slice(&c.to_le_bytes());
+    let p = u64::from_le_bytes(h[48..56].try_into().unwrap()).min(1 << 20) as usize;
+    let stride = u64::from_le_bytes(h[56..64].try_into().unwrap()).min(1 << 21) as usize;
+    let payload = vec![0x5au8; p];
+    let mut b = h;
+    b.extend_from_slice(&FrameMeta::default().encode(crc32(&payload)));
+    b.extend_from_slice(&payload);
+    b.resize(4096 + stride.max(256 + p), 0);
+    b
+}
+
+fn set(b: &mut [u8], off: usize, v: &[u8]) {
+    b[off..off + v.len()].copy_from_slice(v);
+}
+
+fn set_sizes(b: &mut [u8], p: u64) {
+    set(b, 48, &p.to_le_bytes());
+    set(b, 56, &stride_for(p).to_le_bytes());
+}
+
+/// Headers with a valid CRC but fields Rust's `FileHeader::validate` rejects. The C reader used
+/// to crash on the first (w·h·3 wraps in uint64_t to a 13-byte payload) and accept the others
+/// (negative shift for 17 MSB-aligned bits, ...); Python accepted most of them.
+fn crafted_cases() -> Vec<(&'static str, Vec<u8>)> {
+    vec![
+        (
+            "wrapping size",
+            crafted(&|b| {
+                set(b, 20, &3_062_868_337u32.to_le_bytes());
+                set(b, 24, &2_007_567_422u32.to_le_bytes());
+                set(b, 28, &0x010C_0047u32.to_le_bytes());
+                set_sizes(b, 13);
+            }),
+        ),
+        (
+            "width 70000",
+            crafted(&|b| {
+                set(b, 20, &70_000u32.to_le_bytes());
+                set(b, 24, &1u32.to_le_bytes());
+                set_sizes(b, 140_000);
+            }),
+        ),
+        (
+            "width 0",
+            crafted(&|b| {
+                set(b, 20, &0u32.to_le_bytes());
+                set_sizes(b, 0);
+            }),
+        ),
+        (
+            "MSB 17 bits",
+            crafted(&|b| {
+                set(b, 32, &17u16.to_le_bytes());
+                set(b, 34, &1u16.to_le_bytes());
+            }),
+        ),
+        (
+            "MSB 0 bits",
+            crafted(&|b| {
+                set(b, 32, &0u16.to_le_bytes());
+                set(b, 34, &1u16.to_le_bytes());
+            }),
+        ),
+        ("alignment 2", crafted(&|b| set(b, 34, &2u16.to_le_bytes()))),
+        (
+            "MSB Mono12p",
+            crafted(&|b| {
+                set(b, 28, &0x010C_0047u32.to_le_bytes());
+                set(b, 34, &1u16.to_le_bytes());
+                set_sizes(b, 192);
+            }),
+        ),
+        (
+            "Mono12p 13 bits",
+            crafted(&|b| {
+                set(b, 28, &0x010C_0047u32.to_le_bytes());
+                set(b, 32, &13u16.to_le_bytes());
+                set_sizes(b, 192);
+            }),
+        ),
+        (
+            "Mono8 12 bits",
+            crafted(&|b| {
+                set(b, 28, &0x0108_0001u32.to_le_bytes());
+                set_sizes(b, 128);
+            }),
+        ),
+        (
+            "angle sense 0",
+            crafted(&|b| set(b, 44, &0i16.to_le_bytes())),
+        ),
+        (
+            "angles repeated",
+            crafted(&|b| set(b, 36, &45i16.to_le_bytes())),
+        ),
+        (
+            "payload 1 GiB + 2",
+            crafted(&|b| {
+                set(b, 20, &32_769u32.to_le_bytes());
+                set(b, 24, &16_384u32.to_le_bytes());
+                set_sizes(b, 2 * 32_769 * 16_384);
+            }),
+        ),
+        (
+            "stride off",
+            crafted(&|b| set(b, 56, &8192u64.to_le_bytes())),
+        ),
+    ]
+}
+
+#[test]
+fn crafted_headers_rejected_by_all_readers() {
+    let dir = tempfile::tempdir().unwrap();
+    let exe = c_reader(dir.path());
+    let py = have_numpy();
+    // the unpatched header is accepted by all three (the cases differ only in the patch)
+    let ok = crafted(&|_| {});
+    assert!(StreamReader::new(Cursor::new(&ok)).is_ok());
+    for (name, bytes) in std::iter::once(("unpatched", ok)).chain(crafted_cases()) {
+        let good = name == "unpatched";
+        assert_eq!(
+            StreamReader::new(Cursor::new(&bytes)).is_ok(),
+            good,
+            "Rust: {name}"
+        );
+        let p = dir.path().join("crafted.psns");
+        std::fs::write(&p, &bytes).unwrap();
+        let out = Command::new(&exe).arg("dump").arg(&p).output().unwrap();
+        let code = out.status.code();
+        assert_eq!(
+            code,
+            Some(if good { 0 } else { 1 }),
+            "C: {name}: status {:?} (None = killed by a signal) {}",
+            out.status,
+            String::from_utf8_lossy(&out.stderr)
+        );
+        if !good {
+            assert!(out.stdout.is_empty(), "C printed for {name}");
+        }
+        if py {
+            let out = Command::new("python3")
+                .arg(root().join("tools/psns_stream.py"))
+                .arg("dump")
+                .arg(&p)
+                .output()
+                .unwrap();
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(
+                out.status.code(),
+                Some(if good { 0 } else { 1 }),
+                "Python: {name}: {err}"
+            );
+            assert!(!err.contains("Traceback"), "Python: {name}: {err}");
+        }
+        // the same header after a valid stream is a restart only if it is valid: otherwise
+        // the readers skip it as damage (no restart line), like Rust
+        if !good {
+            let mut s = stream(PixelFormat::Mono16, 16, 8, 2, false);
+            s.extend_from_slice(&bytes);
+            let want = rust_dump(&s);
+            assert!(!want.contains("restart"), "{name}");
+            let p = dir.path().join("crafted-restart.psns");
+            std::fs::write(&p, &s).unwrap();
+            let out = Command::new(&exe).arg("dump").arg(&p).output().unwrap();
+            assert!(
+                out.status.success(),
+                "C: {name} as restart: {:?}",
+                out.status
+            );
+            assert_eq!(String::from_utf8(out.stdout).unwrap(), want, "C: {name}");
+            if py {
+                assert_eq!(
+                    python(&["dump", p.to_str().unwrap()]),
+                    want,
+                    "Python: {name}"
+                );
+            }
+        }
+    }
+}
+
+const GOLDEN: [(&str, PixelFormat, bool); 5] = [
+    ("golden-mono12p-16x8x3", PixelFormat::Mono12p, false),
+    ("golden-mono8-16x8x3", PixelFormat::Mono8, false),
+    (
+        "golden-mono12packed-16x8x3",
+        PixelFormat::Mono12Packed,
+        false,
+    ),
+    ("golden-mono16-16x8x3", PixelFormat::Mono16, false),
+    ("golden-mono16msb-16x8x3", PixelFormat::Mono16, true),
+];
+
+/// Every golden stream is regenerated byte for byte by the writer (PSNS_BLESS=1 rewrites them)
+/// and is < 20 KB.
+#[test]
+fn golden_streams_every_format() {
+    let dir = root().join("fixtures/stream");
+    for (name, fmt, msb) in GOLDEN {
+        let bytes = stream(fmt, 16, 8, 3, msb);
+        let file = dir.join(format!("{name}.psns"));
+        let sha = dir.join(format!("{name}.sha256"));
+        let hash = format!("{:x}", Sha256::digest(&bytes));
+        if std::env::var_os("PSNS_BLESS").is_some() {
+            std::fs::create_dir_all(&dir).unwrap();
+            std::fs::write(&file, &bytes).unwrap();
+            std::fs::write(&sha, format!("{hash}\n")).unwrap();
+        }
+        let want = std::fs::read(&file).expect("fixture (regenerate with PSNS_BLESS=1)");
+        assert_eq!(
+            hash,
+            std::fs::read_to_string(&sha).unwrap().trim(),
+            "{name}"
+        );
+        assert_eq!(bytes, want, "{name}");
+        assert!(want.len() < 20_000, "{name}: {} bytes", want.len());
+        let rep = verify(Cursor::new(&want)).unwrap();
+        assert!(rep.clean() && rep.frames == 3, "{name}: {rep}");
+    }
+}
+
+/// The C reader and numpy (sequential reader and memmap) read the checked-in golden files and
+/// print the Rust reader's canonical lines.
+#[test]
+fn golden_streams_read_by_c_and_numpy() {
+    let dir = tempfile::tempdir().unwrap();
+    let exe = c_reader(dir.path());
+    let py = have_numpy();
+    for (name, _, _) in GOLDEN {
+        let file = root().join(format!("fixtures/stream/{name}.psns"));
+        let bytes = std::fs::read(&file).unwrap();
+        let want = rust_dump(&bytes);
+        assert_eq!(want.lines().filter(|l| l.starts_with("frame ")).count(), 3);
+        let out = Command::new(&exe).arg("dump").arg(&file).output().unwrap();
+        assert!(out.status.success(), "{name}");
+        assert_eq!(String::from_utf8(out.stdout).unwrap(), want, "C: {name}");
+        if py {
+            let f = file.to_str().unwrap();
+            assert_eq!(python(&["dump", f]), want, "Python: {name}");
+            assert_eq!(python(&["mmdump", f]), want, "numpy memmap: {name}");
+        }
+    }
+}
+
+fn nav(path: &Path) -> std::process::Output {
+    Command::new("python3")
+        .arg(root().join("tools/nav_reader.py"))
+        .arg(path)
+        .output()
+        .unwrap()
+}
+
+/// nav_reader reports dropped frames (index gaps) and exits with status 1; a clean stream 0.
+#[test]
+fn nav_reader_reports_dropped_frames() {
+    if !have_numpy() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("clean.psns");
+    std::fs::write(&p, stream(PixelFormat::Mono12p, 16, 8, 3, false)).unwrap();
+    let out = nav(&p);
+    let so = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{so}");
+    assert!(so.contains("read 3 frames, 0 dropped, 0 damaged"), "{so}");
+    let p = dir.path().join("gap.psns");
+    std::fs::write(
+        &p,
+        stream_ix(PixelFormat::Mono12p, 16, 8, &[0, 1, 4, 5, 9], false, 0.0),
+    )
+    .unwrap();
+    let out = nav(&p);
+    let so = String::from_utf8_lossy(&out.stdout);
+    let se = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{so}{se}");
+    assert!(so.contains("dropped: frames 2..3 missing"), "{so}");
+    assert!(so.contains("dropped: frames 6..8 missing"), "{so}");
+    assert!(so.contains("read 5 frames, 5 dropped, 0 damaged"), "{so}");
+    assert!(se.contains("dropped: 5 frames"), "{se}");
+}
+
+/// The header's black level is in payload DN; for MSB-aligned Mono16 nav_reader must shift it
+/// like the values (it subtracted 16x too much). Superpixel (90, 45, 135, 0) codes 300, 500,
+/// 500, 700 over a black level of 100 codes give DoLP = (600 - 200) / (600 + 200) = 0.5.
+#[test]
+fn nav_reader_black_level_msb_aligned() {
+    if !have_numpy() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for msb in [false, true] {
+        let hd = FileHeader {
+            width: 16,
+            height: 8,
+            pixel_format: PixelFormat::Mono16,
+            bits_valid: 12,
+            msb_aligned: msb,
+            ..Default::default()
+        };
+        let mut wr = StreamWriter::new(Vec::new(), &hd).unwrap();
+        let codes: Vec<u16> = (0..128)
+            .map(|k| [300, 500, 500, 700][((k / 16) % 2) * 2 + k % 2])
+            .collect();
+        let m = FrameMeta {
+            black_level: if msb { 100.0 * 16.0 } else { 100.0 },
+            sun_camera: [0.0, -1.0, 0.0],
+            ..Default::default()
+        };
+        wr.write_frame(&m, &codes).unwrap();
+        let p = dir.path().join("black.psns");
+        std::fs::write(&p, wr.finish().unwrap()).unwrap();
+        let out = nav(&p);
+        let so = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{so}");
+        let dolp: f64 = so
+            .split("dolp=")
+            .nth(1)
+            .unwrap()
+            .split_whitespace()
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!((dolp - 0.5).abs() < 1e-4, "msb {msb}: {so}");
+        // AoLP: 0 deg intensity 700 > 90 deg 300, 45 = 135: AoLP 0
+        assert!(
+            so.contains("aolp=0.0 ") || so.contains("aolp=180.0 "),
+            "{so}"
+        );
+    }
+}
