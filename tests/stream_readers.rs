@@ -272,7 +272,11 @@ fn c_reader_matches_rust() {
         let p = dir.path().join(format!("{name}.psns"));
         std::fs::write(&p, &bytes).unwrap();
         let out = Command::new(&exe).arg("dump").arg(&p).output().unwrap();
-        assert!(out.status.success());
+        assert!(
+            out.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         assert_eq!(
             String::from_utf8(out.stdout).unwrap(),
             rust_dump(&bytes),

@@ -5,8 +5,11 @@
  *   psns_stream dump FILE|-          canonical header/frame lines (used by the tests)
  *   psns_stream frame FILE|- N OUT   write frame N's values as raw uint16 little-endian
  *
- * Reads sequentially with fread (works on files, FIFOs and stdin), checks both CRCs,
- * reports damage on stderr and resynchronises on the next frame magic.
+ * Reads sequentially with fread (works on files, FIFOs and stdin), validates the file header
+ * like Rust's FileHeader::decode, checks both CRCs, and follows the Rust StreamReader
+ * (src/stream/reader.rs): resynchronisation on the next valid header, producer restarts (also
+ * inside a record), index gaps and out-of-order indexes. `dump` prints one canonical line per
+ * event on stdout; otherwise events are reported on stderr.
  */
 #include <stdint.h>
 #include <stdio.h>
@@ -305,7 +308,7 @@ static int resync(rbuf *r, const stream_header *h, int *has_exp, uint64_t *expec
         }
         for (uint64_t i = lo; ids.n < n_damaged && (!has_hi || i < hi); i++)
             if (!contains(&ids, i)) push(&ids, i);
-        qsort(ids.v, ids.n, sizeof *ids.v, cmp_u64);
+        if (ids.n) qsort(ids.v, ids.n, sizeof *ids.v, cmp_u64);
     }
     uint64_t n_reports = has_lo ? ids.n : n_damaged;
     for (uint64_t k = 0; k < n_reports; k++)
@@ -341,8 +344,7 @@ int main(int argc, char **argv) {
     r.f = strcmp(argv[2], "-") ? fopen(argv[2], "rb") : stdin;
     if (!r.f) { perror(argv[2]); return 2; }
     stream_header h;
-    int e;
-    if (fill(&r, 4096) < 4096 || (e = parse_header(r.b, &h)) != 0) {
+    if (fill(&r, 4096) < 4096 || parse_header(r.b, &h) != 0) {
         fprintf(stderr, "not a valid psns stream header\n");
         return 1;
     }
