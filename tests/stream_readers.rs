@@ -13,6 +13,12 @@ fn root() -> PathBuf {
 }
 
 fn stream(fmt: PixelFormat, w: u32, h: u32, n: u64, msb: bool) -> Vec<u8> {
+    let ix: Vec<u64> = (0..n).collect();
+    stream_ix(fmt, w, h, &ix, msb, 0.0)
+}
+
+/// A stream with the given frame indexes (a jump = dropped frames) and black level.
+fn stream_ix(fmt: PixelFormat, w: u32, h: u32, ix: &[u64], msb: bool, black: f64) -> Vec<u8> {
     let hd = FileHeader {
         width: w,
         height: h,
@@ -25,7 +31,7 @@ fn stream(fmt: PixelFormat, w: u32, h: u32, n: u64, msb: bool) -> Vec<u8> {
         ..Default::default()
     };
     let mut wr = StreamWriter::new(Vec::new(), &hd).unwrap();
-    for i in 0..n {
+    for &i in ix {
         let m = FrameMeta {
             index: i,
             flags: 0,
@@ -33,6 +39,7 @@ fn stream(fmt: PixelFormat, w: u32, h: u32, n: u64, msb: bool) -> Vec<u8> {
             exposure_end_ns: 1_718_000_000_001_000_000 + i as i64 * 100_000_000,
             exposure_us: 1000.0,
             gain_db: 0.1 * i as f64,
+            black_level: black,
             sun_azimuth_deg: 123.456 + i as f64,
             sun_elevation_deg: 33.3,
             sun_camera: [0.3, -0.1, 0.948_683_298],
@@ -56,9 +63,31 @@ fn stream(fmt: PixelFormat, w: u32, h: u32, n: u64, msb: bool) -> Vec<u8> {
 /// Canonical lines from the Rust reader (same format as the tools' `dump`).
 fn rust_dump(bytes: &[u8]) -> String {
     let mut rd = StreamReader::new(Cursor::new(bytes)).unwrap();
-    let h = rd.header().clone();
+    let mut s = header_line(rd.header());
+    while let Some(ev) = rd.next_event().unwrap() {
+        let id = |i: Option<u64>| i.map_or("-".to_string(), |i| i.to_string());
+        match ev {
+            Event::Frame(f) => s += &frame_line(&f, rd.header()),
+            Event::Gap { from, to } => s += &format!("gap {from}..{to}\n"),
+            Event::Corrupt { index, offset, .. } => {
+                s += &format!("corrupt {} {offset}\n", id(index))
+            }
+            Event::Truncated {
+                index,
+                offset,
+                have,
+                need,
+            } => s += &format!("truncated {} {offset} {have} {need}\n", id(index)),
+            Event::Skipped { offset, bytes } => s += &format!("skipped {offset} {bytes}\n"),
+            Event::Restart(h) => s += &format!("restart\n{}", header_line(&h)),
+        }
+    }
+    s
+}
+
+fn header_line(h: &FileHeader) -> String {
     let a = h.layout.angles_deg();
-    let mut s = format!(
+    format!(
         "header {} {} {:08x} {} {} {} {} {} {} {},{},{},{}\n",
         h.width,
         h.height,
@@ -73,38 +102,36 @@ fn rust_dump(bytes: &[u8]) -> String {
         a[1],
         a[2],
         a[3]
-    );
-    while let Some(ev) = rd.next_event().unwrap() {
-        if let Event::Frame(f) = ev {
-            let m = f.meta;
-            let v = f.codes(rd.header()).unwrap();
-            let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
-            let f64s: Vec<String> = m
-                .f64_fields()
-                .iter()
-                .map(|x| format!("{:016x}", x.to_bits()))
-                .collect();
-            s += &format!(
-                "frame {} {} {} {} {} {} {} {},{},{},{} {:08x},{:08x} {} {:08x}\n",
-                m.index,
-                m.flags,
-                f.payload_crc_ok as u8,
-                m.exposure_start_ns,
-                m.exposure_end_ns,
-                m.host_time_ns,
-                f64s.join(","),
-                m.saturated[0],
-                m.saturated[1],
-                m.saturated[2],
-                m.saturated[3],
-                m.turbidity.to_bits(),
-                m.albedo.to_bits(),
-                v.iter().map(|&x| x as u64).sum::<u64>(),
-                crc32(&bytes)
-            );
-        }
-    }
-    s
+    )
+}
+
+fn frame_line(f: &Frame, h: &FileHeader) -> String {
+    let m = f.meta;
+    let v = f.codes(h).unwrap();
+    let bytes: Vec<u8> = v.iter().flat_map(|x| x.to_le_bytes()).collect();
+    let f64s: Vec<String> = m
+        .f64_fields()
+        .iter()
+        .map(|x| format!("{:016x}", x.to_bits()))
+        .collect();
+    format!(
+        "frame {} {} {} {} {} {} {} {},{},{},{} {:08x},{:08x} {} {:08x}\n",
+        m.index,
+        m.flags,
+        f.payload_crc_ok as u8,
+        m.exposure_start_ns,
+        m.exposure_end_ns,
+        m.host_time_ns,
+        f64s.join(","),
+        m.saturated[0],
+        m.saturated[1],
+        m.saturated[2],
+        m.saturated[3],
+        m.turbidity.to_bits(),
+        m.albedo.to_bits(),
+        v.iter().map(|&x| x as u64).sum::<u64>(),
+        crc32(&bytes)
+    )
 }
 
 fn have_numpy() -> bool {
@@ -165,6 +192,75 @@ fn cases() -> Vec<(String, Vec<u8>)> {
     b.extend_from_slice(b"garbage\x89PSNSxx");
     b.extend_from_slice(&tail);
     v.push(("damaged".into(), b));
+    for (name, b) in event_cases() {
+        v.push((name.into(), b));
+    }
+    v
+}
+
+/// Streams exercising gaps, out-of-order indexes, producer restarts (at a record boundary and
+/// inside a record) and a resynchronisation whose magic straddles a 64 KiB read.
+fn event_cases() -> Vec<(&'static str, Vec<u8>)> {
+    let mut v = Vec::new();
+    // dropped frames 2, 3 and 6..8
+    v.push((
+        "gap",
+        stream_ix(PixelFormat::Mono12p, 16, 8, &[0, 1, 4, 5, 9], false, 0.0),
+    ));
+    // record 1 repeated, then record 0 again after 2: both rejected (index not increasing)
+    let s = stream(PixelFormat::Mono12p, 16, 8, 4, false);
+    let rec = |i: usize| s[4096 + i * 4096..4096 + (i + 1) * 4096].to_vec();
+    let mut b = s[..4096].to_vec();
+    for r in [rec(0), rec(1), rec(1), rec(2), rec(0), rec(3)] {
+        b.extend_from_slice(&r);
+    }
+    v.push(("backwards", b));
+    // producer restart at a record boundary, Mono16 -> Mono8 of another size; indexes restart
+    let mut b = stream(PixelFormat::Mono16, 16, 8, 3, false);
+    b.extend_from_slice(&stream_ix(
+        PixelFormat::Mono8,
+        24,
+        6,
+        &[0, 1, 3],
+        false,
+        0.0,
+    ));
+    v.push(("restart", b));
+    // producer died inside record 2 (in its header, its payload, its pad) and restarted
+    for (name, cut) in [
+        ("restart-in-header", 100),
+        ("restart-in-payload", 256 + 100),
+        ("restart-in-pad", 256 + 256 + 10),
+    ] {
+        let mut b = stream(PixelFormat::Mono16, 16, 8, 3, false);
+        b.truncate(4096 + 2 * 4096 + cut);
+        b.extend_from_slice(&stream_ix(
+            PixelFormat::Mono8,
+            24,
+            6,
+            &[5, 6, 8],
+            false,
+            0.0,
+        ));
+        v.push((name, b));
+    }
+    // garbage from record 2 on, record 2's magic 4 bytes before a 64 KiB boundary of the
+    // reader's reads (4096 + 65536 - 4): Python used to skip it
+    let s = stream(PixelFormat::Mono12p, 16, 8, 20, false);
+    let at = 4096 + 65536 - 4;
+    let mut b = s[..4096 + 2 * 4096].to_vec();
+    while b.len() < at {
+        b.push((b.len() * 7 % 251) as u8);
+    }
+    b.extend_from_slice(&s[4096 + 2 * 4096..]);
+    v.push(("straddle", b));
+    // EOF inside a record and a few stray bytes at the end
+    let mut b = stream(PixelFormat::Mono8, 16, 8, 3, false);
+    b.truncate(b.len() - 4000);
+    v.push(("truncated", b));
+    let mut b = stream(PixelFormat::Mono8, 16, 8, 2, false);
+    b.extend_from_slice(b"\x89PS");
+    v.push(("stray-tail", b));
     v
 }
 
@@ -176,7 +272,11 @@ fn c_reader_matches_rust() {
         let p = dir.path().join(format!("{name}.psns"));
         std::fs::write(&p, &bytes).unwrap();
         let out = Command::new(&exe).arg("dump").arg(&p).output().unwrap();
-        assert!(out.status.success());
+        assert!(
+            out.status.success(),
+            "{name}: {}",
+            String::from_utf8_lossy(&out.stderr)
+        );
         assert_eq!(
             String::from_utf8(out.stdout).unwrap(),
             rust_dump(&bytes),
@@ -280,4 +380,351 @@ fn golden_stream_fixture() {
     assert_eq!(bytes, want);
     let rep = verify(Cursor::new(&want)).unwrap();
     assert!(rep.clean() && rep.frames == 3, "{rep}");
+}
+
+/// A stream whose file header is `base` with fields patched (and its CRC recomputed, so only the
+/// field checks can reject it), followed by one record with a valid header and payload CRC sized
+/// by the patched payload/stride fields (capped), so a reader that accepts the header goes on to
+/// unpack a frame.
+fn crafted(patch: &dyn Fn(&mut [u8])) -> Vec<u8> {
+    let base = FileHeader {
+        width: 16,
+        height: 8,
+        pixel_format: PixelFormat::Mono16,
+        bits_valid: 12,
+        ..Default::default()
+    };
+    let mut h = base.encode().unwrap();
+    patch(&mut h);
+    let c = crc32(&h[..4092]);
+    h[4092..].copy_from_slice(&c.to_le_bytes());
+    let p = u64::from_le_bytes(h[48..56].try_into().unwrap()).min(1 << 20) as usize;
+    let stride = u64::from_le_bytes(h[56..64].try_into().unwrap()).min(1 << 21) as usize;
+    let payload = vec![0x5au8; p];
+    let mut b = h;
+    b.extend_from_slice(&FrameMeta::default().encode(crc32(&payload)));
+    b.extend_from_slice(&payload);
+    b.resize(4096 + stride.max(256 + p), 0);
+    b
+}
+
+fn set(b: &mut [u8], off: usize, v: &[u8]) {
+    b[off..off + v.len()].copy_from_slice(v);
+}
+
+fn set_sizes(b: &mut [u8], p: u64) {
+    set(b, 48, &p.to_le_bytes());
+    set(b, 56, &stride_for(p).to_le_bytes());
+}
+
+/// Headers with a valid CRC but fields Rust's `FileHeader::validate` rejects. The C reader used
+/// to crash on the first (w·h·3 wraps in uint64_t to a 13-byte payload) and accept the others
+/// (negative shift for 17 MSB-aligned bits, ...); Python accepted most of them.
+fn crafted_cases() -> Vec<(&'static str, Vec<u8>)> {
+    vec![
+        (
+            "wrapping size",
+            crafted(&|b| {
+                set(b, 20, &3_062_868_337u32.to_le_bytes());
+                set(b, 24, &2_007_567_422u32.to_le_bytes());
+                set(b, 28, &0x010C_0047u32.to_le_bytes());
+                set_sizes(b, 13);
+            }),
+        ),
+        (
+            "width 70000",
+            crafted(&|b| {
+                set(b, 20, &70_000u32.to_le_bytes());
+                set(b, 24, &1u32.to_le_bytes());
+                set_sizes(b, 140_000);
+            }),
+        ),
+        (
+            "width 0",
+            crafted(&|b| {
+                set(b, 20, &0u32.to_le_bytes());
+                set_sizes(b, 0);
+            }),
+        ),
+        (
+            "MSB 17 bits",
+            crafted(&|b| {
+                set(b, 32, &17u16.to_le_bytes());
+                set(b, 34, &1u16.to_le_bytes());
+            }),
+        ),
+        (
+            "MSB 0 bits",
+            crafted(&|b| {
+                set(b, 32, &0u16.to_le_bytes());
+                set(b, 34, &1u16.to_le_bytes());
+            }),
+        ),
+        ("alignment 2", crafted(&|b| set(b, 34, &2u16.to_le_bytes()))),
+        (
+            "MSB Mono12p",
+            crafted(&|b| {
+                set(b, 28, &0x010C_0047u32.to_le_bytes());
+                set(b, 34, &1u16.to_le_bytes());
+                set_sizes(b, 192);
+            }),
+        ),
+        (
+            "Mono12p 13 bits",
+            crafted(&|b| {
+                set(b, 28, &0x010C_0047u32.to_le_bytes());
+                set(b, 32, &13u16.to_le_bytes());
+                set_sizes(b, 192);
+            }),
+        ),
+        (
+            "Mono8 12 bits",
+            crafted(&|b| {
+                set(b, 28, &0x0108_0001u32.to_le_bytes());
+                set_sizes(b, 128);
+            }),
+        ),
+        (
+            "angle sense 0",
+            crafted(&|b| set(b, 44, &0i16.to_le_bytes())),
+        ),
+        (
+            "angles repeated",
+            crafted(&|b| set(b, 36, &45i16.to_le_bytes())),
+        ),
+        (
+            "payload 1 GiB + 2",
+            crafted(&|b| {
+                set(b, 20, &32_769u32.to_le_bytes());
+                set(b, 24, &16_384u32.to_le_bytes());
+                set_sizes(b, 2 * 32_769 * 16_384);
+            }),
+        ),
+        (
+            "stride off",
+            crafted(&|b| set(b, 56, &8192u64.to_le_bytes())),
+        ),
+    ]
+}
+
+#[test]
+fn crafted_headers_rejected_by_all_readers() {
+    let dir = tempfile::tempdir().unwrap();
+    let exe = c_reader(dir.path());
+    let py = have_numpy();
+    // the unpatched header is accepted by all three (the cases differ only in the patch)
+    let ok = crafted(&|_| {});
+    assert!(StreamReader::new(Cursor::new(&ok)).is_ok());
+    for (name, bytes) in std::iter::once(("unpatched", ok)).chain(crafted_cases()) {
+        let good = name == "unpatched";
+        assert_eq!(
+            StreamReader::new(Cursor::new(&bytes)).is_ok(),
+            good,
+            "Rust: {name}"
+        );
+        let p = dir.path().join("crafted.psns");
+        std::fs::write(&p, &bytes).unwrap();
+        let out = Command::new(&exe).arg("dump").arg(&p).output().unwrap();
+        let code = out.status.code();
+        assert_eq!(
+            code,
+            Some(if good { 0 } else { 1 }),
+            "C: {name}: status {:?} (None = killed by a signal) {}",
+            out.status,
+            String::from_utf8_lossy(&out.stderr)
+        );
+        if !good {
+            assert!(out.stdout.is_empty(), "C printed for {name}");
+        }
+        if py {
+            let out = Command::new("python3")
+                .arg(root().join("tools/psns_stream.py"))
+                .arg("dump")
+                .arg(&p)
+                .output()
+                .unwrap();
+            let err = String::from_utf8_lossy(&out.stderr);
+            assert_eq!(
+                out.status.code(),
+                Some(if good { 0 } else { 1 }),
+                "Python: {name}: {err}"
+            );
+            assert!(!err.contains("Traceback"), "Python: {name}: {err}");
+        }
+        // the same header after a valid stream is a restart only if it is valid: otherwise
+        // the readers skip it as damage (no restart line), like Rust
+        if !good {
+            let mut s = stream(PixelFormat::Mono16, 16, 8, 2, false);
+            s.extend_from_slice(&bytes);
+            let want = rust_dump(&s);
+            assert!(!want.contains("restart"), "{name}");
+            let p = dir.path().join("crafted-restart.psns");
+            std::fs::write(&p, &s).unwrap();
+            let out = Command::new(&exe).arg("dump").arg(&p).output().unwrap();
+            assert!(
+                out.status.success(),
+                "C: {name} as restart: {:?}",
+                out.status
+            );
+            assert_eq!(String::from_utf8(out.stdout).unwrap(), want, "C: {name}");
+            if py {
+                assert_eq!(
+                    python(&["dump", p.to_str().unwrap()]),
+                    want,
+                    "Python: {name}"
+                );
+            }
+        }
+    }
+}
+
+const GOLDEN: [(&str, PixelFormat, bool); 5] = [
+    ("golden-mono12p-16x8x3", PixelFormat::Mono12p, false),
+    ("golden-mono8-16x8x3", PixelFormat::Mono8, false),
+    (
+        "golden-mono12packed-16x8x3",
+        PixelFormat::Mono12Packed,
+        false,
+    ),
+    ("golden-mono16-16x8x3", PixelFormat::Mono16, false),
+    ("golden-mono16msb-16x8x3", PixelFormat::Mono16, true),
+];
+
+/// Every golden stream is regenerated byte for byte by the writer (PSNS_BLESS=1 rewrites them)
+/// and is < 20 KB.
+#[test]
+fn golden_streams_every_format() {
+    let dir = root().join("fixtures/stream");
+    for (name, fmt, msb) in GOLDEN {
+        let bytes = stream(fmt, 16, 8, 3, msb);
+        let file = dir.join(format!("{name}.psns"));
+        let sha = dir.join(format!("{name}.sha256"));
+        let hash = format!("{:x}", Sha256::digest(&bytes));
+        if std::env::var_os("PSNS_BLESS").is_some() {
+            std::fs::create_dir_all(&dir).unwrap();
+            std::fs::write(&file, &bytes).unwrap();
+            std::fs::write(&sha, format!("{hash}\n")).unwrap();
+        }
+        let want = std::fs::read(&file).expect("fixture (regenerate with PSNS_BLESS=1)");
+        assert_eq!(
+            hash,
+            std::fs::read_to_string(&sha).unwrap().trim(),
+            "{name}"
+        );
+        assert_eq!(bytes, want, "{name}");
+        assert!(want.len() < 20_000, "{name}: {} bytes", want.len());
+        let rep = verify(Cursor::new(&want)).unwrap();
+        assert!(rep.clean() && rep.frames == 3, "{name}: {rep}");
+    }
+}
+
+/// The C reader and numpy (sequential reader and memmap) read the checked-in golden files and
+/// print the Rust reader's canonical lines.
+#[test]
+fn golden_streams_read_by_c_and_numpy() {
+    let dir = tempfile::tempdir().unwrap();
+    let exe = c_reader(dir.path());
+    let py = have_numpy();
+    for (name, _, _) in GOLDEN {
+        let file = root().join(format!("fixtures/stream/{name}.psns"));
+        let bytes = std::fs::read(&file).unwrap();
+        let want = rust_dump(&bytes);
+        assert_eq!(want.lines().filter(|l| l.starts_with("frame ")).count(), 3);
+        let out = Command::new(&exe).arg("dump").arg(&file).output().unwrap();
+        assert!(out.status.success(), "{name}");
+        assert_eq!(String::from_utf8(out.stdout).unwrap(), want, "C: {name}");
+        if py {
+            let f = file.to_str().unwrap();
+            assert_eq!(python(&["dump", f]), want, "Python: {name}");
+            assert_eq!(python(&["mmdump", f]), want, "numpy memmap: {name}");
+        }
+    }
+}
+
+fn nav(path: &Path) -> std::process::Output {
+    Command::new("python3")
+        .arg(root().join("tools/nav_reader.py"))
+        .arg(path)
+        .output()
+        .unwrap()
+}
+
+/// nav_reader reports dropped frames (index gaps) and exits with status 1; a clean stream 0.
+#[test]
+fn nav_reader_reports_dropped_frames() {
+    if !have_numpy() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let p = dir.path().join("clean.psns");
+    std::fs::write(&p, stream(PixelFormat::Mono12p, 16, 8, 3, false)).unwrap();
+    let out = nav(&p);
+    let so = String::from_utf8_lossy(&out.stdout);
+    assert!(out.status.success(), "{so}");
+    assert!(so.contains("read 3 frames, 0 dropped, 0 damaged"), "{so}");
+    let p = dir.path().join("gap.psns");
+    std::fs::write(
+        &p,
+        stream_ix(PixelFormat::Mono12p, 16, 8, &[0, 1, 4, 5, 9], false, 0.0),
+    )
+    .unwrap();
+    let out = nav(&p);
+    let so = String::from_utf8_lossy(&out.stdout);
+    let se = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(out.status.code(), Some(1), "{so}{se}");
+    assert!(so.contains("dropped: frames 2..3 missing"), "{so}");
+    assert!(so.contains("dropped: frames 6..8 missing"), "{so}");
+    assert!(so.contains("read 5 frames, 5 dropped, 0 damaged"), "{so}");
+    assert!(se.contains("dropped: 5 frames"), "{se}");
+}
+
+/// The header's black level is in payload DN; for MSB-aligned Mono16 nav_reader must shift it
+/// like the values (it subtracted 16x too much). Superpixel (90, 45, 135, 0) codes 300, 500,
+/// 500, 700 over a black level of 100 codes give DoLP = (600 - 200) / (600 + 200) = 0.5.
+#[test]
+fn nav_reader_black_level_msb_aligned() {
+    if !have_numpy() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    for msb in [false, true] {
+        let hd = FileHeader {
+            width: 16,
+            height: 8,
+            pixel_format: PixelFormat::Mono16,
+            bits_valid: 12,
+            msb_aligned: msb,
+            ..Default::default()
+        };
+        let mut wr = StreamWriter::new(Vec::new(), &hd).unwrap();
+        let codes: Vec<u16> = (0..128)
+            .map(|k| [300, 500, 500, 700][((k / 16) % 2) * 2 + k % 2])
+            .collect();
+        let m = FrameMeta {
+            black_level: if msb { 100.0 * 16.0 } else { 100.0 },
+            sun_camera: [0.0, -1.0, 0.0],
+            ..Default::default()
+        };
+        wr.write_frame(&m, &codes).unwrap();
+        let p = dir.path().join("black.psns");
+        std::fs::write(&p, wr.finish().unwrap()).unwrap();
+        let out = nav(&p);
+        let so = String::from_utf8_lossy(&out.stdout);
+        assert!(out.status.success(), "{so}");
+        let dolp: f64 = so
+            .split("dolp=")
+            .nth(1)
+            .unwrap()
+            .split_whitespace()
+            .next()
+            .unwrap()
+            .parse()
+            .unwrap();
+        assert!((dolp - 0.5).abs() < 1e-4, "msb {msb}: {so}");
+        // AoLP: 0 deg intensity 700 > 90 deg 300, 45 = 135: AoLP 0
+        assert!(
+            so.contains("aolp=0.0 ") || so.contains("aolp=180.0 "),
+            "{so}"
+        );
+    }
 }

@@ -18,12 +18,15 @@ One line per frame, as it arrives:
   and the sun: the angle of z x s = (-s_y, s_x) with s the sun unit vector in the camera frame from
   the frame header; err = aolp - expected wrapped to [-90, 90). A heading filter would fuse this
   with the ephemeris sun azimuth to get yaw modulo 180 degrees.
+- dolp: degree of linear polarization of the same superpixel sums, black level removed;
 - latency_ms (only if the producer ran with --stamp-host-time): host CLOCK_MONOTONIC now minus
   the frame's write stamp.
 
 Options: --max N stops after N frames (closing the stream early); --delay S sleeps S seconds per
 frame (a slow consumer); --centre F uses the central fraction F of each axis (default 0.25).
-Exit status 0 after the stream ends, 1 if a frame was damaged.
+Dropped frames (index gaps), damaged or truncated records and producer restarts are reported as
+the stream is read (a restart may change the layout: the new header is used). Exit status 0 after
+the stream ends cleanly, 1 if a frame was dropped, damaged or truncated.
 """
 import datetime
 import os
@@ -37,7 +40,8 @@ import psns_stream as ps  # noqa: E402
 
 
 def centre_aolp(values, hdr, black, frac):
-    """AoLP (deg, sensor frame) of the summed superpixels in the central fraction of the image."""
+    """(AoLP deg in the sensor frame, DoLP) of the summed superpixels in the central fraction of
+    the image; `black` is in the units of `values` (see psns_stream.black_level_values)."""
     h, w = values.shape
     v = values.astype(np.float64) - black
     r0 = int(h * (1 - frac) / 2) & ~1
@@ -49,9 +53,11 @@ def centre_aolp(values, hdr, black, frac):
     for k, ang in enumerate(hdr["angles_deg"]):
         dr, dc = divmod(k, 2)
         inten[ang % 180] = v[dr::2, dc::2].sum()
+    s0 = 0.5 * sum(inten.values())
     s1 = inten[0] - inten[90]
     s2 = inten[45] - inten[135]
-    return 0.5 * np.degrees(np.arctan2(s2, s1)) * hdr["angle_sense"] % 180.0
+    dolp = np.hypot(s1, s2) / s0 if s0 > 0 else float("nan")
+    return 0.5 * np.degrees(np.arctan2(s2, s1)) * hdr["angle_sense"] % 180.0, dolp
 
 
 def wrap90(a):
@@ -91,18 +97,36 @@ def main(argv):
         hdr["width"], hdr["height"], hdr["pixel_format"], hdr["bits_valid"], hdr["preset"],
         hdr["producer"]), flush=True)
     damaged = []
+    dropped = 0
     n = 0
-    for meta, values, ok in ps.iter_frames(ps._Prefixed(head, f), report=damaged.append):
+    for ev in ps.iter_events(ps._Prefixed(head, f)):
+        kind = ev[0]
+        if kind == "restart":
+            hdr = ev[1]
+            print("producer restart: %d x %d %s %d bits" % (
+                hdr["width"], hdr["height"], hdr["pixel_format"], hdr["bits_valid"]), flush=True)
+            continue
+        if kind == "gap":
+            dropped += ev[2] - ev[1]
+            print("dropped: frames %d..%d missing" % (ev[1], ev[2] - 1), flush=True)
+            continue
+        if kind != "frame":
+            damaged.append(ps.describe(ev))
+            continue
+        _, meta, values, ok, _ = ev
         if not ok:
             damaged.append("frame %d payload CRC" % meta["index"])
             continue
         sx, sy, _ = meta["sun_camera"]
         expected = np.degrees(np.arctan2(sx, -sy)) % 180.0
-        aolp = centre_aolp(values, hdr, meta["black_level"], opts["--centre"])
-        line = "frame %d t=%s flags=0x%04x mean=%.1f sun_az=%.2f sun_el=%.2f aolp=%.1f expected=%.1f err=%.1f" % (
+        # the header's black level is in payload DN; unpack() shifted MSB-aligned Mono16 down
+        black = ps.black_level_values(hdr, meta["black_level"])
+        aolp, dolp = centre_aolp(values, hdr, black, opts["--centre"])
+        line = ("frame %d t=%s flags=0x%04x mean=%.1f sun_az=%.2f sun_el=%.2f aolp=%.1f "
+                "expected=%.1f err=%.1f dolp=%.4f") % (
             meta["index"], iso(meta["exposure_start_ns"]), meta["flags"], values.mean(),
             meta["sun_azimuth_deg"], meta["sun_elevation_deg"], aolp, expected,
-            wrap90(aolp - expected))
+            wrap90(aolp - expected), dolp)
         if meta["host_time_ns"]:
             line += " latency_ms=%.2f" % ((time.clock_gettime_ns(time.CLOCK_MONOTONIC) - meta["host_time_ns"]) / 1e6)
         print(line, flush=True)
@@ -113,9 +137,11 @@ def main(argv):
             time.sleep(opts["--delay"])
     for d in damaged:
         print("damage: %s" % d, file=sys.stderr)
+    if dropped:
+        print("dropped: %d frames (index gaps)" % dropped, file=sys.stderr)
     f.close()
-    print("read %d frames" % n, flush=True)
-    return 1 if damaged else 0
+    print("read %d frames, %d dropped, %d damaged" % (n, dropped, len(damaged)), flush=True)
+    return 1 if damaged or dropped else 0
 
 
 if __name__ == "__main__":

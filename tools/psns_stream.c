@@ -5,8 +5,11 @@
  *   psns_stream dump FILE|-          canonical header/frame lines (used by the tests)
  *   psns_stream frame FILE|- N OUT   write frame N's values as raw uint16 little-endian
  *
- * Reads sequentially with fread (works on files, FIFOs and stdin), checks both CRCs,
- * reports damage on stderr and resynchronises on the next frame magic.
+ * Reads sequentially with fread (works on files, FIFOs and stdin), validates the file header
+ * like Rust's FileHeader::decode, checks both CRCs, and follows the Rust StreamReader
+ * (src/stream/reader.rs): resynchronisation on the next valid header, producer restarts (also
+ * inside a record), index gaps and out-of-order indexes. `dump` prints one canonical line per
+ * event on stdout; otherwise events are reported on stderr.
  */
 #include <stdint.h>
 #include <stdio.h>
@@ -41,8 +44,43 @@ typedef struct {
 
 static const uint8_t FILE_MAGIC[8] = {0x89, 'P', 'S', 'N', 'S', 'R', 'A', 'W'};
 static const uint8_t FRAME_MAGIC[8] = {0x89, 'P', 'S', 'N', 'S', 'F', 'R', 'M'};
+#define MAX_PAYLOAD ((uint64_t)1 << 30)
 
-/* 0 on success */
+/* strict UTF-8 (no overlongs, surrogates or code points above U+10FFFF), as Rust and Python */
+static int utf8_ok(const uint8_t *s, size_t n) {
+    size_t i = 0;
+    while (i < n) {
+        uint8_t c = s[i];
+        size_t k;
+        uint32_t cp, min;
+        if (c < 0x80) { i++; continue; }
+        if ((c & 0xE0) == 0xC0) { k = 1; cp = c & 0x1F; min = 0x80; }
+        else if ((c & 0xF0) == 0xE0) { k = 2; cp = c & 0x0F; min = 0x800; }
+        else if ((c & 0xF8) == 0xF0) { k = 3; cp = c & 0x07; min = 0x10000; }
+        else return 0;
+        if (n - i <= k) return 0;
+        for (size_t j = 1; j <= k; j++) {
+            if ((s[i + j] & 0xC0) != 0x80) return 0;
+            cp = (cp << 6) | (s[i + j] & 0x3F);
+        }
+        if (cp < min || cp > 0x10FFFF || (cp >= 0xD800 && cp <= 0xDFFF)) return 0;
+        i += k + 1;
+    }
+    return 1;
+}
+
+/* a 32-byte NUL-padded UTF-8 string field */
+static int str_field_ok(const uint8_t *f) {
+    size_t e = 0;
+    while (e < 32 && f[e]) e++;
+    for (size_t i = e; i < 32; i++)
+        if (f[i]) return 0;
+    return utf8_ok(f, e);
+}
+
+/* Parses and checks a 4096-byte file header with the checks of Rust FileHeader::decode:
+ * magic, CRC, version, sizes, format, 1 <= width, height <= 65535, bits valid, alignment,
+ * polarizer angles, angle sense, strings, JSON bounds, payload size and stride. 0 on success. */
 static int parse_header(const uint8_t *b, stream_header *h) {
     if (memcmp(b, FILE_MAGIC, 8) != 0) return -1;
     if (crc32_buf(b, 4092) != rd32(b + 4092)) return -2;
@@ -52,15 +90,35 @@ static int parse_header(const uint8_t *b, stream_header *h) {
     for (int k = 0; k < 4; k++) h->angles[k] = (int16_t)rd16(b + 36 + 2 * k);
     h->payload = rd64(b + 48); h->stride = rd64(b + 56);
     h->frame_count = rd64(b + 64); h->seed = rd64(b + 72);
-    uint64_t n = (uint64_t)h->width * h->height, want;
+    if (h->width < 1 || h->width > 65535 || h->height < 1 || h->height > 65535) return -4;
+    uint64_t n = (uint64_t)h->width * h->height, want; /* <= 2^32: no overflow below */
+    unsigned maxbits;
     switch (h->pfnc) {
-    case 0x01080001: want = n; break;
-    case 0x010C0047: case 0x010C0006: want = (3 * n + 1) / 2; break;
-    case 0x01100007: want = 2 * n; break;
-    default: return -4;
+    case 0x01080001: want = n; maxbits = 8; break;
+    case 0x010C0047: case 0x010C0006: want = (3 * n + 1) / 2; maxbits = 12; break;
+    case 0x01100007: want = 2 * n; maxbits = 16; break;
+    default: return -5;
     }
-    if (h->payload != want || h->stride != (256 + want + 4095) / 4096 * 4096) return -5;
-    if (h->payload > (1u << 30)) return -6;
+    if (want > MAX_PAYLOAD) return -6;
+    if (h->pfnc == 0x01080001 ? h->bits_valid != 8 : (h->bits_valid < 1 || h->bits_valid > maxbits))
+        return -7;
+    if (h->msb_aligned > 1 || (h->msb_aligned && h->pfnc != 0x01100007)) return -8;
+    int seen = 0;
+    for (int k = 0; k < 4; k++) {
+        int a = h->angles[k];
+        int bit = a == 0 ? 1 : a == 45 ? 2 : a == 90 ? 4 : a == 135 ? 8 : 0;
+        if (!bit || (seen & bit)) return -9;
+        seen |= bit;
+    }
+    int16_t sense = (int16_t)rd16(b + 44);
+    if (sense != 1 && sense != -1) return -10;
+    if (!str_field_ok(b + 160) || !str_field_ok(b + 192)) return -11;
+    uint32_t jo = rd32(b + 224), jl = rd32(b + 228);
+    if (jo || jl) {
+        if (jo < 232 || (uint64_t)jo + jl > 4092) return -12;
+        if (!utf8_ok(b + jo, jl) || memchr(b + jo, 0, jl)) return -12;
+    }
+    if (h->payload != want || h->stride != (256 + want + 4095) / 4096 * 4096) return -13;
     return 0;
 }
 
@@ -86,14 +144,17 @@ static void unpack(const stream_header *h, const uint8_t *p, uint16_t *v) {
     }
 }
 
-/* growable read buffer over a FILE* */
-typedef struct { FILE *f; uint8_t *b; size_t len, cap; int eof; } rbuf;
+/* growable read buffer over a FILE*; off = stream offset of b[0] */
+typedef struct { FILE *f; uint8_t *b; size_t len, cap; int eof; uint64_t off; } rbuf;
+
+static void *xrealloc(void *p, size_t n) {
+    void *q = realloc(p, n ? n : 1);
+    if (!q) { fprintf(stderr, "out of memory (%zu bytes)\n", n); exit(3); }
+    return q;
+}
+/* ensures n bytes are buffered unless the source ends first; returns the bytes buffered */
 static size_t fill(rbuf *r, size_t n) {
-    if (n > r->cap) {
-        r->b = realloc(r->b, n);
-        if (!r->b) { perror("realloc"); exit(3); }
-        r->cap = n;
-    }
+    if (n > r->cap) { r->b = xrealloc(r->b, n); r->cap = n; }
     while (r->len < n && !r->eof) {
         size_t k = fread(r->b + r->len, 1, n - r->len, r->f);
         if (k == 0) r->eof = 1;
@@ -105,6 +166,169 @@ static void consume(rbuf *r, size_t n) {
     if (n > r->len) n = r->len;
     memmove(r->b, r->b + n, r->len - n);
     r->len -= n;
+    r->off += n;
+}
+/* first "\x89PSNS" fully inside [lo, hi) of the buffer, or (size_t)-1 */
+static size_t find_magic(const rbuf *r, size_t lo, size_t hi) {
+    if (hi > r->len) hi = r->len;
+    for (size_t i = lo; i + 5 <= hi; i++)
+        if (!memcmp(r->b + i, FILE_MAGIC, 5)) return i;
+    return (size_t)-1;
+}
+static int frame_header_ok(const uint8_t *p) {
+    return !memcmp(p, FRAME_MAGIC, 8) && crc32_buf(p, 252) == rd32(p + 252);
+}
+/* a frame header or file header with a valid CRC (and valid fields) starts at j */
+static int valid_at(rbuf *r, size_t j) {
+    if (fill(r, j + 8) < j + 8) return 0;
+    if (!memcmp(r->b + j, FRAME_MAGIC, 8))
+        return fill(r, j + 256) >= j + 256 && frame_header_ok(r->b + j);
+    if (!memcmp(r->b + j, FILE_MAGIC, 8)) {
+        stream_header t;
+        return fill(r, j + 4096) >= j + 4096 && parse_header(r->b + j, &t) == 0;
+    }
+    return 0;
+}
+static size_t valid_magic_within(rbuf *r, size_t lo, size_t hi) {
+    size_t from = lo;
+    while (from < hi) {
+        size_t j = find_magic(r, from, hi);
+        if (j == (size_t)-1) return j;
+        if (valid_at(r, j)) return j;
+        from = j + 1;
+    }
+    return (size_t)-1;
+}
+
+typedef struct { uint64_t *v; size_t n, cap; } u64vec;
+static void push(u64vec *a, uint64_t x) {
+    if (a->n == a->cap) {
+        if (a->cap > ((size_t)-1) / 2 / sizeof *a->v) { fprintf(stderr, "out of memory\n"); exit(3); }
+        a->cap = a->cap ? 2 * a->cap : 16;
+        a->v = xrealloc(a->v, a->cap * sizeof *a->v);
+    }
+    a->v[a->n++] = x;
+}
+static int contains(const u64vec *a, uint64_t x) {
+    for (size_t i = 0; i < a->n; i++)
+        if (a->v[i] == x) return 1;
+    return 0;
+}
+static int cmp_u64(const void *a, const void *b) {
+    uint64_t x = *(const uint64_t *)a, y = *(const uint64_t *)b;
+    return x < y ? -1 : x > y;
+}
+
+static int dump; /* 1: canonical lines on stdout; 0: reports on stderr */
+static void print_header(const stream_header *h) {
+    printf("header %u %u %08x %u %u %llu %llu %llu %llu %d,%d,%d,%d\n", h->width, h->height,
+           h->pfnc, h->bits_valid, h->msb_aligned, (unsigned long long)h->seed,
+           (unsigned long long)h->frame_count, (unsigned long long)h->payload,
+           (unsigned long long)h->stride, h->angles[0], h->angles[1], h->angles[2], h->angles[3]);
+}
+static void idx_str(char *s, int known, uint64_t i) {
+    if (known) snprintf(s, 24, "%llu", (unsigned long long)i);
+    else strcpy(s, dump ? "-" : "?");
+}
+static void ev_gap(uint64_t from, uint64_t to) {
+    if (dump) printf("gap %llu..%llu\n", (unsigned long long)from, (unsigned long long)to);
+    else fprintf(stderr, "gap %llu..%llu: %llu frames dropped\n", (unsigned long long)from,
+                 (unsigned long long)to, (unsigned long long)(to - from));
+}
+static void ev_corrupt(int known, uint64_t i, uint64_t off, const char *why) {
+    char s[24];
+    idx_str(s, known, i);
+    if (dump) printf("corrupt %s %llu\n", s, (unsigned long long)off);
+    else fprintf(stderr, "frame %s at byte %llu corrupt: %s\n", s, (unsigned long long)off, why);
+}
+static void ev_truncated(int known, uint64_t i, uint64_t off, uint64_t have, uint64_t need) {
+    char s[24];
+    idx_str(s, known, i);
+    if (dump)
+        printf("truncated %s %llu %llu %llu\n", s, (unsigned long long)off,
+               (unsigned long long)have, (unsigned long long)need);
+    else
+        fprintf(stderr, "frame %s at byte %llu truncated: %llu of %llu bytes\n", s,
+                (unsigned long long)off, (unsigned long long)have, (unsigned long long)need);
+}
+static void ev_skipped(uint64_t off, uint64_t n) {
+    if (dump) printf("skipped %llu %llu\n", (unsigned long long)off, (unsigned long long)n);
+    else fprintf(stderr, "skipped %llu bytes at byte %llu\n", (unsigned long long)n,
+                 (unsigned long long)off);
+}
+
+/* Damage at the current position (as Rust StreamReader::resync): scan for the next valid frame or
+ * file header, report the damaged records by index, the gaps and the bytes skipped.
+ * *has_exp / *expected: next expected index. Returns 1 at EOF. */
+static int resync(rbuf *r, const stream_header *h, int *has_exp, uint64_t *expected,
+                  const char *why) {
+    uint64_t p0 = r->off, stride = h->stride;
+    u64vec cands = {0}, ids = {0}; /* index fields of damaged records whose frame magic survived */
+    size_t n_cands = 0;            /* including those too short to hold an index */
+#define NOTE()                                                                    \
+    do {                                                                          \
+        if (r->len >= 8 && !memcmp(r->b, FRAME_MAGIC, 8)) {                       \
+            n_cands++;                                                            \
+            if (r->len >= 16) push(&cands, rd64(r->b + 8));                       \
+        }                                                                         \
+    } while (0)
+    NOTE();
+    consume(r, 1);
+    int end; /* 0 eof, 1 frame, 2 header */
+    for (;;) {
+        fill(r, 4096);
+        if (r->len == 0) { end = 0; break; }
+        size_t i = find_magic(r, 0, r->len);
+        if (i == (size_t)-1) {
+            /* keep 4 bytes: a magic may straddle the next read */
+            size_t keep = r->eof ? 0 : (r->len < 4 ? r->len : 4);
+            consume(r, r->len - keep);
+            if (r->eof) { end = 0; break; }
+        } else {
+            consume(r, i);
+            if (valid_at(r, 0)) { end = memcmp(r->b, FRAME_MAGIC, 8) ? 2 : 1; break; }
+            NOTE();
+            consume(r, 1);
+        }
+    }
+#undef NOTE
+    uint64_t skipped = r->off - p0;
+    int has_next = end == 1;
+    uint64_t next = has_next ? rd64(r->b + 8) : 0;
+    uint64_t rounded = (skipped + stride / 2) / stride;
+    int has_lo = *has_exp, has_hi = has_lo && has_next && next >= *expected;
+    uint64_t lo = *expected, hi = next;
+    uint64_t n_damaged = n_cands > rounded ? n_cands : rounded;
+    if (has_lo && has_hi && hi - lo < n_damaged) n_damaged = hi - lo;
+    if (has_lo) {
+        for (size_t k = 0; k < cands.n; k++) {
+            uint64_t c = cands.v[k];
+            if (c >= lo && (!has_hi || c < hi) && ids.n < n_damaged && !contains(&ids, c))
+                push(&ids, c);
+        }
+        for (uint64_t i = lo; ids.n < n_damaged && (!has_hi || i < hi); i++)
+            if (!contains(&ids, i)) push(&ids, i);
+        if (ids.n) qsort(ids.v, ids.n, sizeof *ids.v, cmp_u64);
+    }
+    uint64_t n_reports = has_lo ? ids.n : n_damaged;
+    for (uint64_t k = 0; k < n_reports; k++)
+        ev_corrupt(k < ids.n, k < ids.n ? ids.v[k] : 0, p0 + k * stride, why);
+    if (has_lo && has_hi) {
+        uint64_t from = lo;
+        for (size_t k = 0; k <= ids.n; k++) {
+            uint64_t i = k < ids.n ? ids.v[k] : hi;
+            if (i > from) ev_gap(from, i);
+            from = i + 1;
+        }
+        *expected = hi;
+    } else if (has_lo && ids.n) {
+        uint64_t last = ids.v[ids.n - 1];
+        *expected = (last > lo ? last : lo) + 1;
+    }
+    if (skipped) ev_skipped(p0, skipped);
+    free(cands.v);
+    free(ids.v);
+    return end == 0;
 }
 
 int main(int argc, char **argv) {
@@ -114,7 +338,7 @@ int main(int argc, char **argv) {
         return 2;
     }
     crc_init();
-    int dump = !strcmp(argv[1], "dump");
+    dump = !strcmp(argv[1], "dump");
     uint64_t want_index = dump ? 0 : strtoull(argv[3], NULL, 10);
     rbuf r = {0};
     r.f = strcmp(argv[2], "-") ? fopen(argv[2], "rb") : stdin;
@@ -125,70 +349,99 @@ int main(int argc, char **argv) {
         return 1;
     }
     consume(&r, 4096);
-    if (dump)
-        printf("header %u %u %08x %u %u %llu %llu %llu %llu %d,%d,%d,%d\n", h.width, h.height,
-               h.pfnc, h.bits_valid, h.msb_aligned, (unsigned long long)h.seed,
-               (unsigned long long)h.frame_count, (unsigned long long)h.payload,
-               (unsigned long long)h.stride, h.angles[0], h.angles[1], h.angles[2], h.angles[3]);
+    if (dump) print_header(&h);
     uint16_t *v = NULL;
     int status = dump ? 0 : 1;
+    int has_exp = 1;       /* 0 right after a producer restart */
+    uint64_t expected = 0; /* next expected index */
     for (;;) {
-        if (fill(&r, 8) == 0) break;
-        if (r.len >= 8 && !memcmp(r.b, FILE_MAGIC, 8) && fill(&r, 4096) >= 4096) {
+        size_t a = fill(&r, 8);
+        if (a == 0) break;
+        if (a < 8) { ev_truncated(0, 0, r.off, a, h.stride); break; }
+        const char *why;
+        if (!memcmp(r.b, FRAME_MAGIC, 8)) {
+            if (fill(&r, 256) < 256) { ev_truncated(0, 0, r.off, r.len, h.stride); break; }
+            if (!frame_header_ok(r.b)) {
+                why = "frame header CRC mismatch";
+            } else {
+                uint64_t index = rd64(r.b + 8);
+                size_t stride = (size_t)h.stride, p = (size_t)h.payload;
+                if (has_exp && index < expected) {
+                    /* a valid header out of order (duplicate / spliced record): skip the record */
+                    ev_corrupt(1, index, r.off, "index not increasing");
+                    fill(&r, stride);
+                    consume(&r, stride);
+                    continue;
+                }
+                if (fill(&r, stride) < stride) {
+                    ev_truncated(1, index, r.off, r.len, stride);
+                    break;
+                }
+                int ok = crc32_buf(r.b + 256, p) == rd32(r.b + 20);
+                if (!ok) {
+                    /* writer died mid-record and a new record (or file header) follows inside? */
+                    size_t j = valid_magic_within(&r, 256, stride);
+                    if (j != (size_t)-1) {
+                        ev_truncated(1, index, r.off, j, stride);
+                        has_exp = 1;
+                        expected = index + 1;
+                        consume(&r, j);
+                        continue;
+                    }
+                }
+                size_t len = stride;
+                if (ok) {
+                    /* a valid header inside the zero pad: the writer died in the pad */
+                    size_t j = valid_magic_within(&r, 256 + p, stride);
+                    if (j != (size_t)-1) len = j;
+                }
+                if (has_exp && index > expected) ev_gap(expected, index);
+                has_exp = 1;
+                expected = index + 1;
+                const uint8_t *fh = r.b, *pay = r.b + 256;
+                if (!dump && !ok)
+                    fprintf(stderr, "frame %llu: payload CRC mismatch\n", (unsigned long long)index);
+                size_t n = (size_t)h.width * h.height; /* <= 2^30 by parse_header */
+                v = xrealloc(v, n * sizeof *v);
+                unpack(&h, pay, v);
+                if (dump) {
+                    uint64_t sum = 0;
+                    for (size_t i = 0; i < n; i++) sum += v[i];
+                    uint32_t vc = crc32_buf((const uint8_t *)v, n * 2); /* LE host */
+                    printf("frame %llu %u %d %lld %lld %lld ", (unsigned long long)index,
+                           rd32(fh + 16), ok, (long long)rd64(fh + 24), (long long)rd64(fh + 32),
+                           (long long)rd64(fh + 40));
+                    for (int k = 0; k < 16; k++)
+                        printf("%s%016llx", k ? "," : "", (unsigned long long)rd64(fh + 48 + 8 * k));
+                    printf(" %u,%u,%u,%u %08x,%08x %llu %08x\n", rd32(fh + 176), rd32(fh + 180),
+                           rd32(fh + 184), rd32(fh + 188), rd32(fh + 192), rd32(fh + 196),
+                           (unsigned long long)sum, vc);
+                } else if (index == want_index && ok) {
+                    FILE *o = fopen(argv[4], "wb");
+                    if (!o || fwrite(v, 2, n, o) != n) { perror(argv[4]); return 2; }
+                    fclose(o);
+                    status = 0;
+                    break;
+                }
+                consume(&r, len);
+                continue;
+            }
+        } else if (!memcmp(r.b, FILE_MAGIC, 8)) {
+            if (fill(&r, 4096) < 4096) { ev_truncated(0, 0, r.off, r.len, h.stride); break; }
             stream_header h2;
             if (parse_header(r.b, &h2) == 0) {
                 h = h2;
                 consume(&r, 4096);
-                fprintf(stderr, "producer restart\n");
+                has_exp = 0;
+                if (dump) { printf("restart\n"); print_header(&h); }
+                else fprintf(stderr, "producer restart\n");
                 continue;
             }
-        } else if (r.len >= 8 && !memcmp(r.b, FRAME_MAGIC, 8) && fill(&r, 256) >= 256 &&
-                   crc32_buf(r.b, 252) == rd32(r.b + 252)) {
-            uint64_t index = rd64(r.b + 8);
-            if (fill(&r, h.stride) < h.stride) {
-                fprintf(stderr, "truncated frame %llu\n", (unsigned long long)index);
-                break;
-            }
-            const uint8_t *fh = r.b, *pay = r.b + 256;
-            int ok = crc32_buf(pay, h.payload) == rd32(fh + 20);
-            if (!ok) fprintf(stderr, "frame %llu: payload CRC mismatch\n", (unsigned long long)index);
-            size_t n = (size_t)h.width * h.height;
-            v = realloc(v, n * sizeof *v);
-            unpack(&h, pay, v);
-            if (dump) {
-                uint64_t sum = 0;
-                for (size_t i = 0; i < n; i++) sum += v[i];
-                uint32_t vc = crc32_buf((const uint8_t *)v, n * 2); /* LE host */
-                printf("frame %llu %u %d %lld %lld %lld ", (unsigned long long)index, rd32(fh + 16), ok,
-                       (long long)rd64(fh + 24), (long long)rd64(fh + 32), (long long)rd64(fh + 40));
-                for (int k = 0; k < 16; k++)
-                    printf("%s%016llx", k ? "," : "", (unsigned long long)rd64(fh + 48 + 8 * k));
-                printf(" %u,%u,%u,%u %08x,%08x %llu %08x\n", rd32(fh + 176), rd32(fh + 180),
-                       rd32(fh + 184), rd32(fh + 188), rd32(fh + 192), rd32(fh + 196),
-                       (unsigned long long)sum, vc);
-            } else if (index == want_index && ok) {
-                FILE *o = fopen(argv[4], "wb");
-                if (!o || fwrite(v, 2, n, o) != n) { perror(argv[4]); return 2; }
-                fclose(o);
-                status = 0;
-                break;
-            }
-            consume(&r, h.stride);
-            continue;
+            why = "file header invalid";
+        } else {
+            why = "frame magic missing";
         }
-        /* damage: skip to the next magic */
-        fprintf(stderr, "damaged data skipped\n");
-        consume(&r, 1);
-        for (;;) {
-            fill(&r, 1 << 16);
-            uint8_t *m = NULL;
-            for (size_t i = 0; i + 5 <= r.len; i++)
-                if (!memcmp(r.b + i, FILE_MAGIC, 5)) { m = r.b + i; break; }
-            if (m) { consume(&r, (size_t)(m - r.b)); break; }
-            if (r.eof) { r.len = 0; break; }
-            consume(&r, r.len > 4 ? r.len - 4 : 0);
-        }
-        if (r.len == 0 && r.eof) break;
+        if (resync(&r, &h, &has_exp, &expected, why)) break;
     }
     if (!dump && status) fprintf(stderr, "frame %llu not found or damaged\n", (unsigned long long)want_index);
     free(v); free(r.b);

@@ -9,7 +9,8 @@ Library use:
         ...
 Command line:
     psns_stream.py info FILE          header and per-frame metadata as JSON
-    psns_stream.py dump FILE|-        canonical text lines (used by the test suite)
+    psns_stream.py dump FILE|-        canonical text lines, one per event (used by the test suite)
+    psns_stream.py mmdump FILE        canonical lines of the whole records via numpy.memmap
     psns_stream.py frame FILE N OUT   write frame N's values as raw uint16 little-endian
 """
 import json
@@ -44,8 +45,34 @@ class StreamError(Exception):
     pass
 
 
+MAX_PAYLOAD = 1 << 30
+CONTAINER_BITS = {"Mono8": 8, "Mono12p": 12, "Mono12Packed": 12, "Mono16": 16}
+
+
+def payload_size(fmt, w, h):
+    """Payload bytes of one w x h frame (Python ints: no overflow)."""
+    n = w * h
+    return {"Mono8": n, "Mono16": 2 * n}.get(fmt, (3 * n + 1) // 2)
+
+
+def stride_for(p):
+    return -(-(256 + p) // 4096) * 4096
+
+
+def _cstr(f, what):
+    s = f.split(b"\0")[0]
+    if any(f[len(s):]):
+        raise StreamError("%s field is not NUL-padded" % what)
+    try:
+        return s.decode()
+    except UnicodeDecodeError:
+        raise StreamError("%s field is not UTF-8" % what)
+
+
 def parse_header(b):
-    """Parses and checks the 4096-byte file header; returns a dict."""
+    """Parses and checks the 4096-byte file header (the checks of Rust FileHeader::decode);
+    returns a dict or raises StreamError."""
+    b = bytes(b)
     if len(b) < 4096 or b[:8] != FILE_MAGIC:
         raise StreamError("not a psns stream")
     if zlib.crc32(b[:4092]) != struct.unpack_from("<I", b, 4092)[0]:
@@ -55,22 +82,51 @@ def parse_header(b):
         raise StreamError("unsupported version or header sizes")
     if code not in PFNC:
         raise StreamError("unsupported PFNC code %#x" % code)
+    fmt = PFNC[code]
+    if align > 1:
+        raise StreamError("alignment code %d (0 or 1)" % align)
     angles = struct.unpack_from("<4h", b, 36)
+    if sorted(angles) != [0, 45, 90, 135]:
+        raise StreamError("polarizer angles %s are not a permutation of 0, 45, 90, 135" % (angles,))
     sense = struct.unpack_from("<h", b, 44)[0]
     payload, stride, count, seed = struct.unpack_from("<4Q", b, 48)
     cam = struct.unpack_from("<10d", b, 80)
     jo, jl = struct.unpack_from("<II", b, 224)
-    hdr = dict(version=(major, minor), width=w, height=h, pfnc=code, pixel_format=PFNC[code],
+    if (jo, jl) != (0, 0) and (jo < 232 or jo + jl > 4092):
+        raise StreamError("JSON at %d + %d outside the header" % (jo, jl))
+    try:
+        js = b[jo:jo + jl].decode() if (jo, jl) != (0, 0) else ""
+    except UnicodeDecodeError:
+        raise StreamError("header JSON is not UTF-8")
+    producer, preset = _cstr(b[160:192], "producer"), _cstr(b[192:224], "preset")
+    if not (1 <= w <= 65535 and 1 <= h <= 65535):
+        raise StreamError("frame size %d x %d out of range (1..65535 each)" % (w, h))
+    want = payload_size(fmt, w, h)
+    if want > MAX_PAYLOAD:
+        raise StreamError("payload of %d bytes exceeds %d" % (want, MAX_PAYLOAD))
+    if not (bits == 8 if fmt == "Mono8" else 1 <= bits <= CONTAINER_BITS[fmt]):
+        raise StreamError("%s with %d valid bits" % (fmt, bits))
+    if align and fmt != "Mono16":
+        raise StreamError("MSB alignment exists only for Mono16")
+    if sense not in (1, -1):
+        raise StreamError("angle sense %d (must be +1 or -1)" % sense)
+    if "\0" in js:
+        raise StreamError("header JSON contains NUL")
+    if payload != want or stride != stride_for(want):
+        raise StreamError("payload size / stride inconsistent")
+    hdr = dict(version=(major, minor), width=w, height=h, pfnc=code, pixel_format=fmt,
                bits_valid=bits, msb_aligned=bool(align), angles_deg=list(angles), angle_sense=sense,
                payload_size=payload, stride=stride, frame_count=count, seed=seed,
-               camera=dict(zip(CAMERA, cam)),
-               producer=b[160:192].split(b"\0")[0].decode(), preset=b[192:224].split(b"\0")[0].decode(),
-               json=b[jo:jo + jl].decode() if jl else "")
-    n = w * h
-    want = {"Mono8": n, "Mono16": 2 * n}.get(hdr["pixel_format"], (3 * n + 1) // 2)
-    if payload != want or stride != -(-(256 + payload) // 4096) * 4096:
-        raise StreamError("payload size / stride inconsistent")
+               camera=dict(zip(CAMERA, cam)), producer=producer, preset=preset, json=js)
     return hdr
+
+
+def black_level_values(hdr, black):
+    """Black level (header field, DN of the payload format) in the units unpack() returns:
+    MSB-aligned Mono16 is shifted down by 16 - bits_valid, other formats are unchanged."""
+    if hdr["pixel_format"] == "Mono16" and hdr["msb_aligned"]:
+        return black / float(1 << (16 - hdr["bits_valid"]))
+    return black
 
 
 def frame_dtype(hdr):
@@ -140,67 +196,278 @@ def check_frame(hdr, rec):
     return hok, pok
 
 
-def iter_frames(f, report=None):
-    """Yields (meta, values, payload_crc_ok) from a binary file object (file, FIFO, stdin).
-    Damage is passed to report(str) (default: stderr) and skipped by scanning for the magic."""
-    report = report or (lambda s: print(s, file=sys.stderr))
-    buf = bytearray()
-    eof = False
+MAGIC5 = b"\x89PSNS"
+
+
+def _frame_header_ok(b):
+    return len(b) >= 256 and b[:8] == FRAME_MAGIC and \
+        zlib.crc32(b[:252]) == struct.unpack_from("<I", b, 252)[0]
+
+
+def iter_events(f):
+    """Yields the reader's events from a binary file object (file, FIFO, stdin), as the Rust
+    StreamReader (src/stream/reader.rs) does:
+      ("frame", meta, values, payload_crc_ok, offset)
+      ("gap", first_missing, next_present)              frames first..next-1 dropped upstream
+      ("corrupt", index_or_None, offset, reason)        damaged record, or index not increasing
+      ("truncated", index_or_None, offset, have, need)  partial record (EOF or producer died)
+      ("skipped", offset, bytes)                        bytes skipped while resynchronising
+      ("restart", header)                               new file header; layout may change
+    The first file header is read first and raises StreamError if it is unusable."""
+    st = dict(buf=bytearray(), start=0, off=0, eof=False)
+
+    def avail():
+        return len(st["buf"]) - st["start"]
+
+    def view(a=0, b=None):
+        s = st["start"]
+        return bytes(st["buf"][s + a:len(st["buf"]) if b is None else s + b])
 
     def fill(n):
-        nonlocal eof
-        while len(buf) < n and not eof:
-            c = f.read(max(n - len(buf), 1 << 16))
+        while avail() < n and not st["eof"]:
+            if st["start"]:
+                del st["buf"][:st["start"]]
+                st["start"] = 0
+            c = f.read(max(n - avail(), 1 << 16))
             if not c:
-                eof = True
+                st["eof"] = True
             else:
-                buf.extend(c)
+                st["buf"].extend(c)
+
+    def consume(n):
+        n = min(n, avail())
+        st["start"] += n
+        st["off"] += n
+
+    def find(lo, hi=None):
+        s = st["start"]
+        i = st["buf"].find(MAGIC5, s + lo, len(st["buf"]) if hi is None else s + hi)
+        return -1 if i < 0 else i - s
+
+    def valid_at(j):
+        fill(j + 8)
+        if avail() < j + 8:
+            return False
+        m = view(j, j + 8)
+        if m == FRAME_MAGIC:
+            fill(j + 256)
+            return _frame_header_ok(view(j, j + 256))
+        if m == FILE_MAGIC:
+            fill(j + 4096)
+            if avail() < j + 4096:
+                return False
+            try:
+                parse_header(view(j, j + 4096))
+                return True
+            except StreamError:
+                return False
+        return False
+
+    def valid_magic_within(lo, hi):
+        frm = lo
+        while frm < hi:
+            i = find(frm, hi)
+            if i < 0 or i + 5 > hi:
+                return None
+            if valid_at(i):
+                return i
+            frm = i + 1
+        return None
 
     fill(4096)
-    hdr = parse_header(bytes(buf[:4096]))
-    del buf[:4096]
-    dt = None
+    hdr = parse_header(view(0, 4096))
+    consume(4096)
+    expected = 0  # next expected index; None right after a restart
+
     while True:
         fill(8)
-        if not buf:
+        a = avail()
+        if a == 0:
             return
-        if buf[:8] == FILE_MAGIC:
-            fill(4096)
-            try:
-                hdr = parse_header(bytes(buf[:4096]))
-                del buf[:4096]
-                report("producer restart")
-                continue
-            except StreamError:
-                pass
-        elif buf[:8] == FRAME_MAGIC:
+        if a < 8:
+            yield ("truncated", None, st["off"], a, hdr["stride"])
+            return
+        head = view(0, 8)
+        reason = None
+        if head == FRAME_MAGIC:
             fill(256)
-            hb = bytes(buf[:256])
-            if len(hb) == 256 and zlib.crc32(hb[:252]) == struct.unpack_from("<I", hb, 252)[0]:
-                stride = hdr["stride"]
+            if avail() < 256:
+                yield ("truncated", None, st["off"], avail(), hdr["stride"])
+                return
+            hb = view(0, 256)
+            if not _frame_header_ok(hb):
+                reason = "frame header CRC mismatch"
+            else:
+                index, pcrc = struct.unpack_from("<Q", hb, 8)[0], struct.unpack_from("<I", hb, 20)[0]
+                stride, p = hdr["stride"], hdr["payload_size"]
+                if expected is not None and index < expected:
+                    # a valid header out of order (duplicate / spliced record): skip the record
+                    yield ("corrupt", index, st["off"], "index %d not after %d" % (index, expected - 1))
+                    fill(stride)
+                    consume(stride)
+                    continue
                 fill(stride)
-                if len(buf) < stride:
-                    report("truncated frame %d" % struct.unpack_from("<Q", hb, 8)[0])
+                if avail() < stride:
+                    yield ("truncated", index, st["off"], avail(), stride)
                     return
-                rec = np.frombuffer(bytes(buf[:stride]), frame_dtype(hdr))[0]
-                del buf[:stride]
-                ok = check_frame(hdr, rec)[1]
+                ok = zlib.crc32(view(256, 256 + p)) == pcrc
                 if not ok:
-                    report("frame %d: payload CRC mismatch" % rec["index"])
-                yield _meta(rec), unpack(rec["payload"], hdr), ok
+                    # writer died mid-record and a new record (or file header) follows inside it?
+                    j = valid_magic_within(256, stride)
+                    if j is not None:
+                        yield ("truncated", index, st["off"], j, stride)
+                        expected = index + 1
+                        consume(j)
+                        continue
+                n = stride
+                if ok:
+                    # a valid header inside the zero pad: the writer died in the pad
+                    j = valid_magic_within(256 + p, stride)
+                    if j is not None:
+                        n = j
+                rec = np.frombuffer(view(0, stride), frame_dtype(hdr))[0]
+                if expected is not None and index > expected:
+                    yield ("gap", expected, index)
+                off = st["off"]
+                expected = index + 1
+                meta, values = _meta(rec), unpack(rec["payload"], hdr)
+                consume(n)
+                yield ("frame", meta, values, ok, off)
                 continue
-        # damage: skip to the next magic
-        i = buf.find(b"\x89PSNS", 1)
-        while i < 0 and not eof:
-            keep = buf[-4:]
-            del buf[:]
-            buf.extend(keep)
-            fill(1 << 16)
-            i = buf.find(b"\x89PSNS", 1)
-        report("damaged data skipped")
-        if i < 0:
+        elif head == FILE_MAGIC:
+            fill(4096)
+            if avail() < 4096:
+                yield ("truncated", None, st["off"], avail(), hdr["stride"])
+                return
+            try:
+                h2 = parse_header(view(0, 4096))
+            except StreamError as e:
+                reason = str(e)
+            else:
+                consume(4096)
+                hdr = h2
+                expected = None
+                yield ("restart", h2)
+                continue
+        else:
+            reason = "frame magic missing"
+        # damage: scan for the next valid frame or file header, then account for what was lost
+        p0, stride = st["off"], hdr["stride"]
+        cands = []  # index fields of damaged records whose frame magic survived
+
+        def note():
+            if avail() >= 8 and view(0, 8) == FRAME_MAGIC:
+                cands.append(struct.unpack_from("<Q", view(8, 16))[0] if avail() >= 16 else None)
+
+        note()
+        consume(1)
+        end = None
+        while True:
+            fill(4096)
+            if avail() == 0:
+                end = "eof"
+                break
+            i = find(0)
+            if i < 0:
+                # keep 4 bytes: a magic may straddle the next refill (and is then found at 0)
+                keep = 0 if st["eof"] else min(4, avail())
+                consume(avail() - keep)
+                if st["eof"]:
+                    end = "eof"
+                    break
+            else:
+                consume(i)
+                if valid_at(0):
+                    end = "frame" if view(0, 8) == FRAME_MAGIC else "header"
+                    break
+                note()
+                consume(1)
+        skipped = st["off"] - p0
+        nxt = struct.unpack_from("<Q", view(8, 16))[0] if end == "frame" else None
+        rounded = (skipped + stride // 2) // stride
+        lo = hi = None
+        if expected is not None:
+            lo = expected
+            if nxt is not None and nxt >= expected:
+                hi = nxt
+        n_damaged = max(len(cands), rounded)
+        if lo is not None and hi is not None:
+            n_damaged = min(n_damaged, hi - lo)
+        ids = set()
+        if lo is not None:
+            for c in cands:
+                if c is not None and c >= lo and (hi is None or c < hi) and len(ids) < n_damaged:
+                    ids.add(c)
+            i = lo
+            while len(ids) < n_damaged and (hi is None or i < hi):
+                ids.add(i)
+                i += 1
+        ids = sorted(ids)
+        n_reports = len(ids) if lo is not None else n_damaged
+        for k in range(n_reports):
+            yield ("corrupt", ids[k] if k < len(ids) else None, p0 + k * stride, reason)
+        if lo is not None and hi is not None:
+            frm = lo
+            for i in ids + [hi]:
+                if i > frm:
+                    yield ("gap", frm, i)
+                frm = i + 1
+            expected = hi
+        elif lo is not None and ids:
+            expected = max(ids[-1], lo) + 1
+        if skipped:
+            yield ("skipped", p0, skipped)
+        if end == "eof":
             return
-        del buf[:i]
+
+
+def iter_frames(f, report=None):
+    """Yields (meta, values, payload_crc_ok) from a binary file object (file, FIFO, stdin).
+    Everything else (damage, gaps, truncation, restarts) goes to report(str) (default: stderr);
+    use iter_events() to see the header in force after a restart."""
+    report = report or (lambda s: print(s, file=sys.stderr))
+    for ev in iter_events(f):
+        if ev[0] == "frame":
+            _, meta, values, ok, _ = ev
+            if not ok:
+                report("frame %d: payload CRC mismatch" % meta["index"])
+            yield meta, values, ok
+        else:
+            report(describe(ev))
+
+
+def describe(ev):
+    """One human-readable line for a non-frame event."""
+    k = ev[0]
+    idx = lambda i: "?" if i is None else str(i)  # noqa: E731
+    if k == "gap":
+        return "gap %d..%d: %d frames dropped" % (ev[1], ev[2], ev[2] - ev[1])
+    if k == "corrupt":
+        return "frame %s at byte %d corrupt: %s" % (idx(ev[1]), ev[2], ev[3])
+    if k == "truncated":
+        return "frame %s at byte %d truncated: %d of %d bytes" % (idx(ev[1]), ev[2], ev[3], ev[4])
+    if k == "skipped":
+        return "skipped %d bytes at byte %d" % (ev[2], ev[1])
+    if k == "restart":
+        return "producer restart"
+    return k
+
+
+def canonical_event(ev):
+    """Canonical line(s) of one event, as tests/stream_readers.rs prints the Rust reader's."""
+    k = ev[0]
+    idx = lambda i: "-" if i is None else str(i)  # noqa: E731
+    if k == "frame":
+        return canonical(ev[1], ev[2], ev[3])
+    if k == "gap":
+        return "gap %d..%d" % (ev[1], ev[2])
+    if k == "corrupt":
+        return "corrupt %s %d" % (idx(ev[1]), ev[2])
+    if k == "truncated":
+        return "truncated %s %d %d %d" % (idx(ev[1]), ev[2], ev[3], ev[4])
+    if k == "skipped":
+        return "skipped %d %d" % (ev[1], ev[2])
+    return "restart\n" + canonical_header(ev[1])
 
 
 def _hex64(x):
@@ -228,16 +495,29 @@ def canonical_header(h):
 
 
 def main(argv):
-    if len(argv) < 3 or argv[1] not in ("info", "dump", "frame"):
+    if len(argv) < 3 or argv[1] not in ("info", "dump", "mmdump", "frame"):
         print(__doc__, file=sys.stderr)
         return 2
     cmd, path = argv[1], argv[2]
     f = sys.stdin.buffer if path == "-" else open(path, "rb")
     if cmd == "dump":
         head = f.read(4096)
-        print(canonical_header(parse_header(head)))
-        for meta, values, ok in iter_frames(_Prefixed(head, f)):
-            print(canonical(meta, values, ok))
+        try:
+            print(canonical_header(parse_header(head)))
+        except StreamError as e:
+            print("not a valid psns stream header: %s" % e, file=sys.stderr)
+            return 1
+        for ev in iter_events(_Prefixed(head, f)):
+            print(canonical_event(ev))
+        return 0
+    if cmd == "mmdump":
+        # numpy memmap path (regular files): whole records with a valid header, in file order
+        hdr, frames = open_memmap(path)
+        print(canonical_header(hdr))
+        for rec in frames:
+            hok, pok = check_frame(hdr, rec)
+            if hok:
+                print(canonical(_meta(rec), unpack(rec["payload"], hdr), pok))
         return 0
     if cmd == "info":
         hdr, frames = open_memmap(path)
