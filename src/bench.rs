@@ -6,7 +6,8 @@
 //! truth is [`RawFrame::truth`] (ideal polarizer, no noise, output DN above black). S0 PSNR uses
 //! peak = 2^bits − 1; DoLP RMSE and bias are over every pixel; AoLP RMSE (axial, mod 180°) is over
 //! pixels with true DoLP > [`DOLP_THRESHOLD`]; an 8-pixel border is excluded. Pixels within
-//! [`SAT_RADIUS`] of a clipped code are excluded from the main scores (the truth is not clipped,
+//! [`SAT_RADIUS`] of a saturated code (≥ [`saturation_threshold`]: the top code or a full well,
+//! which reads 4091–4094 at 12 bit after read noise and DSNU) are excluded from the main scores (the truth is not clipped,
 //! so no demosaicker can be right there); `aolp_rmse_all_deg` keeps them.
 //!
 //! Timing: the median of `runs` calls of [`full_chain_into`] with output buffers reused across
@@ -230,6 +231,17 @@ pub fn demosaic_to_dir(opts: &DemosaicOptions) -> Result<Vec<String>> {
         &serde_json::to_string_pretty(&meta).expect("json"),
     )?;
     Ok(files)
+}
+
+/// Lowest code counted as saturated at `bit_depth`: the top code minus 4 DN at 12 bit, scaled
+/// to the depth and rounded (8 bit: the top code only; 16 bit: top − 64). The sensor counts a
+/// pixel whose well is full as saturated although read noise and DSNU make it read a few DN
+/// below the top code ([`RawFrame::saturated`]); `RawFrame` has no per-pixel map, so the
+/// benchmark seeds its mask from this threshold.
+pub fn saturation_threshold(bit_depth: u8) -> u16 {
+    let max = crate::sensor::adc::max_code(bit_depth);
+    let margin = (4.0 * max as f64 / 4095.0).round() as u16;
+    max - margin.min(max)
 }
 
 /// Pixels within `radius` (Chebyshev) of a code ≥ `max` (separable dilation).
@@ -514,11 +526,7 @@ pub fn score_scene(sf: &SceneFrame, method: Method, sat: &[bool]) -> Result<Scen
 }
 
 fn sat_mask_of(f: &RawFrame) -> Vec<bool> {
-    saturation_mask(
-        &f.codes,
-        crate::sensor::adc::max_code(f.bit_depth),
-        SAT_RADIUS,
-    )
+    saturation_mask(&f.codes, saturation_threshold(f.bit_depth), SAT_RADIUS)
 }
 
 /// Axial AoLP error (degrees) per pixel, NaN where the true DoLP ≤ threshold.

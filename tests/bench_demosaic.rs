@@ -2,8 +2,8 @@
 //! the spec §4 noise laws for the superpixel estimator.
 
 use psns::bench::{
-    bench_demosaic, demosaic_to_dir, noise_sweep, saturation_mask, score_masked, BenchOptions,
-    DemosaicOptions, CSV_HEADER, MAX_FILE_BYTES,
+    bench_demosaic, demosaic_to_dir, noise_sweep, saturation_mask, saturation_threshold,
+    score_masked, BenchOptions, DemosaicOptions, CSV_HEADER, MAX_FILE_BYTES,
 };
 use psns::demosaic::{full_chain, Method};
 use psns::image::{Image, StokesImage};
@@ -170,6 +170,17 @@ fn saturation_mask_dilates_and_masked_score_matches_plain() {
     let m = saturation_mask(&codes, 4095, 2);
     assert_eq!(m.iter().filter(|&&v| v).count(), 25);
     assert!(m[3 * 16 + 5] && m[7 * 16 + 9] && !m[2 * 16 + 7] && !m[5 * 16 + 10]);
+    // a full well reads a few DN below the top code: it seeds the mask too
+    assert_eq!(saturation_threshold(12), 4091);
+    assert_eq!(saturation_threshold(8), 255);
+    assert_eq!(saturation_threshold(10), 1022);
+    assert_eq!(saturation_threshold(16), 65535 - 64);
+    let mut codes = Image::<u16>::new(16, 12);
+    *codes.get_mut(5, 7) = 4092;
+    *codes.get_mut(9, 2) = 4090;
+    let m = saturation_mask(&codes, saturation_threshold(12), 1);
+    assert_eq!(m.iter().filter(|&&v| v).count(), 9);
+    assert!(m[5 * 16 + 7] && !m[9 * 16 + 2]);
 
     let (w, h) = (40, 32);
     let mut t = StokesImage::zeros(w, h);

@@ -46,20 +46,55 @@ fn superpixel_dolp_bias_follows_rice_law_and_debias_removes_it() {
 
 #[test]
 fn results_do_not_depend_on_thread_count() {
-    let raw = poisson_mosaic(64, 48, 500.0, 3);
+    // 512 x 512 so that rayon splits every parallel loop (including the mean level behind the
+    // σ/ε of PPID, Newton and EARI) differently for 1, 2 and 3 threads
+    let (w, h) = (512, 512);
+    // fractional samples: sums of small integers would be exact in f64 in any order
+    let mut raw = poisson_mosaic(w, h, 500.0, 3);
+    raw.data.iter_mut().for_each(|v| *v *= 0.3137);
     let layout = MosaicLayout::IMX250MZR;
-    let pool = rayon::ThreadPoolBuilder::new()
-        .num_threads(1)
-        .build()
-        .unwrap();
+    let pools: Vec<rayon::ThreadPool> = [1, 2, 3]
+        .iter()
+        .map(|&n| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(n)
+                .build()
+                .unwrap()
+        })
+        .collect();
+    let bits = |p: &demosaic::PolarImages| -> Vec<u32> {
+        [
+            &p.stokes.s0,
+            &p.stokes.s1,
+            &p.stokes.s2,
+            &p.dolp,
+            &p.aolp_deg,
+        ]
+        .iter()
+        .flat_map(|i| i.data.iter().map(|v| v.to_bits()))
+        .collect()
+    };
     for m in Method::ALL {
-        let a = demosaic::full_chain(&raw, layout, m).unwrap();
-        let b = pool.install(|| demosaic::full_chain(&raw, layout, m).unwrap());
-        assert_eq!(a, b, "{m}");
+        let r: Vec<Vec<u32>> = pools
+            .iter()
+            .map(|p| p.install(|| bits(&demosaic::full_chain(&raw, layout, m).unwrap())))
+            .collect();
+        assert!(r[0] == r[1], "{m}: 1 vs 2 threads");
+        assert!(r[0] == r[2], "{m}: 1 vs 3 threads");
     }
-    let truth = StokesImage::zeros(64, 48);
+    let truth = StokesImage::zeros(w, h);
     let est = demosaic::demosaic(&raw, layout, Method::Bilinear).unwrap();
-    let s1 = psns::stokes::score(&est, &truth, 1000.0, 0.1, 4).unwrap();
-    let s2 = pool.install(|| psns::stokes::score(&est, &truth, 1000.0, 0.1, 4).unwrap());
-    assert_eq!(format!("{s1:?}"), format!("{s2:?}"));
+    let s: Vec<String> = pools
+        .iter()
+        .map(|p| {
+            p.install(|| {
+                format!(
+                    "{:?}",
+                    psns::stokes::score(&est, &truth, 1000.0, 0.1, 4).unwrap()
+                )
+            })
+        })
+        .collect();
+    assert_eq!(s[0], s[1]);
+    assert_eq!(s[0], s[2]);
 }

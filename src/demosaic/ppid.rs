@@ -17,15 +17,19 @@ use crate::image::Image;
 use crate::sensor::mosaic::MosaicLayout;
 use rayon::prelude::*;
 
+/// Mean mosaic level. Per-row sums are collected, then added in row order: a rayon `.sum()`
+/// would combine partial sums in an order that depends on the pool size and work stealing, and
+/// σ (PPID) and ε (Newton, EARI) derive from this value.
 pub(crate) fn mean_level(p: &Padded, w: usize, h: usize) -> f32 {
-    let s: f64 = (0..h)
+    let rows: Vec<f64> = (0..h)
         .into_par_iter()
         .map(|r| {
             (0..w)
                 .map(|c| p.at(r as isize, c as isize) as f64)
                 .sum::<f64>()
         })
-        .sum();
+        .collect();
+    let s: f64 = rows.iter().sum();
     (s / (w * h) as f64) as f32
 }
 
