@@ -342,6 +342,22 @@ pub fn score(
     dolp_threshold: f64,
     border: usize,
 ) -> Result<Scores> {
+    score_with(est, truth, peak, dolp_threshold, border, None, false)
+}
+
+/// [`score`] with two options: pixels where `exclude` is true are skipped by every score (and
+/// the pixel counts), and `clip_dolp` limits the estimated DoLP to 1 (where a kernel rings to
+/// S0 ≈ 0 in a dark region the raw ratio can reach 10³ and own the RMSE).
+pub fn score_with(
+    est: &StokesImage,
+    truth: &StokesImage,
+    peak: f64,
+    dolp_threshold: f64,
+    border: usize,
+    exclude: Option<&[bool]>,
+    clip_dolp: bool,
+) -> Result<Scores> {
+    use crate::angle::SensorAngle;
     let (w, h) = (truth.width(), truth.height());
     if est.width() != w || est.height() != h {
         return Err(Error::Invalid(format!(
@@ -352,6 +368,9 @@ pub fn score(
             h
         )));
     }
+    if exclude.is_some_and(|m| m.len() != w * h) {
+        return Err(Error::Invalid("mask does not match the image".into()));
+    }
     crate::error::check_positive("peak", peak)?;
     if 2 * border >= w || 2 * border >= h {
         return Err(Error::range(
@@ -361,13 +380,17 @@ pub fn score(
         ));
     }
     let d = |s0: f64, s1: f64, s2: f64| if s0 > 0.0 { s1.hypot(s2) / s0 } else { 0.0 };
+    let dmax = if clip_dolp { 1.0 } else { f64::INFINITY };
     // per-row partial sums, then a fixed-order reduction: independent of the thread count
-    let rows: Vec<[f64; 6]> = (border..h - border)
+    let rows: Vec<[f64; 7]> = (border..h - border)
         .into_par_iter()
         .map(|r| {
-            let mut acc = [0f64; 6];
+            let mut acc = [0f64; 7];
             for c in border..w - border {
                 let i = r * w + c;
+                if exclude.is_some_and(|m| m[i]) {
+                    continue;
+                }
                 let (e0, e1, e2) = (
                     est.s0.data[i] as f64,
                     est.s1.data[i] as f64,
@@ -379,11 +402,11 @@ pub fn score(
                     truth.s2.data[i] as f64,
                 );
                 acc[0] += (e0 - t0) * (e0 - t0);
-                let (de, dt) = (d(e0, e1, e2), d(t0, t1, t2));
+                let (de, dt) = (d(e0, e1, e2).min(dmax), d(t0, t1, t2));
                 acc[1] += (de - dt) * (de - dt);
                 acc[2] += de - dt;
+                acc[6] += 1.0;
                 if dt > dolp_threshold {
-                    use crate::angle::SensorAngle;
                     let err =
                         SensorAngle::from_stokes(e1, e2).diff(SensorAngle::from_stokes(t1, t2));
                     acc[3] += err * err;
@@ -394,13 +417,13 @@ pub fn score(
             acc
         })
         .collect();
-    let mut s = [0f64; 6];
+    let mut s = [0f64; 7];
     for a in &rows {
-        for k in 0..6 {
+        for k in 0..7 {
             s[k] += a[k];
         }
     }
-    let n = ((w - 2 * border) * (h - 2 * border)) as f64;
+    let n = s[6].max(1.0);
     let mse = s[0] / n;
     let na = s[5];
     Ok(Scores {
@@ -418,7 +441,7 @@ pub fn score(
         },
         aolp_mean_abs_deg: if na > 0.0 { s[4] / na } else { f64::NAN },
         n_aolp_pixels: na as usize,
-        n_pixels: n as usize,
+        n_pixels: s[6] as usize,
     })
 }
 
