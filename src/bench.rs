@@ -54,6 +54,9 @@ pub struct DemosaicOptions {
     pub frame: Option<u64>,
     /// Mosaic layout of the input (default IMX250MZR `90,45/135,0`; a stream's header wins).
     pub layout: MosaicLayout,
+    /// Also write `dolp_debiased.npy`, √max(0, S1² + S2² − 2σ²)/S0 with this σ of S1 and S2 in
+    /// DN (the Rice bias correction of `demosaic.md` §4).
+    pub debias_sigma: Option<f64>,
 }
 
 /// A raw mosaic loaded from a file or a stream.
@@ -206,6 +209,11 @@ pub fn demosaic_to_dir(opts: &DemosaicOptions) -> Result<Vec<String>> {
     io::write_npy(&put("s2.npy"), &p.stokes.s2)?;
     io::write_npy(&put("dolp.npy"), &p.dolp)?;
     io::write_npy(&put("aolp.npy"), &p.aolp_deg)?;
+    if let Some(sigma) = opts.debias_sigma {
+        crate::error::check_range("dolp-debias", sigma, 0.0, 1e6)?;
+        let d = crate::stokes::debiased_dolp_image(&p.stokes, sigma as f32);
+        io::write_npy(&put("dolp_debiased.npy"), &d)?;
+    }
     let white = vis::quantile(&p.stokes.s0, 0.999);
     io::write_png_gray8(&put("s0.png"), &vis::gray8(&p.stokes.s0, white))?;
     io::write_png_rgb8(&put("dolp.png"), &vis::dop_rgb(&p.dolp, None))?;
@@ -225,6 +233,7 @@ pub fn demosaic_to_dir(opts: &DemosaicOptions) -> Result<Vec<String>> {
         "black_level": raw.black_level,
         "aolp_units": "degrees, [0, 180), from +x (columns) toward +y (rows, down)",
         "demosaic_ms": ms,
+        "dolp_debias_sigma_dn": opts.debias_sigma,
     });
     write_text(
         &put("demosaic.json"),

@@ -111,6 +111,9 @@ enum Cmd {
         /// Mosaic layout of a PNG/TIFF input, e.g. "90,45/135,0".
         #[arg(long, default_value = "90,45/135,0", value_parser = parse_layout)]
         layout: psns::sensor::mosaic::MosaicLayout,
+        /// Also write dolp_debiased.npy, corrected for the Rice bias with this noise σ of S1/S2 (DN).
+        #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "SIGMA_DN")]
+        dolp_debias: Option<f64>,
     },
     /// Benchmarks that chart speed against accuracy.
     Bench {
@@ -787,6 +790,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
             out,
             frame,
             layout,
+            dolp_debias,
         } => {
             let opts = psns::bench::DemosaicOptions {
                 input,
@@ -794,6 +798,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
                 out,
                 frame,
                 layout,
+                debias_sigma: dolp_debias,
             };
             for f in psns::bench::demosaic_to_dir(&opts)? {
                 eprintln!("wrote {f}");

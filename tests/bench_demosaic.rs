@@ -229,6 +229,7 @@ fn demosaic_command_reads_png_tiff_and_streams() {
             out: out.clone(),
             frame: None,
             layout,
+            debias_sigma: None,
         })
         .unwrap();
         for n in [
@@ -280,6 +281,7 @@ fn demosaic_command_reads_png_tiff_and_streams() {
             out: out.clone(),
             frame,
             layout: MosaicLayout::IMX250MZR,
+            debias_sigma: None,
         })
         .unwrap();
         let sp = full_chain(&codes, layout, Method::Superpixel).unwrap();
@@ -301,6 +303,7 @@ fn demosaic_command_reads_png_tiff_and_streams() {
         out: dir.path().join("x"),
         frame: None,
         layout,
+        debias_sigma: None,
     })
     .is_err());
 }

@@ -232,3 +232,45 @@ fn bad_raw_input_exits_2_and_writes_nothing() {
         );
     }
 }
+
+#[test]
+fn demosaic_command_with_dolp_debias() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("r");
+    let mut args = vec![
+        "render",
+        "--raw",
+        "--out",
+        out.to_str().unwrap(),
+        "--black-level",
+        "16",
+    ];
+    args.extend(SMALL);
+    assert!(psns(&args).status.success());
+    let d = dir.path().join("d");
+    let o = psns(&[
+        "demosaic",
+        out.join("raw.png").to_str().unwrap(),
+        "--method",
+        "bilinear",
+        "--out",
+        d.to_str().unwrap(),
+        "--dolp-debias",
+        "20",
+    ]);
+    assert!(o.status.success(), "{}", err(&o));
+    let raw = psns::io::read_npy_f32(&d.join("dolp.npy")).unwrap();
+    let deb = psns::io::read_npy_f32(&d.join("dolp_debiased.npy")).unwrap();
+    // the correction only ever lowers DoLP, and lowers it somewhere
+    assert!(raw.data.iter().zip(&deb.data).all(|(a, b)| b <= a));
+    assert!(raw.data.iter().zip(&deb.data).any(|(a, b)| b < a));
+    let o = psns(&[
+        "demosaic",
+        out.join("raw.png").to_str().unwrap(),
+        "--out",
+        d.to_str().unwrap(),
+        "--dolp-debias",
+        "-1",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", err(&o));
+}
