@@ -171,7 +171,7 @@ impl FrameMaker {
             })?;
         let sun = self.sun_at(pose, t_ns.saturating_add(self.half_exposure_ns))?;
         let (stokes, info) = self.pipe.stokes(sun, &pose.attitude)?;
-        let frame = self.pipe.frame(&stokes, index)?;
+        let frame = self.pipe.frame_codes(&stokes, index)?;
         let mut payload = Vec::new();
         packing::pack(
             &frame.codes.data,

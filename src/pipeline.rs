@@ -13,6 +13,7 @@ use crate::render::{self, StokesOptions};
 use crate::sensor::{self, RawFrame, Sensor, SensorConfig};
 use crate::sky::Sky;
 use crate::sun::SunPosition;
+use rayon::prelude::*;
 
 /// What one frame's scene looked like.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
@@ -119,7 +120,7 @@ impl RawPipeline {
                     };
                     let (st, n) = render::render_stokes_grid(&sky, &cam, opts, raw.sky_grid);
                     info.sun_pixels = n;
-                    info.ground_pixels = st.s0.data.iter().filter(|&&v| v <= 0.0).count();
+                    info.ground_pixels = st.s0.data.par_iter().filter(|&&v| v <= 0.0).count();
                     st
                 }
             }
@@ -133,6 +134,12 @@ impl RawPipeline {
     /// The raw frame of a Stokes scene.
     pub fn frame(&self, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
         self.sensor.frame(stokes, frame_index)
+    }
+
+    /// The raw frame of a Stokes scene without the ground truth (`truth` is 0 × 0): see
+    /// [`Sensor::frame_codes`].
+    pub fn frame_codes(&self, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
+        self.sensor.frame_codes(stokes, frame_index)
     }
 
     /// The configured scene's frame `cfg.raw.frame_index` (sun and attitude from the config).

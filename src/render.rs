@@ -281,14 +281,32 @@ pub fn render_stokes_grid(
     let gw = nc.len();
     let mut out = StokesImage::zeros(w, h);
     let rows: Vec<(usize, usize)> = (0..nr.len() - 1).map(|j| (nr[j], nr[j + 1])).collect();
-    // each band of rows between two node rows is independent
-    let bands: Vec<Vec<[f32; 3]>> = rows
-        .par_iter()
+    // each band of rows between two node rows is independent: split the three planes into the
+    // bands' row ranges and fill them in place
+    let mut slices: Vec<(&mut [f32], &mut [f32], &mut [f32])> = Vec::with_capacity(rows.len());
+    {
+        let (mut a, mut b, mut d) = (
+            &mut out.s0.data[..],
+            &mut out.s1.data[..],
+            &mut out.s2.data[..],
+        );
+        for (j, &(r0, r1)) in rows.iter().enumerate() {
+            let r_end = if j + 2 == nr.len() { r1 + 1 } else { r1 };
+            let n = (r_end - r0) * w;
+            let (a0, a1) = std::mem::take(&mut a).split_at_mut(n);
+            let (b0, b1) = std::mem::take(&mut b).split_at_mut(n);
+            let (d0, d1) = std::mem::take(&mut d).split_at_mut(n);
+            slices.push((a0, b0, d0));
+            (a, b, d) = (a1, b1, d1);
+        }
+    }
+    slices
+        .into_par_iter()
         .enumerate()
-        .map(|(j, &(r0, r1))| {
+        .for_each(|(j, (p0, p1, p2))| {
+            let (r0, r1) = rows[j];
             let last_band = j + 2 == nr.len();
             let r_end = if last_band { r1 + 1 } else { r1 };
-            let mut band = vec![[0f32; 3]; (r_end - r0) * w];
             for i in 0..gw - 1 {
                 let (c0, c1) = (nc[i], nc[i + 1]);
                 let q = [
@@ -317,21 +335,14 @@ pub fn render_stokes_grid(
                                 top * (1.0 - fy) + bot * fy
                             })
                         };
-                        band[(r - r0) * w + c] = [s[0] as f32, s[1] as f32, s[2] as f32];
+                        let k = (r - r0) * w + c;
+                        p0[k] = s[0] as f32;
+                        p1[k] = s[1] as f32;
+                        p2[k] = s[2] as f32;
                     }
                 }
             }
-            band
-        })
-        .collect();
-    for (&(r0, _), band) in rows.iter().zip(bands) {
-        for (k, v) in band.into_iter().enumerate() {
-            let i = r0 * w + k;
-            out.s0.data[i] = v[0];
-            out.s1.data[i] = v[1];
-            out.s2.data[i] = v[2];
-        }
-    }
+        });
     let n_sun = if opts.sun_disc {
         add_sun_disc(sky, cam, &mut out)
     } else {

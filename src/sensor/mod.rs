@@ -560,6 +560,19 @@ impl Sensor {
     /// partial-polarizer reading. Non-finite input counts as no light.
     pub fn electron_rate(&self, stokes: &StokesImage) -> Result<Vec<f64>> {
         self.check_input(stokes)?;
+        let (a, b, base) = self.rate_coefficients();
+        let w = self.intrinsics.width;
+        let mut out = vec![0f64; w * self.intrinsics.height];
+        out.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
+            for (c, v) in row.iter_mut().enumerate() {
+                *v = self.rate_at(stokes, r, c, a, b, base);
+            }
+        });
+        Ok(out)
+    }
+
+    /// Polarizer coefficients (a, b) and η · photon rate shared by every pixel's electron rate.
+    fn rate_coefficients(&self) -> (f64, f64, f64) {
         let cfg = &self.cfg;
         let er = if cfg.stages.polarizer_er {
             cfg.er_table.at(cfg.filter_center_nm)
@@ -567,19 +580,18 @@ impl Sensor {
             f64::INFINITY
         };
         let (a, b) = polarizer::coefficients(cfg.pass_transmission, er);
-        let base = cfg.qe * self.photon_rate;
-        let w = self.intrinsics.width;
-        let mut out = vec![0f64; w * self.intrinsics.height];
-        out.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
-            for (c, v) in row.iter_mut().enumerate() {
-                let k = r * w + c;
-                let (s0, s1, s2) = finite3(stokes, k);
-                let (co, si) = self.axis_at(r, c);
-                let g = self.prnu.as_ref().map_or(1.0, |m| m[k] as f64);
-                *v = base * self.ri_at(k) * g * polarizer::reading(s0, s1, s2, co, si, a, b);
-            }
-        });
-        Ok(out)
+        (a, b, cfg.qe * self.photon_rate)
+    }
+
+    /// Electron rate of pixel (r, c); the one formula behind [`Sensor::electron_rate`] and the
+    /// fused single-pass frame path, so both give the same bits.
+    #[inline(always)]
+    fn rate_at(&self, stokes: &StokesImage, r: usize, c: usize, a: f64, b: f64, base: f64) -> f64 {
+        let k = r * self.intrinsics.width + c;
+        let (s0, s1, s2) = finite3(stokes, k);
+        let (co, si) = self.axis_at(r, c);
+        let g = self.prnu.as_ref().map_or(1.0, |m| m[k] as f64);
+        base * self.ri_at(k) * g * polarizer::reading(s0, s1, s2, co, si, a, b)
     }
 
     /// Exposure for this scene: the fixed value, or auto-exposure (`sensor.md` §5).
@@ -621,18 +633,38 @@ impl Sensor {
 
     /// Renders frame `frame_index` of this camera.
     pub fn frame(&self, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
+        self.render(stokes, frame_index, true)
+    }
+
+    /// [`Sensor::frame`] without the ground truth: the same codes, exposure, flags and saturation
+    /// counts, but `truth` is an empty 0 × 0 image (for streams, which never read it).
+    pub fn frame_codes(&self, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
+        self.render(stokes, frame_index, false)
+    }
+
+    fn render(&self, stokes: &StokesImage, frame_index: u64, want_truth: bool) -> Result<RawFrame> {
         self.check_input(stokes)?;
         if self.cfg.psns.is_some() {
-            return presets::psns_frame(self, stokes, frame_index);
+            return presets::psns_frame(self, stokes, frame_index, want_truth);
         }
         let cfg = &self.cfg;
         let st = &cfg.stages;
         let (w, h) = (self.intrinsics.width, self.intrinsics.height);
-        let mut rate = self.electron_rate(stokes)?;
-        let (t_us, auto, clipped) = self.exposure_for(stokes, &rate);
-        if st.crosstalk && cfg.crosstalk > 0.0 {
-            rate = crosstalk(&rate, w, h, cfg.crosstalk);
-        }
+        let has_crosstalk = st.crosstalk && cfg.crosstalk > 0.0;
+        // Auto-exposure and crosstalk need the whole rate image first; otherwise each pixel's rate
+        // is computed inside the noise loop (same formula, same bits, no 8-byte-per-pixel buffer).
+        let (rate, t_us, auto, clipped) = match cfg.exposure {
+            Exposure::Fixed { us } if !has_crosstalk => (None, us, false, false),
+            _ => {
+                let mut rate = self.electron_rate(stokes)?;
+                let (t_us, auto, clipped) = self.exposure_for(stokes, &rate);
+                if has_crosstalk {
+                    rate = crosstalk(&rate, w, h, cfg.crosstalk);
+                }
+                (Some(rate), t_us, auto, clipped)
+            }
+        };
+        let (pa, pb, pbase) = self.rate_coefficients();
         let t = t_us * 1e-6;
         let dark_e = if st.dark {
             cfg.dark_current_at_temperature() * t
@@ -669,7 +701,11 @@ impl Sensor {
                     let mut sat = [0u32; 4];
                     for (c, code) in row.iter_mut().enumerate() {
                         let k = r * w + c;
-                        let mean = rate[k] * t + dark_e;
+                        let rate_k = match &rate {
+                            Some(rate) => rate[k],
+                            None => self.rate_at(stokes, r, c, pa, pb, pbase),
+                        };
+                        let mean = rate_k * t + dark_e;
                         let mut n = if st.shot {
                             noise::poisson(&mut rs, mean)
                         } else {
@@ -717,7 +753,11 @@ impl Sensor {
             }
         }
         let truth_gain = scale * kg * t * cfg.qe * self.photon_rate * cfg.pass_transmission;
-        let truth = self.truth(stokes, truth_gain);
+        let truth = if want_truth {
+            self.truth(stokes, truth_gain)
+        } else {
+            StokesImage::zeros(0, 0)
+        };
         Ok(RawFrame {
             codes: Image::from_vec(w, h, codes),
             bit_depth: cfg.bit_depth,

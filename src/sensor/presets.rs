@@ -159,7 +159,12 @@ pub fn auto_kappa(stokes: &StokesImage, full: f64) -> f64 {
 }
 
 /// Renders a PSNS-model frame (called by [`Sensor::frame`] when `cfg.psns` is set).
-pub(crate) fn psns_frame(s: &Sensor, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
+pub(crate) fn psns_frame(
+    s: &Sensor,
+    stokes: &StokesImage,
+    frame_index: u64,
+    want_truth: bool,
+) -> Result<RawFrame> {
     let cfg = &s.cfg;
     let p = cfg.psns.as_ref().expect("psns model");
     let (w, h) = (s.intrinsics.width, s.intrinsics.height);
@@ -181,7 +186,11 @@ pub(crate) fn psns_frame(s: &Sensor, stokes: &StokesImage, frame_index: u64) -> 
             *code = adc::quantize(v, max);
         }
     });
-    let mut truth = s.truth(stokes, kappa);
+    let mut truth = if want_truth {
+        s.truth(stokes, kappa)
+    } else {
+        StokesImage::zeros(0, 0)
+    };
     if p.clouds {
         let mut rng = noise::frame_rng(s.seed, frame_index, noise::STAGE_PSNS_CLOUDS, 0);
         let ellipses = clouds::psns_ellipses(w, h, &mut rng);
@@ -189,9 +198,11 @@ pub(crate) fn psns_frame(s: &Sensor, stokes: &StokesImage, frame_index: u64) -> 
         for (k, &m) in mask.iter().enumerate() {
             if m {
                 codes[k] = max;
-                truth.s0.data[k] = (2.0 * full) as f32;
-                truth.s1.data[k] = 0.0;
-                truth.s2.data[k] = 0.0;
+                if want_truth {
+                    truth.s0.data[k] = (2.0 * full) as f32;
+                    truth.s1.data[k] = 0.0;
+                    truth.s2.data[k] = 0.0;
+                }
             }
         }
     }
