@@ -307,6 +307,7 @@ pub fn render_stokes_grid(
             let (r0, r1) = rows[j];
             let last_band = j + 2 == nr.len();
             let r_end = if last_band { r1 + 1 } else { r1 };
+            let mut fxs: Vec<f64> = Vec::with_capacity(step + 1);
             for i in 0..gw - 1 {
                 let (c0, c1) = (nc[i], nc[i + 1]);
                 let q = [
@@ -322,13 +323,16 @@ pub fn render_stokes_grid(
                 let exact = !all_valid || mx > 1.02 * mn;
                 let last_col = i + 2 == gw;
                 let c_end = if last_col { c1 + 1 } else { c1 };
+                // column weights of this cell, the same values for every row
+                fxs.clear();
+                fxs.extend((c0..c_end).map(|c| (c - c0) as f64 / (c1 - c0) as f64));
                 for r in r0..r_end {
                     let fy = (r - r0) as f64 / (r1 - r0) as f64;
                     for c in c0..c_end {
                         let s = if exact {
                             pixel_sky(sky, cam, c as f64, r as f64).stokes()
                         } else {
-                            let fx = (c - c0) as f64 / (c1 - c0) as f64;
+                            let fx = fxs[c - c0];
                             std::array::from_fn(|k| {
                                 let top = q[0][k] * (1.0 - fx) + q[1][k] * fx;
                                 let bot = q[2][k] * (1.0 - fx) + q[3][k] * fx;
