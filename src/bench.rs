@@ -561,7 +561,8 @@ pub fn max_pool(img: &Image<f32>, factor: usize) -> Image<f32> {
                 for dr in 0..f {
                     for dc in 0..f {
                         let v = *img.get(r * f + dr, c * f + dc);
-                        if v.is_finite() && !(v <= m) {
+                        // max of the finite values (m starts as NaN: the first finite value wins)
+                        if v.is_finite() && (m.is_nan() || v > m) {
                             m = v;
                         }
                     }

@@ -127,9 +127,11 @@ pub fn intrinsics(width: usize, height: usize) -> Intrinsics {
 pub fn config(scene: Scene, width: usize, height: usize, bit_depth: u8) -> SceneConfig {
     let mut cfg = SceneConfig::default();
     cfg.camera.intrinsics = intrinsics(width, height);
-    let mut sensor = SensorConfig::default();
-    sensor.bit_depth = bit_depth;
-    sensor.exposure = Exposure::auto();
+    let mut sensor = SensorConfig {
+        bit_depth,
+        exposure: Exposure::auto(),
+        ..SensorConfig::default()
+    };
     cfg.raw.seed = 1 + Scene::ALL.iter().position(|&s| s == scene).unwrap_or(0) as u64;
     match scene {
         Scene::ClearSky | Scene::OccluderEdge | Scene::LowLight => {}
