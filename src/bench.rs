@@ -130,40 +130,21 @@ pub fn load_raw(input: &Path, layout: MosaicLayout, frame: Option<u64>) -> Resul
 }
 
 fn load_stream(input: &Path, frame: Option<u64>) -> Result<LoadedRaw> {
-    use crate::stream::{Event, StreamReader};
-    let mut rd = StreamReader::new(crate::app::open_input(input)?)?;
-    while let Some(ev) = rd.next_event()? {
-        let Event::Frame(fr) = ev else { continue };
-        if frame.is_some_and(|n| n != fr.meta.index) || !fr.payload_crc_ok {
-            if frame == Some(fr.meta.index) {
-                return Err(Error::Format(format!(
-                    "frame {}: payload CRC mismatch",
-                    fr.meta.index
-                )));
-            }
-            continue;
-        }
-        let h = rd.header().clone();
-        let codes = fr.codes(&h)?;
-        let (w, hh) = (h.width as usize, h.height as usize);
-        // the black level is in DN of the payload; MSB-aligned payloads are unpacked to LSB
-        let black = if h.msb_aligned {
-            fr.meta.black_level / 2f64.powi(16 - h.bits_valid as i32)
-        } else {
-            fr.meta.black_level
-        };
-        return Ok(LoadedRaw {
-            codes: Image::from_vec(w, hh, codes),
-            layout: h.layout,
-            black_level: black,
-            bits: h.bits_valid,
-            frame: Some(fr.meta.index),
-        });
-    }
-    Err(Error::Invalid(match frame {
-        Some(n) => format!("frame {n} is not in the stream"),
-        None => "the stream holds no intact frame".into(),
-    }))
+    let ex = crate::stream::find_frame(crate::app::open_input(input)?, frame)?;
+    let h = &ex.header;
+    // the black level is in DN of the payload; MSB-aligned payloads are unpacked to LSB
+    let black = if h.msb_aligned {
+        ex.meta.black_level / 2f64.powi(16 - h.bits_valid as i32)
+    } else {
+        ex.meta.black_level
+    };
+    Ok(LoadedRaw {
+        codes: Image::from_vec(h.width as usize, h.height as usize, ex.codes),
+        layout: h.layout,
+        black_level: black,
+        bits: h.bits_valid,
+        frame: Some(ex.meta.index),
+    })
 }
 
 /// Demosaics codes minus a black level (u16 directly when the black level is 0).

@@ -12,7 +12,7 @@
 mod reader;
 mod writer;
 
-pub use reader::{extract_frame, verify, Event, Frame, StreamReader, VerifyReport};
+pub use reader::{extract_frame, find_frame, verify, Event, Frame, StreamReader, VerifyReport};
 pub use writer::{FileStreamWriter, StreamWriter};
 
 use crate::error::{Error, Result};

@@ -659,23 +659,37 @@ pub struct Extracted {
 /// Finds the first frame with index `n` and unpacks it; fails if it is missing or its payload CRC
 /// is wrong.
 pub fn extract_frame<R: Read>(r: R, n: u64) -> Result<Extracted> {
+    find_frame(r, Some(n))
+}
+
+/// Unpacks frame `n`, or with `None` the first intact frame of the stream; fails if it is missing
+/// or its payload CRC is wrong.
+pub fn find_frame<R: Read>(r: R, n: Option<u64>) -> Result<Extracted> {
     let mut rd = StreamReader::new(r)?;
     while let Some(ev) = rd.next_event()? {
-        if let Event::Frame(fr) = ev {
-            if fr.meta.index == n {
-                if !fr.payload_crc_ok {
-                    return Err(Error::Format(format!("frame {n}: payload CRC mismatch")));
-                }
-                let codes = fr.codes(rd.header())?;
-                return Ok(Extracted {
-                    header: rd.header().clone(),
-                    meta: fr.meta,
-                    codes,
-                });
-            }
+        let Event::Frame(fr) = ev else { continue };
+        let wanted = n.is_none_or(|n| n == fr.meta.index);
+        if !wanted {
+            continue;
         }
+        if !fr.payload_crc_ok {
+            if n.is_some() {
+                return Err(Error::Format(format!(
+                    "frame {}: payload CRC mismatch",
+                    fr.meta.index
+                )));
+            }
+            continue;
+        }
+        let codes = fr.codes(rd.header())?;
+        return Ok(Extracted {
+            header: rd.header().clone(),
+            meta: fr.meta,
+            codes,
+        });
     }
-    Err(Error::Invalid(format!(
-        "frame {n} is not in the stream (or is damaged)"
-    )))
+    Err(Error::Invalid(match n {
+        Some(n) => format!("frame {n} is not in the stream (or is damaged)"),
+        None => "the stream holds no intact frame".into(),
+    }))
 }
