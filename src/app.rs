@@ -31,8 +31,28 @@ fn create_dir(dir: &Path) -> Result<()> {
 pub fn render_ideal_to_dir(cfg: &SceneConfig, dir: &Path) -> Result<RenderSummary> {
     let (sky, cam) = cfg.build()?; // validates everything before anything is written
     create_dir(dir)?;
+    let (summary, extra) = write_ideal(&sky, &cam, dir)?;
+    let derived = Derived {
+        sun: Some(sky.sun()),
+        extra,
+    };
+    let mut out = cfg.clone();
+    out.derived = Some(derived);
+    write_scene_json(dir, &out)?;
+    let mut summary = summary;
+    summary.files.push("scene.json".into());
+    Ok(summary)
+}
+
+/// Renders and writes the ideal images (everything of `psns render` but `scene.json`); returns
+/// what was written and the values `scene.json` records.
+fn write_ideal(
+    sky: &crate::sky::Sky,
+    cam: &crate::camera::Camera,
+    dir: &Path,
+) -> Result<(RenderSummary, serde_json::Map<String, serde_json::Value>)> {
     let t0 = Instant::now();
-    let ideal = render::render_ideal(&sky, &cam);
+    let ideal = render::render_ideal(sky, cam);
     let render_s = t0.elapsed().as_secs_f64();
     let mut files = Vec::new();
     let mut put = |name: &str| {
@@ -65,27 +85,29 @@ pub fn render_ideal_to_dir(cfg: &SceneConfig, dir: &Path) -> Result<RenderSummar
         &vis::aop_rgb(&ideal.aop_deg, Some(&ideal.valid)),
     )?;
     let valid = ideal.valid.data.iter().filter(|&&v| v != 0).count();
-    let mut out = cfg.clone();
-    let mut derived = Derived {
-        sun: Some(sky.sun()),
-        ..Default::default()
-    };
-    derived.extra.insert("kappa_8bit".into(), kappa8.into());
-    derived.extra.insert("sky_pixels".into(), valid.into());
-    derived.extra.insert(
+    let mut extra = serde_json::Map::new();
+    extra.insert("kappa_8bit".into(), kappa8.into());
+    extra.insert("sky_pixels".into(), valid.into());
+    extra.insert(
         "ground_pixels".into(),
         (ideal.valid.data.len() - valid).into(),
     );
-    out.derived = Some(derived);
-    let json = out.to_json();
-    io::write_atomic(&put("scene.json"), |w| {
+    Ok((
+        RenderSummary {
+            render_s,
+            kappa8,
+            files,
+        },
+        extra,
+    ))
+}
+
+/// Writes `scene.json` (atomically).
+fn write_scene_json(dir: &Path, scene: &SceneConfig) -> Result<()> {
+    let json = scene.to_json();
+    io::write_atomic(&dir.join("scene.json"), |w| {
         w.write_all(json.as_bytes())
             .map_err(|e| Error::io("writing scene.json", e))
-    })?;
-    Ok(RenderSummary {
-        render_s,
-        kappa8,
-        files,
     })
 }
 
@@ -370,24 +392,21 @@ pub fn render_raw_to_dir(cfg: &SceneConfig, dir: &Path) -> Result<RawSummary> {
     let t0 = Instant::now();
     let pipe = RawPipeline::new(cfg)?; // validates everything before anything is written
     let setup_s = t0.elapsed().as_secs_f64();
-    if cfg.raw.scene == SceneKind::Sky {
-        cfg.build()?;
-    }
-    let sun = cfg.sun.resolve()?;
+    // the ideal images need the sky and camera too: build (and so check) them before writing
+    let ideal_scene = match cfg.raw.scene {
+        SceneKind::Sky => Some(cfg.build()?),
+        SceneKind::Flat => None,
+    };
     let t1 = Instant::now();
-    let (stokes, info) = pipe.stokes(sun, &cfg.camera.attitude)?;
-    if cfg.raw.scene == SceneKind::Sky && !info.sky_valid {
-        crate::error::check_range("sun-zenith", sun.zenith_deg, 0.0, 90.0)?;
-    }
-    let scene_s = t1.elapsed().as_secs_f64();
-    let t2 = Instant::now();
-    let frame = pipe.frame(&stokes, cfg.raw.frame_index)?;
-    let sensor_s = t2.elapsed().as_secs_f64();
-    let mut files = if cfg.raw.scene == SceneKind::Sky {
-        render_ideal_to_dir(cfg, dir)?.files
-    } else {
-        create_dir(dir)?;
-        Vec::new()
+    let (frame, info, scene_s) = pipe.render_configured_timed()?;
+    let sensor_s = t1.elapsed().as_secs_f64() - scene_s;
+    create_dir(dir)?;
+    let (mut files, mut extra) = match &ideal_scene {
+        Some((sky, cam)) => {
+            let (s, x) = write_ideal(sky, cam, dir)?;
+            (s.files, x)
+        }
+        None => (Vec::new(), serde_json::Map::new()),
     };
     let mut put = |name: &str| {
         files.push(name.to_string());
@@ -437,11 +456,7 @@ pub fn render_raw_to_dir(cfg: &SceneConfig, dir: &Path) -> Result<RawSummary> {
     // scene.json: the whole configuration plus what this frame measured
     let mut out = cfg.clone();
     out.raw.sensor = Some(pipe.sensor_config().clone());
-    let mut derived = Derived {
-        sun: info.sun,
-        ..Default::default()
-    };
-    let x = &mut derived.extra;
+    let x = &mut extra;
     let layout = pipe.sensor_config().layout;
     let sat: serde_json::Map<String, serde_json::Value> = (0..4)
         .map(|k| {
@@ -461,18 +476,17 @@ pub fn render_raw_to_dir(cfg: &SceneConfig, dir: &Path) -> Result<RawSummary> {
     x.insert("black_level_dn".into(), frame.black_level_dn.into());
     x.insert("dn_per_electron".into(), frame.dn_per_electron.into());
     x.insert("sun_disc_pixels".into(), info.sun_pixels.into());
-    x.insert("ground_pixels".into(), info.ground_pixels.into());
+    // the ideal render counts ground exactly per pixel; keep its count when there is one
+    x.entry("ground_pixels")
+        .or_insert(info.ground_pixels.into());
     x.insert("scene_seconds".into(), scene_s.into());
     x.insert("sensor_seconds".into(), sensor_s.into());
-    out.derived = Some(derived);
-    let json = out.to_json();
-    io::write_atomic(&dir.join("scene.json"), |w| {
-        w.write_all(json.as_bytes())
-            .map_err(|e| Error::io("writing scene.json", e))
-    })?;
-    if !files.iter().any(|f| f == "scene.json") {
-        files.push("scene.json".into());
-    }
+    out.derived = Some(Derived {
+        sun: info.sun,
+        extra,
+    });
+    write_scene_json(dir, &out)?;
+    files.push("scene.json".into());
     Ok(RawSummary {
         scene_s,
         sensor_s,

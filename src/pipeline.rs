@@ -144,12 +144,20 @@ impl RawPipeline {
 
     /// The configured scene's frame `cfg.raw.frame_index` (sun and attitude from the config).
     pub fn render_configured(&self) -> Result<(RawFrame, SceneInfo)> {
+        self.render_configured_timed().map(|(f, i, _)| (f, i))
+    }
+
+    /// [`Self::render_configured`], also returning the seconds spent on the scene (the rest of
+    /// the call is the sensor).
+    pub fn render_configured_timed(&self) -> Result<(RawFrame, SceneInfo, f64)> {
         let sun = self.cfg.sun.resolve()?;
+        let t0 = std::time::Instant::now();
         let (st, info) = self.stokes(sun, &self.cfg.camera.attitude)?;
+        let scene_s = t0.elapsed().as_secs_f64();
         if self.cfg.raw.scene == SceneKind::Sky && !info.sky_valid {
             // a static render needs the sun up (sky.md §8)
             crate::error::check_range("sun-zenith", sun.zenith_deg, 0.0, 90.0)?;
         }
-        Ok((self.frame(&st, self.cfg.raw.frame_index)?, info))
+        Ok((self.frame(&st, self.cfg.raw.frame_index)?, info, scene_s))
     }
 }
