@@ -199,6 +199,21 @@ impl Default for Intrinsics {
 }
 
 impl Intrinsics {
+    /// The default optics (4 mm, 3.45 µm, centred principal point) with another sensor size, i.e. a
+    /// centred window of the default camera (smaller sizes see a smaller field).
+    ///
+    /// ```
+    /// let i = psns::camera::Intrinsics::with_size(64, 48);
+    /// assert_eq!((i.width, i.height, i.focal_length_mm), (64, 48, 4.0));
+    /// ```
+    pub fn with_size(width: usize, height: usize) -> Self {
+        Intrinsics {
+            width,
+            height,
+            ..Intrinsics::default()
+        }
+    }
+
     /// Checks that sizes, focal length and pitch are positive and finite.
     pub fn validate(&self) -> Result<()> {
         if self.width == 0 || self.width > 65_536 {

@@ -1,37 +1,12 @@
 //! End-to-end tests of the `psns` binary: outputs, bad input (exit code 2, nothing written),
 //! and the reference values of sky.md through `psns sky` and `psns sun`.
 
+mod common;
+
+use common::{psns, psns_stdin, stderr};
 use std::io::Write;
 use std::path::Path;
-use std::process::{Command, Output, Stdio};
-
-fn psns(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_psns"))
-        .args(args)
-        .output()
-        .expect("run psns")
-}
-
-fn psns_stdin(args: &[&str], input: &str) -> Output {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_psns"))
-        .args(args)
-        .stdin(Stdio::piped())
-        .stdout(Stdio::piped())
-        .stderr(Stdio::piped())
-        .spawn()
-        .unwrap();
-    child
-        .stdin
-        .take()
-        .unwrap()
-        .write_all(input.as_bytes())
-        .unwrap();
-    child.wait_with_output().unwrap()
-}
-
-fn stderr(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
+use std::process::{Command, Stdio};
 
 /// A small camera with the default field of view (pitch scaled up).
 const SMALL: [&str; 6] = ["--width", "96", "--height", "80", "--pixel-pitch", "88"];

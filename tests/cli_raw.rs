@@ -1,19 +1,10 @@
 //! `psns render --raw` end to end: files, ground truth identity with every non-ideality off,
 //! presets, flat field, and bad input (exit 2, nothing written).
 
+mod common;
+
+use common::{psns, stderr as err};
 use std::path::Path;
-use std::process::{Command, Output};
-
-fn psns(args: &[&str]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_psns"))
-        .args(args)
-        .output()
-        .unwrap()
-}
-
-fn err(o: &Output) -> String {
-    String::from_utf8_lossy(&o.stderr).into_owned()
-}
 
 /// A small camera with the default field of view and the real 3.45 µm pixels (focal length scaled
 /// down instead of pitch up), so each pixel collects what a full-size pixel would.

@@ -4,14 +4,6 @@ use psns::camera::Intrinsics;
 use psns::image::StokesImage;
 use psns::sensor::{flat_field, simulate, Exposure, Preset, Sensor, SensorConfig, Stages};
 
-fn intr(w: usize, h: usize) -> Intrinsics {
-    Intrinsics {
-        width: w,
-        height: h,
-        ..Default::default()
-    }
-}
-
 fn sky(w: usize, h: usize) -> StokesImage {
     let mut s = StokesImage::zeros(w, h);
     for r in 0..h {
@@ -36,7 +28,7 @@ fn shot_electrons(radiance: f64, exposure_us: f64, frame: u64) -> (Vec<f64>, f64
         shot: true,
         ..Stages::none()
     };
-    let s = Sensor::new(&cfg, &intr(w, h), 5).unwrap();
+    let s = Sensor::new(&cfg, &Intrinsics::with_size(w, h), 5).unwrap();
     let scene = flat_field(w, h, radiance, 0.0, 0.0).unwrap();
     let mean = s.electron_rate(&scene).unwrap()[0] * exposure_us * 1e-6;
     let f = s.frame(&scene, frame).unwrap();
@@ -45,7 +37,7 @@ fn shot_electrons(radiance: f64, exposure_us: f64, frame: u64) -> (Vec<f64>, f64
         .unwrap()
         .data
         .iter()
-        .map(|&v| (v as f64 / f.dn_per_electron))
+        .map(|&v| v as f64 / f.dn_per_electron)
         .collect();
     (e, mean)
 }
@@ -105,7 +97,7 @@ fn deterministic_across_threads_and_frames() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| simulate(&scene, &intr(w, h), &cfg, 77, frame).unwrap())
+            .install(|| simulate(&scene, &Intrinsics::with_size(w, h), &cfg, 77, frame).unwrap())
     };
     let a1 = run(1, 0);
     let a2 = run(2, 0);
@@ -123,9 +115,9 @@ fn deterministic_across_threads_and_frames() {
     assert!(differ > w * h / 2, "only {differ} pixels differ");
     assert_eq!(a1.truth, b.truth);
 
-    let s1 = Sensor::new(&cfg, &intr(w, h), 77).unwrap();
-    let s2 = Sensor::new(&cfg, &intr(w, h), 77).unwrap();
-    let s3 = Sensor::new(&cfg, &intr(w, h), 78).unwrap();
+    let s1 = Sensor::new(&cfg, &Intrinsics::with_size(w, h), 77).unwrap();
+    let s2 = Sensor::new(&cfg, &Intrinsics::with_size(w, h), 77).unwrap();
+    let s3 = Sensor::new(&cfg, &Intrinsics::with_size(w, h), 78).unwrap();
     assert_eq!(s1.prnu_map(), s2.prnu_map());
     assert_eq!(s1.dsnu_map(), s2.dsnu_map());
     assert_ne!(s1.prnu_map(), s3.prnu_map());
@@ -141,7 +133,7 @@ fn deterministic_across_threads_and_frames() {
         dark: false,
         ..Stages::default()
     };
-    let sp = Sensor::new(&fp, &intr(w, h), 77).unwrap();
+    let sp = Sensor::new(&fp, &Intrinsics::with_size(w, h), 77).unwrap();
     let f0 = sp.frame(&scene, 0).unwrap();
     let f5 = sp.frame(&scene, 5).unwrap();
     assert_eq!(f0.codes, f5.codes);
@@ -149,7 +141,7 @@ fn deterministic_across_threads_and_frames() {
     np.stages.prnu = false;
     np.stages.dsnu = false;
     np.stages.polarizer_orientation = false;
-    let g = simulate(&scene, &intr(w, h), &np, 77, 0).unwrap();
+    let g = simulate(&scene, &Intrinsics::with_size(w, h), &np, 77, 0).unwrap();
     assert_ne!(f0.codes, g.codes);
 }
 
@@ -180,7 +172,7 @@ fn sun_in_view_and_max_gain() {
                     cfg.exposure = exposure;
                     cfg.stages.fwc_clip = fwc;
                     cfg.stages.quantize = quant;
-                    let f = simulate(&scene, &intr(w, h), &cfg, 1, 2).unwrap();
+                    let f = simulate(&scene, &Intrinsics::with_size(w, h), &cfg, 1, 2).unwrap();
                     let max = (1u16 << bits) - 1;
                     assert!(f.codes.data.iter().all(|&v| v <= max));
                     assert_eq!(*f.codes.get(42, 62), max, "sun saturates");
@@ -206,7 +198,14 @@ fn psns_presets_with_sun() {
     *scene.s0.get_mut(10, 10) = 1.6e4;
     *scene.s0.get_mut(11, 11) = f32::NAN;
     for p in [Preset::Nfpi, Preset::Gniipi, Preset::Gniicpi] {
-        let f = simulate(&scene, &intr(w, h), &SensorConfig::preset(p), 1, 0).unwrap();
+        let f = simulate(
+            &scene,
+            &Intrinsics::with_size(w, h),
+            &SensorConfig::preset(p),
+            1,
+            0,
+        )
+        .unwrap();
         assert_eq!(*f.codes.get(10, 10), 255);
         assert!(f.codes.data.iter().all(|&v| v <= 255));
         assert!(f.truth.s0.data.iter().all(|v| v.is_finite()));
@@ -222,7 +221,7 @@ fn auto_exposure() {
     cfg.exposure = Exposure::auto();
     cfg.stages = Stages::ideal();
     let scene = sky(w, h);
-    let s = Sensor::new(&cfg, &intr(w, h), 0).unwrap();
+    let s = Sensor::new(&cfg, &Intrinsics::with_size(w, h), 0).unwrap();
     let f = s.frame(&scene, 0).unwrap();
     assert!(f.auto_exposed && !f.exposure_clipped);
     let line = 25.0 / 3.0;
@@ -251,7 +250,7 @@ fn auto_exposure() {
 /// Bad input: clear messages naming value and range.
 #[test]
 fn bad_input() {
-    let i = intr(64, 64);
+    let i = Intrinsics::with_size(64, 64);
     let scene = flat_field(64, 64, 0.1, 0.0, 0.0).unwrap();
     let err = |cfg: &SensorConfig| simulate(&scene, &i, cfg, 0, 0).unwrap_err().to_string();
     let mut c = SensorConfig::default();
@@ -273,7 +272,7 @@ fn bad_input() {
     let c = SensorConfig::default();
     let e = simulate(
         &flat_field(62, 64, 0.1, 0.0, 0.0).unwrap(),
-        &intr(62, 64),
+        &Intrinsics::with_size(62, 64),
         &c,
         0,
         0,
@@ -285,7 +284,7 @@ fn bad_input() {
         "width = 62 is out of range (allowed a non-zero multiple of 4)"
     );
     // scene and sensor of different sizes
-    let e = simulate(&scene, &intr(64, 32), &c, 0, 0).unwrap_err();
+    let e = simulate(&scene, &Intrinsics::with_size(64, 32), &c, 0, 0).unwrap_err();
     assert!(e.to_string().contains("64x64"), "{e}");
     let e = "fisheye".parse::<Preset>().unwrap_err();
     assert_eq!(
@@ -314,7 +313,7 @@ fn dark_current_with_temperature() {
     assert!((cfg.dark_current_at_temperature() - 160.0).abs() < 1e-9);
     let f = simulate(
         &flat_field(w, h, 0.0, 0.0, 0.0).unwrap(),
-        &intr(w, h),
+        &Intrinsics::with_size(w, h),
         &cfg,
         3,
         0,
@@ -336,7 +335,7 @@ fn dark_current_with_temperature() {
     cfg.stages.dark = false;
     let g = simulate(
         &flat_field(w, h, 0.0, 0.0, 0.0).unwrap(),
-        &intr(w, h),
+        &Intrinsics::with_size(w, h),
         &cfg,
         3,
         0,
@@ -357,7 +356,7 @@ fn digital_gain_missing_codes() {
         cfg.black_level_dn = 0.0;
         cfg.exposure = Exposure::Fixed { us: 60.0 };
         cfg.digital_gain_above_db = digital;
-        let f = simulate(&scene, &intr(w, h), &cfg, 8, 0).unwrap();
+        let f = simulate(&scene, &Intrinsics::with_size(w, h), &cfg, 8, 0).unwrap();
         let mut used = [false; 4096];
         for &v in &f.codes.data {
             used[v as usize] = true;

@@ -7,14 +7,6 @@ use psns::sensor::optics::RelativeIllumination;
 use psns::sensor::polarizer::diattenuation;
 use psns::sensor::{flat_field, simulate, Sensor, SensorConfig, Stages};
 
-fn intr(w: usize, h: usize) -> Intrinsics {
-    Intrinsics {
-        width: w,
-        height: h,
-        ..Default::default()
-    }
-}
-
 /// A smooth sky-like scene: S0 0.07..0.28, DoLP 0..0.6, AoLP sweeping the frame.
 fn sky(w: usize, h: usize) -> StokesImage {
     let mut s = StokesImage::zeros(w, h);
@@ -37,7 +29,7 @@ fn sky(w: usize, h: usize) -> StokesImage {
 #[test]
 fn flat_field_follows_partial_polarizer_law() {
     let (w, h) = (64, 64);
-    let i = intr(w, h);
+    let i = Intrinsics::with_size(w, h);
     let mut cfg = SensorConfig::default();
     cfg.black_level_dn = 10.0;
     cfg.stages = Stages {
@@ -98,7 +90,7 @@ fn electron_rate_anchor() {
         polarizer_er: true,
         ..Stages::none()
     };
-    let s = Sensor::new(&cfg, &intr(8, 8), 0).unwrap();
+    let s = Sensor::new(&cfg, &Intrinsics::with_size(8, 8), 0).unwrap();
     let rate = s
         .electron_rate(&flat_field(8, 8, 0.1, 0.0, 0.0).unwrap())
         .unwrap();
@@ -118,7 +110,7 @@ fn ideal_polarizer_superpixel_returns_input() {
             polarizer_er: er_on,
             ..Stages::none()
         };
-        let s = Sensor::new(&cfg, &intr(w, h), 1).unwrap();
+        let s = Sensor::new(&cfg, &Intrinsics::with_size(w, h), 1).unwrap();
         for step in 0..12 {
             let aolp = 15.0 * step as f64;
             let f = s
@@ -169,8 +161,9 @@ fn render_equals_truth_reading_rounded() {
     ] {
         cfg.ri = ri;
         let scene = sky(w, h);
-        let f = simulate(&scene, &intr(w, h), &cfg, 3, 0).unwrap();
-        let float = psns::sensor::simulate_float(&scene, &intr(w, h), &cfg).unwrap();
+        let f = simulate(&scene, &Intrinsics::with_size(w, h), &cfg, 3, 0).unwrap();
+        let float =
+            psns::sensor::simulate_float(&scene, &Intrinsics::with_size(w, h), &cfg).unwrap();
         let (mut exact, mut ties) = (0, 0);
         for r in 0..h {
             for c in 0..w {
@@ -210,7 +203,7 @@ fn other_layout() {
     cfg.stages = Stages::none();
     let f = simulate(
         &flat_field(w, h, 0.1, 1.0, 0.0).unwrap(),
-        &intr(w, h),
+        &Intrinsics::with_size(w, h),
         &cfg,
         0,
         0,
@@ -250,11 +243,11 @@ fn eight_bit_truth_units() {
     cfg.black_level_dn = 32.0;
     cfg.stages = Stages::ideal();
     cfg.exposure = psns::sensor::Exposure::Fixed { us: 500.0 };
-    let f = simulate(&sky(w, h), &intr(w, h), &cfg, 0, 0).unwrap();
+    let f = simulate(&sky(w, h), &Intrinsics::with_size(w, h), &cfg, 0, 0).unwrap();
     assert_eq!(f.black_level_dn, 2.0);
     let mut twelve = cfg.clone();
     twelve.bit_depth = 12;
-    let g = simulate(&sky(w, h), &intr(w, h), &twelve, 0, 0).unwrap();
+    let g = simulate(&sky(w, h), &Intrinsics::with_size(w, h), &twelve, 0, 0).unwrap();
     for k in 0..w * h {
         assert!((f.truth.s0.data[k] * 16.0 / g.truth.s0.data[k] - 1.0).abs() < 1e-6);
         let a = cfg.layout.angle_deg(k / w, k % w).to_radians();
@@ -286,7 +279,7 @@ fn crosstalk_lowers_dolp() {
         };
         let f = simulate(
             &flat_field(w, h, 0.1, 1.0, 0.0).unwrap(),
-            &intr(w, h),
+            &Intrinsics::with_size(w, h),
             &cfg,
             0,
             0,

@@ -4,14 +4,6 @@ use psns::camera::Intrinsics;
 use psns::image::StokesImage;
 use psns::sensor::{simulate, Preset, SensorConfig};
 
-fn intr(w: usize, h: usize) -> Intrinsics {
-    Intrinsics {
-        width: w,
-        height: h,
-        ..Default::default()
-    }
-}
-
 fn sky(w: usize, h: usize) -> StokesImage {
     let mut s = StokesImage::zeros(w, h);
     for r in 0..h {
@@ -61,7 +53,7 @@ fn nfpi_is_eq24_rounded_and_brightest_is_full_scale() {
         cfg.bit_depth = bits; // --bit-depth override
         let full = ((1u32 << bits) - 1) as f64;
         let k = kappa(&scene, full);
-        let f = simulate(&scene, &intr(w, h), &cfg, 9, 0).unwrap();
+        let f = simulate(&scene, &Intrinsics::with_size(w, h), &cfg, 9, 0).unwrap();
         assert_eq!(f.bit_depth, bits);
         let mut top = 0u16;
         for r in 0..h {
@@ -81,7 +73,7 @@ fn nfpi_is_eq24_rounded_and_brightest_is_full_scale() {
         // κ uses max ½(S0 + |S_lin|), which a pixel reaches only when its axis meets the AoLP
         assert!(top as f64 <= full && top as f64 > 0.95 * full, "{top}");
         let flat = psns::sensor::flat_field(w, h, 0.3, 0.4, 45.0).unwrap();
-        let g = simulate(&flat, &intr(w, h), &cfg, 9, 0).unwrap();
+        let g = simulate(&flat, &Intrinsics::with_size(w, h), &cfg, 9, 0).unwrap();
         assert_eq!(*g.codes.get(0, 1) as f64, full, "45° pixel at full scale");
         let low = (full * 0.6 / 1.4).round();
         assert_eq!(*g.codes.get(1, 0) as f64, low, "135° pixel");
@@ -93,10 +85,10 @@ fn gniipi_noise_and_falloff() {
     let (w, h) = (256, 256);
     let scene = sky(w, h);
     let cfg = SensorConfig::preset(Preset::Gniipi);
-    let f = simulate(&scene, &intr(w, h), &cfg, 4, 0).unwrap();
+    let f = simulate(&scene, &Intrinsics::with_size(w, h), &cfg, 4, 0).unwrap();
     let k = kappa(&scene, 255.0);
     // falloff: truth = κ · RI · S with the configured RI (cos^1.5 of the field angle)
-    let i = intr(w, h);
+    let i = Intrinsics::with_size(w, h);
     let mut res = Vec::new();
     for r in 0..h {
         for c in 0..w {
@@ -118,11 +110,13 @@ fn gniipi_noise_and_falloff() {
     assert!((sd / want - 1.0).abs() < 0.03, "noise sd {sd}");
     assert!(m.abs() < 0.1, "noise mean {m}");
     // different frames, different noise; same frame, same bytes
-    let g = simulate(&scene, &intr(w, h), &cfg, 4, 1).unwrap();
+    let g = simulate(&scene, &Intrinsics::with_size(w, h), &cfg, 4, 1).unwrap();
     assert_ne!(f.codes, g.codes);
     assert_eq!(
         f.codes,
-        simulate(&scene, &intr(w, h), &cfg, 4, 0).unwrap().codes
+        simulate(&scene, &Intrinsics::with_size(w, h), &cfg, 4, 0)
+            .unwrap()
+            .codes
     );
 }
 
@@ -132,7 +126,7 @@ fn gniicpi_clouds_are_full_scale_ellipses() {
     let scene = sky(w, h);
     let base = simulate(
         &scene,
-        &intr(w, h),
+        &Intrinsics::with_size(w, h),
         &SensorConfig::preset(Preset::Gniipi),
         4,
         0,
@@ -140,7 +134,7 @@ fn gniicpi_clouds_are_full_scale_ellipses() {
     .unwrap();
     let f = simulate(
         &scene,
-        &intr(w, h),
+        &Intrinsics::with_size(w, h),
         &SensorConfig::preset(Preset::Gniicpi),
         4,
         0,
