@@ -630,11 +630,6 @@ impl RawArgs {
             }
             s = serde_json::from_value(v)
                 .map_err(|e| psns::Error::Invalid(format!("sensor settings: {e}")))?;
-            if self.off.iter().any(|st| st.trim() == "ri") {
-                if let Some(p) = s.psns.as_mut() {
-                    p.relative_illumination = false; // the PSNS presets' own falloff switch
-                }
-            }
         }
         r.sensor = Some(s);
         Ok(())

@@ -160,3 +160,28 @@ fn gniicpi_clouds_are_full_scale_ellipses() {
     assert!(cloud > 0);
     assert_eq!(f.saturated.iter().sum::<u32>() as usize, full);
 }
+
+/// The `ri` stage switch applies to the PSNS presets too (`--off ri`), on top of their own
+/// falloff flag.
+#[test]
+fn ri_stage_switch_applies_to_psns_presets() {
+    let (w, h) = (64, 48);
+    let flat = psns::sensor::flat_field(w, h, 0.1, 0.0, 0.0).unwrap();
+    let i = Intrinsics {
+        focal_length_mm: 0.1,
+        ..Intrinsics::with_size(w, h)
+    };
+    let frame = |ri: bool| {
+        let mut c = SensorConfig::preset(Preset::Gniipi);
+        c.psns.as_mut().unwrap().noise_fraction = 0.0;
+        c.stages.ri = ri;
+        simulate(&flat, &i, &c, 1, 0).unwrap().codes
+    };
+    let (on, off) = (frame(true), frame(false));
+    let (centre, corner) = ((h / 2) * w + w / 2, 0);
+    assert!(
+        on.data[corner] < on.data[centre],
+        "falloff expected with ri on"
+    );
+    assert_eq!(off.data[corner], off.data[centre], "no falloff with ri off");
+}

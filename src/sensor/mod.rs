@@ -433,11 +433,8 @@ impl Sensor {
         let (w, h) = (intrinsics.width, intrinsics.height);
         cfg.validate(w, h)?;
         let st = &cfg.stages;
-        let psns_ri = cfg.psns.as_ref().map(|p| p.relative_illumination);
-        let want_ri = match psns_ri {
-            Some(r) => r,
-            None => st.ri,
-        };
+        // the stage switch always applies; a PSNS model also has its own falloff switch
+        let want_ri = st.ri && cfg.psns.as_ref().is_none_or(|p| p.relative_illumination);
         let ri = (want_ri && cfg.ri != RelativeIllumination::None).then(|| cfg.ri.map(intrinsics));
         let camera = cfg.psns.is_none();
         let axis =
