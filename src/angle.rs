@@ -110,3 +110,23 @@ pub fn wrap_pm90(deg: f64) -> f64 {
         a
     }
 }
+
+/// Unit view vector in ENU for zenith angle θ and compass azimuth A (degrees):
+/// v = (sin θ sin A, sin θ cos A, cos θ).
+///
+/// ```
+/// let v = psns::sky::direction(90.0, 0.0);
+/// assert!((v.y - 1.0).abs() < 1e-12); // north on the horizon
+/// ```
+pub fn direction(zenith_deg: f64, azimuth_deg: f64) -> glam::DVec3 {
+    let (st, ct) = zenith_deg.to_radians().sin_cos();
+    let (sa, ca) = azimuth_deg.to_radians().sin_cos();
+    glam::DVec3::new(st * sa, st * ca, ct)
+}
+
+/// Zenith angle and compass azimuth (degrees) of a unit ENU vector; azimuth in [0, 360).
+pub fn zenith_azimuth_deg(v: glam::DVec3) -> (f64, f64) {
+    let z = v.z.clamp(-1.0, 1.0).acos().to_degrees();
+    let a = CompassAzimuth::from_deg(v.x.atan2(v.y).to_degrees()).deg();
+    (z, a)
+}

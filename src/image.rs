@@ -88,3 +88,28 @@ impl StokesImage {
         self.s0.height
     }
 }
+
+/// A raw mosaic sample type. Bit depth does not matter: values are used as they are.
+pub trait RawPixel: Copy + Send + Sync + 'static {
+    /// The sample as f32 (exact for u8 and u16).
+    fn to_f32(self) -> f32;
+}
+
+impl RawPixel for u8 {
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        self as f32
+    }
+}
+impl RawPixel for u16 {
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        self as f32
+    }
+}
+impl RawPixel for f32 {
+    #[inline(always)]
+    fn to_f32(self) -> f32 {
+        self
+    }
+}

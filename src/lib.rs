@@ -14,26 +14,20 @@
 #![warn(missing_docs)]
 
 pub mod angle;
-pub mod app;
-pub mod bench;
 pub mod camera;
 pub mod config;
 pub mod demosaic;
 pub mod error;
-pub mod figures;
-pub mod figures_sensor;
-pub mod hil;
 pub mod image;
 pub mod io;
 pub mod pipeline;
 pub mod render;
-pub mod scenes;
+pub mod rng;
 pub mod sensor;
 pub mod sky;
 pub mod stokes;
 pub mod stream;
 pub mod sun;
 pub mod trajectory;
-pub mod vis;
 
 pub use error::{Error, Result};

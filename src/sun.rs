@@ -43,7 +43,7 @@ impl SunPosition {
     /// assert!((s.x - 1.0).abs() < 1e-12 && s.z.abs() < 1e-12);
     /// ```
     pub fn vector(&self) -> DVec3 {
-        crate::sky::direction(self.zenith_deg, self.azimuth_deg)
+        crate::angle::direction(self.zenith_deg, self.azimuth_deg)
     }
 }
 

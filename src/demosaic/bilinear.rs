@@ -16,7 +16,7 @@ use crate::image::{Image, StokesImage};
 use crate::sensor::mosaic::MosaicLayout;
 use rayon::prelude::*;
 
-/// A symmetric 1-D low-pass with a zero at Nyquist: taps h[0] (centre) … h[radius].
+/// A symmetric 1-D low-pass with a zero at Nyquist: taps `h[0]` (centre) … `h[radius]`.
 #[derive(Clone, Copy, Debug)]
 pub struct Kernel {
     /// Half-width (1 for bilinear, 3 for Keys cubic).

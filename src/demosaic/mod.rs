@@ -28,6 +28,7 @@ pub mod ppid;
 pub mod superpixel;
 
 use crate::error::{Error, Result};
+pub use crate::image::RawPixel;
 use crate::image::{Image, StokesImage};
 use crate::sensor::mosaic::MosaicLayout;
 use rayon::prelude::*;
@@ -35,31 +36,6 @@ use std::fmt;
 use std::str::FromStr;
 
 pub use superpixel::superpixel_half;
-
-/// A raw mosaic sample type. Bit depth does not matter: values are used as they are.
-pub trait RawPixel: Copy + Send + Sync + 'static {
-    /// The sample as f32 (exact for u8 and u16).
-    fn to_f32(self) -> f32;
-}
-
-impl RawPixel for u8 {
-    #[inline(always)]
-    fn to_f32(self) -> f32 {
-        self as f32
-    }
-}
-impl RawPixel for u16 {
-    #[inline(always)]
-    fn to_f32(self) -> f32 {
-        self as f32
-    }
-}
-impl RawPixel for f32 {
-    #[inline(always)]
-    fn to_f32(self) -> f32 {
-        self
-    }
-}
 
 /// Demosaic method.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
@@ -143,7 +119,8 @@ pub struct PolarImages {
 /// Smallest accepted mosaic side (the widest kernel reaches 4 pixels out).
 pub const MIN_SIDE: usize = 8;
 
-pub(crate) fn check_raw<T>(raw: &Image<T>) -> Result<()> {
+/// Checks that a mosaic is large enough to demosaic and that its buffer matches its size.
+pub fn check_raw<T>(raw: &Image<T>) -> Result<()> {
     if raw.width < MIN_SIDE || raw.height < MIN_SIDE {
         return Err(Error::Invalid(format!(
             "mosaic of {} x {} is too small for demosaicking (minimum {MIN_SIDE} x {MIN_SIDE})",

@@ -1,23 +1,9 @@
 //! Random streams, fixed-pattern maps and the sampling kernels of the electron-domain pipeline
 //! (`sensor.md` §6).
 //!
-//! All randomness derives from one `camera_seed: u64`. Every stream is a ChaCha8 generator
-//! (`rand_chacha`) whose 256-bit key is built directly from its coordinates, so each row of each
-//! map or noise stage has its own independent stream and a frame does not depend on how rows are
-//! spread over threads:
-//!
-//! | key bytes | content |
-//! |---|---|
-//! | 0..8   | camera seed, u64 LE |
-//! | 8..16  | frame index, u64 LE (0 for fixed-pattern maps) |
-//! | 16..20 | map id or stage id, u32 LE |
-//! | 20..24 | domain, u32 LE: 0 = fixed-pattern map, 1 = temporal noise, 2 = scene (clouds) |
-//! | 24..32 | row, u64 LE |
-//!
-//! This derivation is covered by a golden test; changing it changes every emulated camera.
+//! The seeded random streams themselves are in [`crate::rng`].
 
-use rand::{Rng, SeedableRng};
-use rand_chacha::ChaCha8Rng;
+use rand::Rng;
 use rand_distr::{Distribution, Poisson, StandardNormal};
 use rayon::prelude::*;
 
@@ -37,35 +23,7 @@ pub const STAGE_PSNS_NOISE: u32 = 3;
 /// Temporal stage id: PSNS ellipse clouds (one stream, row 0).
 pub const STAGE_PSNS_CLOUDS: u32 = 4;
 
-/// Domain tags of the key.
-const DOMAIN_MAP: u32 = 0;
-const DOMAIN_FRAME: u32 = 1;
-const DOMAIN_SCENE: u32 = 2;
-
-fn key(seed: u64, frame: u64, id: u32, domain: u32, row: u64) -> [u8; 32] {
-    let mut k = [0u8; 32];
-    k[0..8].copy_from_slice(&seed.to_le_bytes());
-    k[8..16].copy_from_slice(&frame.to_le_bytes());
-    k[16..20].copy_from_slice(&id.to_le_bytes());
-    k[20..24].copy_from_slice(&domain.to_le_bytes());
-    k[24..32].copy_from_slice(&row.to_le_bytes());
-    k
-}
-
-/// Stream of fixed-pattern map `map_id`, row `row`, of camera `seed`.
-pub fn map_rng(seed: u64, map_id: u32, row: u64) -> ChaCha8Rng {
-    ChaCha8Rng::from_seed(key(seed, 0, map_id, DOMAIN_MAP, row))
-}
-
-/// Stream of temporal stage `stage_id`, row `row`, of frame `frame_index` of camera `seed`.
-pub fn frame_rng(seed: u64, frame_index: u64, stage_id: u32, row: u64) -> ChaCha8Rng {
-    ChaCha8Rng::from_seed(key(seed, frame_index, stage_id, DOMAIN_FRAME, row))
-}
-
-/// Stream for seeded scene content (soft clouds), `id` distinguishing uses.
-pub fn scene_rng(seed: u64, id: u32) -> ChaCha8Rng {
-    ChaCha8Rng::from_seed(key(seed, 0, id, DOMAIN_SCENE, 0))
-}
+pub use crate::rng::{frame_rng, map_rng, scene_rng};
 
 /// A `width` x `height` map of `offset + sigma · N(0, 1)`, one stream per row.
 pub fn gaussian_map(
@@ -192,7 +150,7 @@ mod tests {
         assert_ne!(x, y);
         assert_eq!(x, map_rng(42, MAP_PRNU, 7).next_u64());
         assert_eq!(
-            key(0x0102030405060708, 9, 2, 1, 5)[..],
+            crate::rng::key(0x0102030405060708, 9, 2, 1, 5)[..],
             [
                 8, 7, 6, 5, 4, 3, 2, 1, 9, 0, 0, 0, 0, 0, 0, 0, 2, 0, 0, 0, 1, 0, 0, 0, 5, 0, 0, 0,
                 0, 0, 0, 0

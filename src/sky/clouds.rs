@@ -158,7 +158,7 @@ fn opacity(rho: f64, edge: f64) -> f64 {
 pub fn apply_soft_clouds(stokes: &mut StokesImage, p: &SoftClouds, seed: u64) -> Result<Vec<f32>> {
     p.validate()?;
     let (w, h) = (stokes.width(), stokes.height());
-    let mut rng = crate::sensor::noise::scene_rng(seed, 1);
+    let mut rng = crate::rng::scene_rng(seed, 1);
     let ellipses = draw_ellipses(w, h, &mut rng, p.count, p.min_axis_frac, p.max_axis_frac);
     let mut sky: Vec<f32> = stokes
         .s0
@@ -220,7 +220,7 @@ mod tests {
 
     #[test]
     fn psns_ellipse_counts_and_sizes() {
-        let mut rng = crate::sensor::noise::frame_rng(3, 0, 4, 0);
+        let mut rng = crate::rng::frame_rng(3, 0, 4, 0);
         for _ in 0..50 {
             let e = psns_ellipses(400, 300, &mut rng);
             assert!((3..=8).contains(&e.len()));

@@ -138,25 +138,7 @@ impl SkySample {
     };
 }
 
-/// Unit view vector in ENU for zenith angle θ and compass azimuth A (degrees):
-/// v = (sin θ sin A, sin θ cos A, cos θ).
-///
-/// ```
-/// let v = psns::sky::direction(90.0, 0.0);
-/// assert!((v.y - 1.0).abs() < 1e-12); // north on the horizon
-/// ```
-pub fn direction(zenith_deg: f64, azimuth_deg: f64) -> DVec3 {
-    let (st, ct) = zenith_deg.to_radians().sin_cos();
-    let (sa, ca) = azimuth_deg.to_radians().sin_cos();
-    DVec3::new(st * sa, st * ca, ct)
-}
-
-/// Zenith angle and compass azimuth (degrees) of a unit ENU vector; azimuth in [0, 360).
-pub fn zenith_azimuth_deg(v: DVec3) -> (f64, f64) {
-    let z = v.z.clamp(-1.0, 1.0).acos().to_degrees();
-    let a = crate::angle::CompassAzimuth::from_deg(v.x.atan2(v.y).to_degrees()).deg();
-    (z, a)
-}
+pub use crate::angle::{direction, zenith_azimuth_deg};
 
 /// The polarization half of the sky (`sky.md` §4–§6), cooked for one scene: DOP and E-vector
 /// in any direction above the horizon, no radiance. [`Sky`] adds Hosek–Wilkie radiance to it.

@@ -20,25 +20,93 @@
 //! Concurrency: a render thread turns pose k+1 into a packed payload while the calling thread
 //! writes frame k (`sync_channel(1)`); the order and bytes do not depend on the timing.
 
-use crate::camera::camera_to_enu_quaternion;
-use crate::config::SceneConfig;
-use crate::error::{Error, Result};
-use crate::pipeline::RawPipeline;
-use crate::sensor::packing::{self, PixelFormat};
-use crate::sensor::Exposure;
-use crate::stream::{
+use super::args::{finite, RawArgs, SceneArgs};
+use chrono::{DateTime, Utc};
+use glam::DMat3;
+use psns::camera::camera_to_enu_quaternion;
+use psns::config::SceneConfig;
+use psns::error::{Error, Result};
+use psns::pipeline::RawPipeline;
+use psns::sensor::packing::{self, PixelFormat};
+use psns::sensor::Exposure;
+use psns::stream::{
     CameraConstants, FileHeader, FileStreamWriter, FrameMeta, StreamWriter, FLAG_AUTO_EXPOSURE,
     FLAG_EXPOSURE_CLIPPED, FLAG_GROUND_IN_VIEW, FLAG_LAST, FLAG_SATURATION, FLAG_SKY_INVALID,
     FLAG_SUN_IN_VIEW, JSON_MAX,
 };
-use crate::sun::{self, Place, SunPosition};
-use crate::trajectory::{turning, CsvTrajectory, Pose};
-use chrono::{DateTime, Utc};
-use glam::DMat3;
+use psns::sun::{self, Place, SunPosition};
+use psns::trajectory::{turning, CsvTrajectory, Pose};
 use std::io::{BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{sync_channel, Receiver};
 use std::time::{Duration, Instant};
+
+/// Options of `psns stream`.
+#[derive(clap::Args)]
+pub struct StreamArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    raw: RawArgs,
+    /// Trajectory CSV (t_s, yaw_deg,pitch_deg,roll_deg or qw,qx,qy,qz [, lat_deg,lon_deg,height_m]); - for stdin. Default: built-in turning camera.
+    #[arg(long, value_name = "PATH|-")]
+    trajectory: Option<PathBuf>,
+    /// Output file, FIFO, or - for stdout.
+    #[arg(long, default_value = "-", value_name = "PATH|-")]
+    out: PathBuf,
+    /// Stop after N frames.
+    #[arg(long, value_name = "N")]
+    frames: Option<u64>,
+    /// Pace output in real time at FPS against the trajectory clock (default: unpaced).
+    #[arg(long, value_parser = finite, value_name = "FPS")]
+    rate: Option<f64>,
+    /// Time zero of the trajectory, ISO 8601 UTC.
+    #[arg(long, value_name = "TIME")]
+    start_time: Option<String>,
+    /// Built-in trajectory: yaw rate, degrees per second.
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, default_value_t = 10.0)]
+    yaw_rate: f64,
+    /// Built-in trajectory: frame interval, ms.
+    #[arg(long, value_parser = finite, default_value_t = 50.0)]
+    frame_interval_ms: f64,
+    /// Stamp the host monotonic clock into frame headers (output no longer byte-identical).
+    #[arg(long)]
+    stamp_host_time: bool,
+}
+
+/// Runs `psns stream`.
+pub fn run(a: StreamArgs) -> anyhow::Result<()> {
+    let mut cfg = a.scene.scene()?;
+    a.raw.apply(&mut cfg)?;
+    let opts = StreamOptions {
+        trajectory: a.trajectory,
+        out: a.out,
+        frames: a.frames,
+        rate_fps: a.rate,
+        start_time: a.start_time,
+        yaw_rate_deg_s: a.yaw_rate,
+        frame_interval_ms: a.frame_interval_ms,
+        stamp_host_time: a.stamp_host_time,
+    };
+    let s = run_stream(&cfg, &opts)?;
+    eprintln!(
+        "streamed {} frames in {:.2} s ({:.2} fps){}{}",
+        s.frames,
+        s.seconds,
+        s.frames as f64 / s.seconds.max(1e-9),
+        if s.late_frames > 0 {
+            format!(", {} late", s.late_frames)
+        } else {
+            String::new()
+        },
+        if s.reader_closed {
+            ", reader closed the stream"
+        } else {
+            ""
+        }
+    );
+    Ok(())
+}
 
 /// Trajectory start time when neither `--start-time` nor the scene's `sun.time` gives one.
 pub const DEFAULT_START_TIME: &str = "2025-06-21T10:00:00Z";
@@ -235,7 +303,7 @@ impl FrameMaker {
 }
 
 /// The sun's centre projects inside the image (and the sun is above the horizon).
-fn sun_in_view(intr: &crate::camera::Intrinsics, sun_c: glam::DVec3, elevation_deg: f64) -> bool {
+fn sun_in_view(intr: &psns::camera::Intrinsics, sun_c: glam::DVec3, elevation_deg: f64) -> bool {
     if elevation_deg < 0.0 {
         return false;
     }
@@ -250,7 +318,7 @@ fn sun_in_view(intr: &crate::camera::Intrinsics, sun_c: glam::DVec3, elevation_d
 
 /// Some pixel looks below the horizon. The up component of a ray is linear over the image plane,
 /// so its minimum over the image is at a corner.
-fn ground_in_view(intr: &crate::camera::Intrinsics, enu_to_camera: &DMat3) -> bool {
+fn ground_in_view(intr: &psns::camera::Intrinsics, enu_to_camera: &DMat3) -> bool {
     let cam_to_enu = enu_to_camera.transpose();
     let (w, h) = (intr.width as f64 - 0.5, intr.height as f64 - 0.5);
     [(-0.5, -0.5), (w, -0.5), (-0.5, h), (w, h)]
@@ -407,8 +475,8 @@ struct Trajectory {
 fn open_trajectory(opts: &StreamOptions) -> Result<Trajectory> {
     match &opts.trajectory {
         None => {
-            crate::error::check_range("frame-interval-ms", opts.frame_interval_ms, 1e-3, 3.6e6)?;
-            crate::error::check_range("yaw-rate", opts.yaw_rate_deg_s, -1e6, 1e6)?;
+            psns::error::check_range("frame-interval-ms", opts.frame_interval_ms, 1e-3, 3.6e6)?;
+            psns::error::check_range("yaw-rate", opts.yaw_rate_deg_s, -1e6, 1e6)?;
             Ok(Trajectory {
                 poses: Box::new(turning(opts.yaw_rate_deg_s, opts.frame_interval_ms * 1e-3)),
                 lookahead: false,
@@ -444,7 +512,7 @@ fn open_trajectory(opts: &StreamOptions) -> Result<Trajectory> {
 /// returns the line's [`Error::Invalid`]; a closed reader returns `Ok` with `reader_closed`.
 pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSummary> {
     if let Some(r) = opts.rate_fps {
-        crate::error::check_range("rate", r, 1e-6, 1e6)?;
+        psns::error::check_range("rate", r, 1e-6, 1e6)?;
     }
     let start_s = opts
         .start_time
@@ -636,7 +704,7 @@ fn write_loop(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::camera::{Attitude, Intrinsics};
+    use psns::camera::{Attitude, Intrinsics};
 
     #[test]
     fn ground_in_view_by_corners() {

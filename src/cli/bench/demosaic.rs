@@ -1,5 +1,5 @@
 //! `psns demosaic` and `psns bench demosaic`: demosaic files and streams, score every method on
-//! the named scenes of [`crate::scenes`] against the emulator's ground truth, chart speed against
+//! the named scenes of [`crate::cli::bench::scenes`] against the emulator's ground truth, chart speed against
 //! accuracy, and map where each method fails.
 //!
 //! Scoring (spec `demosaic.md` §2): the estimate is the demosaic of (codes − black level); the
@@ -18,16 +18,17 @@
 //! shot and read noise only and measures the mean DoLP at p = 0 (theory 0.886/√N) and the AoLP
 //! spread at p > 0 (theory 20.3°/(p√N)).
 
-use crate::angle::SensorAngle;
-use crate::demosaic::{full_chain, full_chain_into, Method, PolarImages, RawPixel};
-use crate::error::{Error, Result};
-use crate::image::{Image, StokesImage};
-use crate::scenes::{self, Scene, SceneFrame};
-use crate::sensor::mosaic::MosaicLayout;
-use crate::sensor::{self, Exposure, RawFrame, Sensor, SensorConfig, Stages};
-use crate::{io, vis};
+use crate::cli::bench::scenes::{self, Scene, SceneFrame};
+use crate::cli::demosaic::demosaic_codes;
+use crate::cli::{create_dir, vis, write_text};
+use psns::angle::SensorAngle;
+use psns::demosaic::{full_chain, full_chain_into, Method, PolarImages, RawPixel};
+use psns::error::{Error, Result};
+use psns::image::{Image, StokesImage};
+use psns::io;
+use psns::sensor::mosaic::MosaicLayout;
+use psns::sensor::{self, Exposure, RawFrame, Sensor, SensorConfig, Stages};
 use rayon::prelude::*;
-use std::io::Write;
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
@@ -41,195 +42,13 @@ pub const SAT_RADIUS: usize = 3;
 /// Largest file the benchmark may write into docs/, bytes.
 pub const MAX_FILE_BYTES: usize = 300_000;
 
-/// Options of `psns demosaic`.
-#[derive(Clone, Debug, PartialEq)]
-pub struct DemosaicOptions {
-    /// Raw PNG/TIFF (mosaic codes) or a psns frame stream.
-    pub input: PathBuf,
-    /// Method.
-    pub method: Method,
-    /// Output directory.
-    pub out: PathBuf,
-    /// Frame index when the input is a stream (default: the first intact frame).
-    pub frame: Option<u64>,
-    /// Mosaic layout of the input (default IMX250MZR `90,45/135,0`; a stream's header wins).
-    pub layout: MosaicLayout,
-    /// Also write `dolp_debiased.npy`, √max(0, S1² + S2² − 2σ²)/S0 with this σ of S1 and S2 in
-    /// DN (the Rice bias correction of `demosaic.md` §4).
-    pub debias_sigma: Option<f64>,
-}
-
-/// A raw mosaic loaded from a file or a stream.
-#[derive(Clone, Debug)]
-pub struct LoadedRaw {
-    /// Codes.
-    pub codes: Image<u16>,
-    /// Layout (the stream's header, else the caller's).
-    pub layout: MosaicLayout,
-    /// Black level in code units (stream metadata; 0 for PNG/TIFF).
-    pub black_level: f64,
-    /// Significant bits (stream header; 8 or 16 for PNG/TIFF).
-    pub bits: u8,
-    /// Frame index for stream input.
-    pub frame: Option<u64>,
-}
-
-fn create_dir(dir: &Path) -> Result<()> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(format!("creating {}", dir.display()), e))
-}
-
-fn write_text(path: &Path, text: &str) -> Result<()> {
-    io::write_atomic(path, |w| {
-        w.write_all(text.as_bytes())
-            .map_err(|e| Error::io(format!("writing {}", path.display()), e))
-    })
-}
-
-/// Reads a raw PNG/TIFF or a psns frame stream (recognised by its magic bytes).
-pub fn load_raw(input: &Path, layout: MosaicLayout, frame: Option<u64>) -> Result<LoadedRaw> {
-    let mut head = [0u8; 8];
-    {
-        use std::io::Read;
-        let mut f = std::fs::File::open(input)
-            .map_err(|e| Error::io(format!("opening {}", input.display()), e))?;
-        let n = f
-            .read(&mut head)
-            .map_err(|e| Error::io(format!("reading {}", input.display()), e))?;
-        if n < 8 {
-            return Err(Error::Format(format!(
-                "{}: too short for a raw image or stream",
-                input.display()
-            )));
-        }
-    }
-    if head == crate::stream::FILE_MAGIC {
-        return load_stream(input, frame);
-    }
-    let g = if head.starts_with(b"\x89PNG") {
-        io::read_png_gray(input)?
-    } else if head.starts_with(b"II*\0") || head.starts_with(b"MM\0*") {
-        io::read_tiff_gray(input)?
-    } else {
-        return Err(Error::Format(format!(
-            "{}: not a PNG, TIFF or psns stream",
-            input.display()
-        )));
-    };
-    if frame.is_some() {
-        return Err(Error::Invalid(
-            "--frame applies to stream input only".into(),
-        ));
-    }
-    Ok(LoadedRaw {
-        codes: g.image,
-        layout,
-        black_level: 0.0,
-        bits: g.bits,
-        frame: None,
-    })
-}
-
-fn load_stream(input: &Path, frame: Option<u64>) -> Result<LoadedRaw> {
-    let ex = crate::stream::find_frame(crate::app::open_input(input)?, frame)?;
-    let h = &ex.header;
-    // the black level is in DN of the payload; MSB-aligned payloads are unpacked to LSB
-    let black = if h.msb_aligned {
-        ex.meta.black_level / 2f64.powi(16 - h.bits_valid as i32)
-    } else {
-        ex.meta.black_level
-    };
-    Ok(LoadedRaw {
-        codes: Image::from_vec(h.width as usize, h.height as usize, ex.codes),
-        layout: h.layout,
-        black_level: black,
-        bits: h.bits_valid,
-        frame: Some(ex.meta.index),
-    })
-}
-
-/// Demosaics codes minus a black level (u16 directly when the black level is 0).
-pub fn demosaic_codes(
-    codes: &Image<u16>,
-    black_level: f64,
-    layout: MosaicLayout,
-    method: Method,
-) -> Result<PolarImages> {
-    if black_level == 0.0 {
-        full_chain(codes, layout, method)
-    } else {
-        let b = black_level as f32;
-        let f = Image::from_vec(
-            codes.width,
-            codes.height,
-            codes.data.par_iter().map(|&v| v as f32 - b).collect(),
-        );
-        full_chain(&f, layout, method)
-    }
-}
-
-/// `psns demosaic`: writes s0/s1/s2/dolp/aolp `.npy` plus visualisations; returns the files.
-///
-/// Visualisations: `s0.png` (grey, 99.9 % quantile white), `dolp.png` (viridis over [0, 1]),
-/// `aolp.png` (cyclic hue), `aolp_dolp.png` (AoLP as hue, DoLP as brightness, full at 0.5);
-/// `demosaic.json` records the input, method, layout, black level and time.
-pub fn demosaic_to_dir(opts: &DemosaicOptions) -> Result<Vec<String>> {
-    let raw = load_raw(&opts.input, opts.layout, opts.frame)?;
-    crate::demosaic::check_raw(&raw.codes)?;
-    let t0 = Instant::now();
-    let p = demosaic_codes(&raw.codes, raw.black_level, raw.layout, opts.method)?;
-    let ms = t0.elapsed().as_secs_f64() * 1e3;
-    create_dir(&opts.out)?;
-    let mut files = Vec::new();
-    let mut put = |name: &str| {
-        let p = opts.out.join(name);
-        files.push(p.display().to_string());
-        p
-    };
-    io::write_npy(&put("s0.npy"), &p.stokes.s0)?;
-    io::write_npy(&put("s1.npy"), &p.stokes.s1)?;
-    io::write_npy(&put("s2.npy"), &p.stokes.s2)?;
-    io::write_npy(&put("dolp.npy"), &p.dolp)?;
-    io::write_npy(&put("aolp.npy"), &p.aolp_deg)?;
-    if let Some(sigma) = opts.debias_sigma {
-        crate::error::check_range("dolp-debias", sigma, 0.0, 1e6)?;
-        let d = crate::stokes::debiased_dolp_image(&p.stokes, sigma as f32);
-        io::write_npy(&put("dolp_debiased.npy"), &d)?;
-    }
-    let white = vis::quantile(&p.stokes.s0, 0.999);
-    io::write_png_gray8(&put("s0.png"), &vis::gray8(&p.stokes.s0, white))?;
-    io::write_png_rgb8(&put("dolp.png"), &vis::dop_rgb(&p.dolp, None))?;
-    io::write_png_rgb8(&put("aolp.png"), &vis::aop_rgb(&p.aolp_deg, None))?;
-    io::write_png_rgb8(
-        &put("aolp_dolp.png"),
-        &vis::aolp_dolp_rgb(&p.aolp_deg, &p.dolp, 0.5),
-    )?;
-    let meta = serde_json::json!({
-        "input": opts.input.display().to_string(),
-        "frame": raw.frame,
-        "method": opts.method.name(),
-        "layout": raw.layout.to_string(),
-        "width": raw.codes.width,
-        "height": raw.codes.height,
-        "bits": raw.bits,
-        "black_level": raw.black_level,
-        "aolp_units": "degrees, [0, 180), from +x (columns) toward +y (rows, down)",
-        "demosaic_ms": ms,
-        "dolp_debias_sigma_dn": opts.debias_sigma,
-    });
-    write_text(
-        &put("demosaic.json"),
-        &serde_json::to_string_pretty(&meta).expect("json"),
-    )?;
-    Ok(files)
-}
-
 /// Lowest code counted as saturated at `bit_depth`: the top code minus 4 DN at 12 bit, scaled
 /// to the depth and rounded (8 bit: the top code only; 16 bit: top − 64). The sensor counts a
 /// pixel whose well is full as saturated although read noise and DSNU make it read a few DN
 /// below the top code ([`RawFrame::saturated`]); `RawFrame` has no per-pixel map, so the
 /// benchmark seeds its mask from this threshold.
 pub fn saturation_threshold(bit_depth: u8) -> u16 {
-    let max = crate::sensor::adc::max_code(bit_depth);
+    let max = psns::sensor::adc::max_code(bit_depth);
     let margin = (4.0 * max as f64 / 4095.0).round() as u16;
     max - margin.min(max)
 }
@@ -261,7 +80,7 @@ pub fn saturation_mask(codes: &Image<u16>, max: u16, radius: usize) -> Vec<bool>
     out
 }
 
-/// Scores like [`crate::stokes::score`], skipping pixels where `exclude` is true (every score,
+/// Scores like [`psns::stokes::score`], skipping pixels where `exclude` is true (every score,
 /// including the S0 PSNR and the pixel counts), with the estimated DoLP clipped to ≤ 1: where a
 /// kernel rings to S0 ≈ 0 in a dark region the raw ratio reaches 10³ and a handful of pixels
 /// would own the RMSE (they are counted separately by [`score_scene`]).
@@ -272,8 +91,8 @@ pub fn score_masked(
     dolp_threshold: f64,
     border: usize,
     exclude: Option<&[bool]>,
-) -> Result<crate::stokes::Scores> {
-    crate::stokes::score_with(est, truth, peak, dolp_threshold, border, exclude, true)
+) -> Result<psns::stokes::Scores> {
+    psns::stokes::score_with(est, truth, peak, dolp_threshold, border, exclude, true)
 }
 
 fn median(v: &mut [f64]) -> f64 {
@@ -350,7 +169,7 @@ pub struct BenchRow {
     /// Median ms per full chain with fresh output allocation.
     pub ms_per_frame_fresh: f64,
     /// Scores with saturated neighbourhoods excluded.
-    pub scores: crate::stokes::Scores,
+    pub scores: psns::stokes::Scores,
     /// AoLP RMSE over every pixel with true DoLP above the threshold, saturated ones included.
     pub aolp_rmse_all_deg: f64,
     /// Pixels excluded as saturated (inside the border).
@@ -391,7 +210,7 @@ impl BenchRow {
 #[derive(Clone, Debug)]
 pub struct SceneScore {
     /// Scores with saturated neighbourhoods excluded.
-    pub scores: crate::stokes::Scores,
+    pub scores: psns::stokes::Scores,
     /// AoLP RMSE with them.
     pub aolp_rmse_all_deg: f64,
     /// Pixels excluded as saturated (inside the border).
@@ -646,7 +465,7 @@ pub fn noise_sweep(
     let per_radiance = rate[0] * 1e-3; // electrons per pixel per unit radiance at 1000 µs
     let mut rows = Vec::new();
     for (k, &n) in electrons.iter().enumerate() {
-        crate::error::check_range("electrons", n, 1.0, 1e5)?;
+        psns::error::check_range("electrons", n, 1.0, 1e5)?;
         let st = sensor::flat_field(size, size, n / per_radiance, dolp, SWEEP_AOLP_DEG)?;
         let fr = sensor.frame(&st, k as u64)?;
         let analog = fr

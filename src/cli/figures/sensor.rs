@@ -7,15 +7,15 @@
 //! so single pixels stay visible. The photon-transfer numbers are written next to the pictures as
 //! `sensor_numbers.json` so the documentation quotes measured values.
 
-use crate::camera::{Attitude, Camera};
-use crate::config::SceneConfig;
-use crate::error::{Error, Result};
-use crate::image::Image;
-use crate::io;
-use crate::pipeline::RawPipeline;
-use crate::sensor::emva::{pair_stats, photon_transfer, PairStats, PhotonTransfer};
-use crate::sensor::{flat_field, Exposure, Preset, RawFrame, Sensor, SensorConfig};
-use crate::vis;
+use crate::cli::vis;
+use psns::camera::{Attitude, Camera};
+use psns::config::SceneConfig;
+use psns::error::{Error, Result};
+use psns::image::Image;
+use psns::io;
+use psns::pipeline::RawPipeline;
+use psns::sensor::emva::{pair_stats, photon_transfer, PairStats, PhotonTransfer};
+use psns::sensor::{flat_field, Exposure, Preset, RawFrame, Sensor, SensorConfig};
 use std::path::Path;
 
 /// One exposure level of the photon-transfer measurement.
@@ -29,6 +29,7 @@ pub struct PtcLevel {
 
 /// Flat-field photon-transfer data of the emulated camera and its EMVA 1288 evaluation.
 #[derive(Clone, Debug)]
+#[allow(dead_code)] // a complete record of the measurement; the chart reads only some fields
 pub struct PtcData {
     /// Sensor configuration measured (exposure replaced per level).
     pub config: SensorConfig,
@@ -88,7 +89,7 @@ pub fn photon_transfer_data(
     if pairs == 0 {
         return Err(Error::range("pairs", 0.0, "1 or more"));
     }
-    let intr = crate::camera::Intrinsics {
+    let intr = psns::camera::Intrinsics {
         width,
         height,
         ..Default::default()
@@ -106,13 +107,10 @@ pub fn photon_transfer_data(
         ));
     }
     let t_sat_us = 1e6 * cfg.full_well_e / electron_rate;
-    let measure = |scene: &crate::image::StokesImage, t_us: f64, block: u64| -> Result<PairStats> {
+    let measure = |scene: &psns::image::StokesImage, t_us: f64, block: u64| -> Result<PairStats> {
         let mut c = cfg.clone();
         c.exposure = Exposure::Fixed {
-            us: t_us.clamp(
-                crate::sensor::MIN_EXPOSURE_US,
-                crate::sensor::MAX_EXPOSURE_US,
-            ),
+            us: t_us.clamp(psns::sensor::MIN_EXPOSURE_US, psns::sensor::MAX_EXPOSURE_US),
         };
         let s = Sensor::new(&c, &intr, seed)?;
         let (mut mean, mut var) = (0.0, 0.0);
@@ -127,16 +125,12 @@ pub fn photon_transfer_data(
         Ok(PairStats { mean, var })
     };
     let fractions = ptc_fractions();
-    let dark_stats = measure(
-        &dark,
-        crate::sensor::MIN_EXPOSURE_US,
-        fractions.len() as u64,
-    )?;
+    let dark_stats = measure(&dark, psns::sensor::MIN_EXPOSURE_US, fractions.len() as u64)?;
     let levels = fractions
         .iter()
         .enumerate()
         .map(|(i, &f)| {
-            let t = (f * t_sat_us).max(crate::sensor::MIN_EXPOSURE_US);
+            let t = (f * t_sat_us).max(psns::sensor::MIN_EXPOSURE_US);
             Ok(PtcLevel {
                 exposure_us: t,
                 stats: measure(&light, t, i as u64)?,
@@ -290,8 +284,8 @@ fn draw_ptc(d: &PtcData, svg: &mut String) -> std::result::Result<(), Box<dyn st
 
     // 3. linearity: mean vs exposure, with the configured noise-free prediction
     let tmax = pts.iter().map(|p| p.2).fold(0.0, f64::max) * 1.05 / 1000.0;
-    let kcfg = crate::sensor::adc::system_gain(d.config.k0, d.config.gain_db)
-        * crate::sensor::adc::output_scale(d.config.bit_depth);
+    let kcfg = psns::sensor::adc::system_gain(d.config.k0, d.config.gain_db)
+        * psns::sensor::adc::output_scale(d.config.bit_depth);
     let ymax = xmax;
     let mut ch = ChartBuilder::on(&panels[2])
         .caption("linearity", font)
@@ -429,7 +423,7 @@ fn rgb_to_gray(img: &Image<[u8; 3]>) -> Image<u8> {
 /// and the DoLP of the mean ground truth over the same superpixel.
 fn superpixel_dolp(
     frame: &RawFrame,
-    layout: &crate::sensor::mosaic::MosaicLayout,
+    layout: &psns::sensor::mosaic::MosaicLayout,
 ) -> [Image<f32>; 2] {
     let (w, h) = (frame.codes.width / 2, frame.codes.height / 2);
     let pos: Vec<(usize, usize)> = (0..4).map(|c| layout.position_of(c)).collect();
@@ -494,7 +488,7 @@ pub fn sensor_figures(dir: &Path) -> Result<Vec<String>> {
     let layout = pipe.sensor_config().layout;
     let (frame, _) = pipe.render_configured()?;
     let bits = frame.bit_depth;
-    let max = crate::sensor::adc::max_code(bits);
+    let max = psns::sensor::adc::max_code(bits);
     let gray = codes_gray(&frame.codes, bits);
     let small = vis::downsample(&gray, 4);
     io::write_png_gray8(&put("raw_frame.png"), &vis::gray8(&small, 255.0))?;

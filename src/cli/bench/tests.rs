@@ -1,13 +1,14 @@
 //! `psns demosaic` and `psns bench demosaic` end to end (quick mode), the scoring helpers, and
 //! the spec §4 noise laws for the superpixel estimator.
 
-use psns::bench::{
-    bench_demosaic, demosaic_to_dir, noise_sweep, saturation_mask, saturation_threshold,
-    score_masked, BenchOptions, DemosaicOptions, CSV_HEADER, MAX_FILE_BYTES,
+use super::demosaic::{
+    bench_demosaic, noise_sweep, saturation_mask, saturation_threshold, score_masked, BenchOptions,
+    CSV_HEADER, MAX_FILE_BYTES,
 };
+use super::scenes::{self, Scene};
+use crate::cli::demosaic::{demosaic_to_dir, DemosaicOptions};
 use psns::demosaic::{full_chain, Method};
 use psns::image::{Image, StokesImage};
-use psns::scenes::{self, Scene};
 use psns::sensor::mosaic::MosaicLayout;
 use std::collections::HashMap;
 

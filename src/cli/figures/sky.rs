@@ -5,10 +5,10 @@
 //! east right, zenith at the centre, the horizon on the circle. The AOP panel shows the chart AOP χ
 //! (angle of the E-vector from north toward east) as a cyclic hue.
 
-use crate::image::Image;
-use crate::sky::{aop_chart_deg, direction, Sky, SkyParams};
-use crate::sun::SunPosition;
-use crate::vis;
+use crate::cli::vis;
+use psns::image::Image;
+use psns::sky::{aop_chart_deg, direction, Sky, SkyParams};
+use psns::sun::SunPosition;
 use rayon::prelude::*;
 
 /// LI (grey, scaled to its 99.5th percentile), DOP (viridis 0..1) and AOP χ (hue) all-sky maps of
@@ -73,11 +73,11 @@ pub fn sky_sweep(
     params: &SkyParams,
     suns: &[SunPosition],
     size: usize,
-) -> crate::Result<Image<[u8; 3]>> {
+) -> psns::Result<Image<[u8; 3]>> {
     let rows: Vec<Image<[u8; 3]>> = suns
         .iter()
         .map(|&s| Ok(sky_dome_panels(&Sky::new(s, params)?, size)))
-        .collect::<crate::Result<_>>()?;
+        .collect::<psns::Result<_>>()?;
     let refs: Vec<&Image<[u8; 3]>> = rows.iter().collect();
     Ok(vis::vstack(&refs, 4))
 }

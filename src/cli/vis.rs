@@ -1,7 +1,7 @@
 //! Colour visualisations for people: AOP as a cyclic hue, DOP with a perceptual map (viridis),
 //! radiance as grey. Purely for looking; the numbers live in the `.npy` files.
 
-use crate::image::Image;
+use psns::image::Image;
 
 /// Viridis anchor colours at 0, 1/8, …, 1 (sampled from matplotlib's map).
 const VIRIDIS: [[f64; 3]; 9] = [

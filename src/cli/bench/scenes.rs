@@ -6,7 +6,7 @@
 //! | `clear-sky` | default sky (sun zenith 50°, azimuth 200°), zenith view, camera preset | baseline |
 //! | `occluder-edge` | clear sky plus a dark unpolarized tree-line and buildings along the bottom, 1-px wires and a 3-px mast | IFOV error at edges (spec `demosaic.md` §3) |
 //! | `sun-in-view` | camera pitched so the sun sits 20° from the optical axis; exposure set on the 90th percentile so the disc and circumsolar sky clip | saturation |
-//! | `clouds` | clear sky plus soft unpolarized clouds ([`apply_soft_clouds`](crate::sky::clouds::apply_soft_clouds)) | DoLP → 0 patches, soft edges |
+//! | `clouds` | clear sky plus soft unpolarized clouds ([`apply_soft_clouds`](psns::sky::clouds::apply_soft_clouds)) | DoLP → 0 patches, soft edges |
 //! | `low-light` | clear sky with the exposure set so the median sky pixel collects 300 e⁻ | shot noise (§4) |
 //! | `turbid` | turbidity 10 (hazy, low DoLP) | weak polarization |
 //!
@@ -17,13 +17,13 @@
 //! Geometry is given as fractions of the frame, so a small `--quick` frame (same horizontal field
 //! of view, shorter focal length) shows the same scene.
 
-use crate::camera::{Attitude, Intrinsics};
-use crate::config::SceneConfig;
-use crate::error::{Error, Result};
-use crate::image::StokesImage;
-use crate::pipeline::{RawPipeline, SceneInfo};
-use crate::sensor::{Exposure, RawFrame, SensorConfig};
-use crate::sky::clouds::SoftClouds;
+use psns::camera::{Attitude, Intrinsics};
+use psns::config::SceneConfig;
+use psns::error::{Error, Result};
+use psns::image::StokesImage;
+use psns::pipeline::{RawPipeline, SceneInfo};
+use psns::sensor::{Exposure, RawFrame, SensorConfig};
+use psns::sky::clouds::SoftClouds;
 use std::fmt;
 use std::str::FromStr;
 
@@ -100,6 +100,7 @@ impl FromStr for Scene {
 /// One rendered scene: its configuration (with the sensor in force), the raw frame with ground
 /// truth, and what the renderer reported.
 #[derive(Clone, Debug)]
+#[allow(dead_code)] // a complete record of the render; the benchmark reads only some fields
 pub struct SceneFrame {
     /// Which scene.
     pub scene: Scene,
@@ -136,7 +137,7 @@ pub fn config(scene: Scene, width: usize, height: usize, bit_depth: u8) -> Scene
     match scene {
         Scene::ClearSky | Scene::OccluderEdge | Scene::LowLight => {}
         Scene::SunInView => {
-            let sun = crate::config::DEFAULT_SUN;
+            let sun = psns::config::DEFAULT_SUN;
             cfg.camera.attitude = Attitude::enu(sun.azimuth_deg, -(sun.zenith_deg - 20.0), 0.0);
             // expose for the 90th percentile: the disc and the circumsolar sky clip
             sensor.exposure = Exposure::Auto {
@@ -174,10 +175,8 @@ pub fn render(scene: Scene, width: usize, height: usize, bit_depth: u8) -> Resul
         }
         let mid = sky.len() / 2;
         let median = *sky.select_nth_unstable_by(mid, |a, b| a.total_cmp(b)).1;
-        let us = (1e6 * LOW_LIGHT_ELECTRONS / median).clamp(
-            crate::sensor::MIN_EXPOSURE_US,
-            crate::sensor::MAX_EXPOSURE_US,
-        );
+        let us = (1e6 * LOW_LIGHT_ELECTRONS / median)
+            .clamp(psns::sensor::MIN_EXPOSURE_US, psns::sensor::MAX_EXPOSURE_US);
         let mut s = pipe.sensor_config().clone();
         s.exposure = Exposure::Fixed { us };
         cfg.raw.sensor = Some(s);

@@ -1,0 +1,60 @@
+//! `psns bench`: benchmarks that chart speed against accuracy, with the named benchmark scenes
+//! ([`scenes`]) and their charts. Front-end code: the measurements call the library's kernels.
+
+pub mod demosaic;
+pub mod scenes;
+pub mod sky;
+#[cfg(test)]
+mod tests;
+
+use super::args::SceneArgs;
+use clap::Subcommand;
+use std::path::PathBuf;
+
+/// `psns bench` subcommands.
+#[derive(Subcommand)]
+pub enum BenchCmd {
+    /// Time every demosaic method on full-size frames and score it on the named scenes; writes
+    /// demosaic.csv, the speed-vs-accuracy chart and stability maps.
+    Demosaic {
+        /// Output directory.
+        #[arg(long, default_value = "docs/bench")]
+        out: PathBuf,
+        /// Timed runs per method (median reported).
+        #[arg(long, default_value_t = 7)]
+        runs: usize,
+        /// Small frames and few runs (a quick look; not for the docs).
+        #[arg(long)]
+        quick: bool,
+    },
+    /// Exact vs coarse-grid sky evaluation: time per full frame and error (writes sky_grid.csv).
+    Sky {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Output directory.
+        #[arg(long, default_value = "docs/bench")]
+        out: PathBuf,
+        /// Timed runs per setting (median reported).
+        #[arg(long, default_value_t = 5)]
+        runs: usize,
+    },
+}
+
+/// Runs a `psns bench` subcommand.
+pub fn run(what: BenchCmd) -> anyhow::Result<()> {
+    match what {
+        BenchCmd::Demosaic { out, runs, quick } => {
+            let opts = demosaic::BenchOptions { out, runs, quick };
+            for f in demosaic::bench_demosaic(&opts)? {
+                eprintln!("wrote {f}");
+            }
+        }
+        BenchCmd::Sky { scene, out, runs } => {
+            let cfg = scene.scene()?;
+            for f in sky::bench_sky_to_dir(&cfg, &out, runs)? {
+                eprintln!("wrote {f}");
+            }
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,138 @@
+//! `psns bench sky`: the exact per-pixel sky against the coarse-grid sky of raw frames, time per
+//! full frame and error.
+
+use crate::cli::create_dir;
+use psns::config::SceneConfig;
+use psns::{io, render, Error, Result};
+use std::io::Write;
+use std::path::Path;
+use std::time::Instant;
+
+/// One row of the sky grid benchmark.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct GridBenchRow {
+    /// Grid step in pixels (1 = exact).
+    pub step: usize,
+    /// Median wall time per full Stokes render, ms.
+    pub ms_per_frame: f64,
+    /// Max |ΔS0|/S0 over sky pixels.
+    pub max_rel_s0: f64,
+    /// Max |ΔDOP|.
+    pub max_dop: f64,
+    /// Max AOP error, degrees, over pixels with DOP > 0.02.
+    pub max_aop_deg: f64,
+    /// 99th percentile AOP error, degrees, same pixels.
+    pub p99_aop_deg: f64,
+}
+
+/// Error of an approximate Stokes render against the exact one.
+pub fn stokes_errors(
+    exact: &psns::image::StokesImage,
+    approx: &psns::image::StokesImage,
+) -> (f64, f64, f64, f64) {
+    let (mut rel, mut dop, mut aop) = (0.0f64, 0.0f64, Vec::new());
+    for i in 0..exact.s0.data.len() {
+        let (a0, a1, a2) = (
+            exact.s0.data[i] as f64,
+            exact.s1.data[i] as f64,
+            exact.s2.data[i] as f64,
+        );
+        let (b0, b1, b2) = (
+            approx.s0.data[i] as f64,
+            approx.s1.data[i] as f64,
+            approx.s2.data[i] as f64,
+        );
+        if a0 <= 0.0 {
+            continue;
+        }
+        rel = rel.max((b0 - a0).abs() / a0);
+        let (pa, pb) = (
+            a1.hypot(a2) / a0,
+            if b0 > 0.0 { b1.hypot(b2) / b0 } else { 0.0 },
+        );
+        dop = dop.max((pa - pb).abs());
+        if pa > 0.02 {
+            let da = psns::angle::SensorAngle::from_stokes(a1, a2)
+                .diff(psns::angle::SensorAngle::from_stokes(b1, b2));
+            aop.push(da);
+        }
+    }
+    aop.sort_by(|a, b| a.total_cmp(b));
+    let max = aop.last().copied().unwrap_or(0.0);
+    let p99 = aop
+        .get(((aop.len() as f64 - 1.0) * 0.99) as usize)
+        .copied()
+        .unwrap_or(0.0);
+    (rel, dop, max, p99)
+}
+
+/// `psns bench sky`: exact vs coarse-grid Stokes rendering of a scene, time and accuracy.
+pub fn bench_sky_grid(
+    cfg: &SceneConfig,
+    steps: &[usize],
+    runs: usize,
+) -> Result<Vec<GridBenchRow>> {
+    let (sky, cam) = cfg.build()?;
+    let opts = render::StokesOptions { sun_disc: false };
+    let (exact, _) = render::render_stokes(&sky, &cam, opts);
+    let mut rows = Vec::new();
+    for &step in steps {
+        let mut times = Vec::new();
+        let mut last = None;
+        for _ in 0..runs.max(1) {
+            let t0 = Instant::now();
+            let (st, _) = render::render_stokes_grid(&sky, &cam, opts, step);
+            times.push(t0.elapsed().as_secs_f64() * 1e3);
+            last = Some(st);
+        }
+        times.sort_by(|a, b| a.total_cmp(b));
+        let (max_rel_s0, max_dop, max_aop_deg, p99_aop_deg) = stokes_errors(&exact, &last.unwrap());
+        rows.push(GridBenchRow {
+            step,
+            ms_per_frame: times[times.len() / 2],
+            max_rel_s0,
+            max_dop,
+            max_aop_deg,
+            p99_aop_deg,
+        });
+    }
+    Ok(rows)
+}
+
+/// `psns bench sky`: grid-step sweep for three views (zenith, tilted to the horizon, sun in view)
+/// written as `sky_grid.csv` (and printed).
+pub fn bench_sky_to_dir(cfg: &SceneConfig, dir: &Path, runs: usize) -> Result<Vec<String>> {
+    use psns::camera::Attitude;
+    cfg.build()?;
+    create_dir(dir)?;
+    let sun = cfg.sun.resolve()?;
+    let views = [
+        ("zenith", cfg.camera.attitude),
+        ("horizon", Attitude::enu(sun.azimuth_deg + 90.0, 60.0, 0.0)),
+        (
+            "sun-in-view",
+            Attitude::enu(sun.azimuth_deg, -(sun.zenith_deg - 20.0), 0.0),
+        ),
+    ];
+    let mut csv = String::from(
+        "view,step,ms_per_frame,max_rel_s0,max_dop_err,max_aop_err_deg,p99_aop_err_deg\n",
+    );
+    for (name, att) in views {
+        let mut c = cfg.clone();
+        c.camera.attitude = att;
+        for r in bench_sky_grid(&c, &[1, 2, 4, 8, 16], runs)? {
+            let line = format!(
+                "{name},{},{:.1},{:.3e},{:.3e},{:.3e},{:.3e}\n",
+                r.step, r.ms_per_frame, r.max_rel_s0, r.max_dop, r.max_aop_deg, r.p99_aop_deg
+            );
+            eprint!("{line}");
+            csv.push_str(&line);
+        }
+    }
+    let p = dir.join("sky_grid.csv");
+    io::write_atomic(&p, |w| {
+        w.write_all(csv.as_bytes())
+            .map_err(|e| Error::io("writing sky_grid.csv", e))
+    })?;
+    Ok(vec![p.display().to_string()])
+}

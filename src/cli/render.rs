@@ -1,0 +1,265 @@
+//! `psns render`: ideal images of a scene (LI/DOP/AOP, polarizer images, visualisations) and,
+//! with `--raw`, the IMX250MZR raw frame with its ground truth, written into a directory.
+
+use super::args::{RawArgs, SceneArgs};
+use super::{create_dir, vis};
+use clap::Args;
+use psns::config::{Derived, SceneConfig, SceneKind};
+use psns::image::Image;
+use psns::{io, render, Error, Result};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+/// Options of `psns render`.
+#[derive(Args)]
+pub struct RenderArgs {
+    #[command(flatten)]
+    scene: SceneArgs,
+    #[command(flatten)]
+    raw: RawArgs,
+    /// Also emulate the sensor: raw.png, raw.tiff, raw.bin, truth_*.npy.
+    #[arg(long = "raw")]
+    raw_frame: bool,
+    /// Output directory (created if missing; files of the same names are replaced).
+    #[arg(long, default_value = "out")]
+    out: PathBuf,
+}
+
+/// Runs `psns render`.
+pub fn run(a: RenderArgs) -> anyhow::Result<()> {
+    let mut cfg = a.scene.scene()?;
+    a.raw.apply(&mut cfg)?;
+    let out = a.out;
+    if a.raw_frame || cfg.raw.scene == SceneKind::Flat {
+        let s = render_raw_to_dir(&cfg, &out)?;
+        eprintln!(
+            "raw frame {}x{}: scene {:.3} s + sensor {:.3} s (camera setup {:.3} s); wrote {} files to {}",
+            cfg.camera.intrinsics.width,
+            cfg.camera.intrinsics.height,
+            s.scene_s,
+            s.sensor_s,
+            s.setup_s,
+            s.files.len(),
+            out.display()
+        );
+        return Ok(());
+    }
+    let s = render_ideal_to_dir(&cfg, &out)?;
+    eprintln!(
+        "rendered {}x{} in {:.3} s; wrote {} files to {}",
+        cfg.camera.intrinsics.width,
+        cfg.camera.intrinsics.height,
+        s.render_s,
+        s.files.len(),
+        out.display()
+    );
+    Ok(())
+}
+
+#[derive(Clone, Debug)]
+pub struct RenderSummary {
+    /// Seconds spent rendering the ideal images (without file output).
+    pub render_s: f64,
+    /// Files written.
+    pub files: Vec<String>,
+}
+
+/// `psns render`: ideal images of a scene into `dir`.
+pub fn render_ideal_to_dir(cfg: &SceneConfig, dir: &Path) -> Result<RenderSummary> {
+    let (sky, cam) = cfg.build()?; // validates everything before anything is written
+    create_dir(dir)?;
+    let (summary, extra) = write_ideal(&sky, &cam, dir)?;
+    let derived = Derived {
+        sun: Some(sky.sun()),
+        extra,
+    };
+    let mut out = cfg.clone();
+    out.derived = Some(derived);
+    write_scene_json(dir, &out)?;
+    let mut summary = summary;
+    summary.files.push("scene.json".into());
+    Ok(summary)
+}
+
+/// Renders and writes the ideal images (everything of `psns render` but `scene.json`); returns
+/// what was written and the values `scene.json` records.
+fn write_ideal(
+    sky: &psns::sky::Sky,
+    cam: &psns::camera::Camera,
+    dir: &Path,
+) -> Result<(RenderSummary, serde_json::Map<String, serde_json::Value>)> {
+    let t0 = Instant::now();
+    let ideal = render::render_ideal(sky, cam);
+    let render_s = t0.elapsed().as_secs_f64();
+    let mut files = Vec::new();
+    let mut put = |name: &str| {
+        files.push(name.to_string());
+        dir.join(name)
+    };
+    io::write_npy(&put("li.npy"), &ideal.li)?;
+    io::write_npy(&put("dop.npy"), &ideal.dop)?;
+    io::write_npy(&put("aop.npy"), &ideal.aop_deg)?;
+    let pol = render::polarizer_images(&ideal);
+    let (kappa8, q8) = render::quantize_polarizer_images(&pol, 255.0);
+    let (_, q16) = render::quantize_polarizer_images(&pol, 65535.0);
+    for (k, a) in [0, 45, 90, 135].iter().enumerate() {
+        let g8 = Image::from_vec(
+            q8[k].width,
+            q8[k].height,
+            q8[k].data.iter().map(|&v| v as u8).collect(),
+        );
+        io::write_png_gray8(&put(&format!("i{a}.png")), &g8)?;
+        io::write_png_gray16(&put(&format!("i{a}_16bit.png")), &q16[k])?;
+    }
+    let white = vis::quantile(&ideal.li, 0.999);
+    io::write_png_gray8(&put("li.png"), &vis::gray8(&ideal.li, white))?;
+    io::write_png_rgb8(
+        &put("dop.png"),
+        &vis::dop_rgb(&ideal.dop, Some(&ideal.valid)),
+    )?;
+    io::write_png_rgb8(
+        &put("aop.png"),
+        &vis::aop_rgb(&ideal.aop_deg, Some(&ideal.valid)),
+    )?;
+    let valid = ideal.valid.data.iter().filter(|&&v| v != 0).count();
+    let mut extra = serde_json::Map::new();
+    extra.insert("kappa_8bit".into(), kappa8.into());
+    extra.insert("sky_pixels".into(), valid.into());
+    extra.insert(
+        "ground_pixels".into(),
+        (ideal.valid.data.len() - valid).into(),
+    );
+    Ok((RenderSummary { render_s, files }, extra))
+}
+
+/// Writes `scene.json` (atomically).
+fn write_scene_json(dir: &Path, scene: &SceneConfig) -> Result<()> {
+    let json = scene.to_json();
+    io::write_atomic(&dir.join("scene.json"), |w| {
+        w.write_all(json.as_bytes())
+            .map_err(|e| Error::io("writing scene.json", e))
+    })
+}
+
+/// What `render --raw` measured.
+#[derive(Clone, Debug)]
+pub struct RawSummary {
+    /// Seconds for the scene (sky Stokes) of the frame.
+    pub scene_s: f64,
+    /// Seconds for the sensor emulation of the frame.
+    pub sensor_s: f64,
+    /// Seconds to build the camera (fixed-pattern maps; once per camera).
+    pub setup_s: f64,
+    /// Files written.
+    pub files: Vec<String>,
+}
+
+/// `psns render --raw`: the raw frame, its ground truth and (for a sky scene) the ideal images.
+pub fn render_raw_to_dir(cfg: &SceneConfig, dir: &Path) -> Result<RawSummary> {
+    use psns::pipeline::RawPipeline;
+    let t0 = Instant::now();
+    let pipe = RawPipeline::new(cfg)?; // validates everything before anything is written
+    let setup_s = t0.elapsed().as_secs_f64();
+    // the ideal images need the sky and camera too: build (and so check) them before writing
+    let ideal_scene = match cfg.raw.scene {
+        SceneKind::Sky => Some(cfg.build()?),
+        SceneKind::Flat => None,
+    };
+    let t1 = Instant::now();
+    let (frame, info, scene_s) = pipe.render_configured_timed()?;
+    let sensor_s = t1.elapsed().as_secs_f64() - scene_s;
+    create_dir(dir)?;
+    let (mut files, mut extra) = match &ideal_scene {
+        Some((sky, cam)) => {
+            let (s, x) = write_ideal(sky, cam, dir)?;
+            (s.files, x)
+        }
+        None => (Vec::new(), serde_json::Map::new()),
+    };
+    let mut put = |name: &str| {
+        files.push(name.to_string());
+        dir.join(name)
+    };
+    let codes = &frame.codes;
+    if frame.bit_depth <= 8 {
+        let g = Image::from_vec(
+            codes.width,
+            codes.height,
+            codes.data.iter().map(|&v| v as u8).collect(),
+        );
+        io::write_png_gray8(&put("raw.png"), &g)?;
+    } else {
+        io::write_png_gray16(&put("raw.png"), codes)?;
+    }
+    io::write_tiff_u16(&put("raw.tiff"), codes)?;
+    let mut packed = Vec::new();
+    psns::sensor::packing::pack(
+        &codes.data,
+        frame.bit_depth,
+        cfg.raw.pixel_format,
+        false,
+        &mut packed,
+    )?;
+    io::write_atomic(&put("raw.bin"), |w| {
+        w.write_all(&packed)
+            .map_err(|e| Error::io("writing raw.bin", e))
+    })?;
+    let full = ((1u32 << frame.bit_depth) - 1) as f64;
+    let view = Image::from_vec(
+        codes.width,
+        codes.height,
+        codes
+            .data
+            .iter()
+            .map(|&v| (v as f64 / full * 255.0).round() as u8)
+            .collect(),
+    );
+    io::write_png_gray8(&put("raw_view.png"), &view)?;
+    io::write_npy(&put("truth_s0.npy"), &frame.truth.s0)?;
+    io::write_npy(&put("truth_s1.npy"), &frame.truth.s1)?;
+    io::write_npy(&put("truth_s2.npy"), &frame.truth.s2)?;
+    let (dolp, aolp) = frame.truth_dolp_aolp();
+    io::write_npy(&put("truth_dolp.npy"), &dolp)?;
+    io::write_npy(&put("truth_aolp.npy"), &aolp)?;
+    // scene.json: the whole configuration plus what this frame measured
+    let mut out = cfg.clone();
+    out.raw.sensor = Some(pipe.sensor_config().clone());
+    let x = &mut extra;
+    let layout = pipe.sensor_config().layout;
+    let sat: serde_json::Map<String, serde_json::Value> = (0..4)
+        .map(|k| {
+            let (r, c) = (k / 2, k % 2);
+            (
+                format!("({r},{c}) {}deg", layout.angle_deg(r, c)),
+                frame.saturated[k].into(),
+            )
+        })
+        .collect();
+    x.insert("saturated_pixels".into(), sat.into());
+    x.insert("exposure_us".into(), frame.exposure_us.into());
+    x.insert("auto_exposed".into(), frame.auto_exposed.into());
+    x.insert("exposure_clipped".into(), frame.exposure_clipped.into());
+    x.insert("gain_db".into(), frame.gain_db.into());
+    x.insert("bit_depth".into(), frame.bit_depth.into());
+    x.insert("black_level_dn".into(), frame.black_level_dn.into());
+    x.insert("dn_per_electron".into(), frame.dn_per_electron.into());
+    x.insert("sun_disc_pixels".into(), info.sun_pixels.into());
+    // the ideal render counts ground exactly per pixel; keep its count when there is one
+    x.entry("ground_pixels")
+        .or_insert(info.ground_pixels.into());
+    x.insert("scene_seconds".into(), scene_s.into());
+    x.insert("sensor_seconds".into(), sensor_s.into());
+    out.derived = Some(Derived {
+        sun: info.sun,
+        extra,
+    });
+    write_scene_json(dir, &out)?;
+    files.push("scene.json".into());
+    Ok(RawSummary {
+        scene_s,
+        sensor_s,
+        setup_s,
+        files,
+    })
+}
