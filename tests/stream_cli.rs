@@ -2,6 +2,8 @@
 //! (file, FIFO, stdout), trajectories from files and stdin, bad trajectory lines, early-closing and
 //! slow readers, pacing, flags, the moving sun, and `psns verify` on what was written.
 
+mod common;
+
 use psns::stream::{
     Event, FileHeader, Frame, StreamReader, FLAG_GROUND_IN_VIEW, FLAG_LAST, FLAG_SKY_INVALID,
     FLAG_SUN_IN_VIEW,
@@ -521,23 +523,9 @@ fn stamp_host_time_fills_the_field() {
     assert!(f[0].meta.host_time_ns > 0 && f[1].meta.host_time_ns >= f[0].meta.host_time_ns);
 }
 
-fn python_with_numpy() -> bool {
-    Command::new("python3")
-        .args(["-c", "import numpy"])
-        .status()
-        .is_ok_and(|s| s.success())
-}
-
 #[test]
 fn nav_reader_follows_a_live_fifo() {
-    if !python_with_numpy() {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "python3 with numpy is required in CI"
-        );
-        eprintln!("skipping: python3 with numpy not available");
-        return;
-    }
+    common::require_numpy();
     let d = tempfile::tempdir().unwrap();
     let fifo = d.path().join("cam.fifo");
     mkfifo(&fifo);
@@ -558,7 +546,7 @@ fn nav_reader_follows_a_live_fifo() {
     .stderr(Stdio::piped())
     .spawn()
     .unwrap();
-    let reader = Command::new("python3")
+    let reader = common::python_cmd()
         .arg(&tool)
         .arg(&fifo)
         .args(["--delay", "0.02"])

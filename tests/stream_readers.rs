@@ -1,6 +1,8 @@
 //! The Python (numpy) and C readers in tools/ return the same pixels and metadata as the Rust
 //! reader; the golden stream in fixtures/stream/ is reproduced byte for byte.
 
+mod common;
+
 use psns::sensor::packing::PixelFormat;
 use psns::stream::*;
 use sha2::{Digest, Sha256};
@@ -134,24 +136,8 @@ fn frame_line(f: &Frame, h: &FileHeader) -> String {
     )
 }
 
-fn have_numpy() -> bool {
-    let ok = Command::new("python3")
-        .args(["-c", "import numpy"])
-        .status()
-        .map(|s| s.success())
-        .unwrap_or(false);
-    if !ok {
-        assert!(
-            std::env::var_os("CI").is_none(),
-            "python3 with numpy is required in CI"
-        );
-        eprintln!("SKIP: python3 with numpy not available");
-    }
-    ok
-}
-
 fn python(args: &[&str]) -> String {
-    let out = Command::new("python3")
+    let out = common::python_cmd()
         .arg(root().join("tools/psns_stream.py"))
         .args(args)
         .output()
@@ -300,9 +286,7 @@ fn c_reader_matches_rust() {
 
 #[test]
 fn python_reader_matches_rust() {
-    if !have_numpy() {
-        return;
-    }
+    common::require_numpy();
     let dir = tempfile::tempdir().unwrap();
     for (name, bytes) in cases() {
         let p = dir.path().join(format!("{name}.psns"));
@@ -314,9 +298,7 @@ fn python_reader_matches_rust() {
 
 #[test]
 fn python_memmap_full_size_mono16() {
-    if !have_numpy() {
-        return;
-    }
+    common::require_numpy();
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("full.psns");
     let hd = FileHeader::default();
@@ -343,7 +325,7 @@ fn python_memmap_full_size_mono16() {
         root().join("tools").to_str().unwrap(),
         p.to_str().unwrap()
     );
-    let out = Command::new("python3")
+    let out = common::python_cmd()
         .args(["-c", &script])
         .output()
         .unwrap();
@@ -511,7 +493,7 @@ fn crafted_cases() -> Vec<(&'static str, Vec<u8>)> {
 fn crafted_headers_rejected_by_all_readers() {
     let dir = tempfile::tempdir().unwrap();
     let exe = c_reader(dir.path());
-    let py = have_numpy();
+    common::require_numpy();
     // the unpatched header is accepted by all three (the cases differ only in the patch)
     let ok = crafted(&|_| {});
     assert!(StreamReader::new(Cursor::new(&ok)).is_ok());
@@ -536,8 +518,8 @@ fn crafted_headers_rejected_by_all_readers() {
         if !good {
             assert!(out.stdout.is_empty(), "C printed for {name}");
         }
-        if py {
-            let out = Command::new("python3")
+        {
+            let out = common::python_cmd()
                 .arg(root().join("tools/psns_stream.py"))
                 .arg("dump")
                 .arg(&p)
@@ -567,7 +549,7 @@ fn crafted_headers_rejected_by_all_readers() {
                 out.status
             );
             assert_eq!(String::from_utf8(out.stdout).unwrap(), want, "C: {name}");
-            if py {
+            {
                 assert_eq!(
                     python(&["dump", p.to_str().unwrap()]),
                     want,
@@ -624,7 +606,7 @@ fn golden_streams_every_format() {
 fn golden_streams_read_by_c_and_numpy() {
     let dir = tempfile::tempdir().unwrap();
     let exe = c_reader(dir.path());
-    let py = have_numpy();
+    common::require_numpy();
     for (name, _, _) in GOLDEN {
         let file = root().join(format!("fixtures/stream/{name}.psns"));
         let bytes = std::fs::read(&file).unwrap();
@@ -633,7 +615,7 @@ fn golden_streams_read_by_c_and_numpy() {
         let out = Command::new(&exe).arg("dump").arg(&file).output().unwrap();
         assert!(out.status.success(), "{name}");
         assert_eq!(String::from_utf8(out.stdout).unwrap(), want, "C: {name}");
-        if py {
+        {
             let f = file.to_str().unwrap();
             assert_eq!(python(&["dump", f]), want, "Python: {name}");
             assert_eq!(python(&["mmdump", f]), want, "numpy memmap: {name}");
@@ -642,7 +624,7 @@ fn golden_streams_read_by_c_and_numpy() {
 }
 
 fn nav(path: &Path) -> std::process::Output {
-    Command::new("python3")
+    common::python_cmd()
         .arg(root().join("tools/nav_reader.py"))
         .arg(path)
         .output()
@@ -652,9 +634,7 @@ fn nav(path: &Path) -> std::process::Output {
 /// nav_reader reports dropped frames (index gaps) and exits with status 1; a clean stream 0.
 #[test]
 fn nav_reader_reports_dropped_frames() {
-    if !have_numpy() {
-        return;
-    }
+    common::require_numpy();
     let dir = tempfile::tempdir().unwrap();
     let p = dir.path().join("clean.psns");
     std::fs::write(&p, stream(PixelFormat::Mono12p, 16, 8, 3, false)).unwrap();
@@ -683,9 +663,7 @@ fn nav_reader_reports_dropped_frames() {
 /// 500, 700 over a black level of 100 codes give DoLP = (600 - 200) / (600 + 200) = 0.5.
 #[test]
 fn nav_reader_black_level_msb_aligned() {
-    if !have_numpy() {
-        return;
-    }
+    common::require_numpy();
     let dir = tempfile::tempdir().unwrap();
     for msb in [false, true] {
         let hd = FileHeader {

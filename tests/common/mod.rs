@@ -34,3 +34,22 @@ pub fn psns_stdin(args: &[&str], input: &str) -> Output {
 pub fn stderr(o: &Output) -> String {
     String::from_utf8_lossy(&o.stderr).into_owned()
 }
+
+/// The Python interpreter for tests that run the readers in `tools/`: `$PSNS_PYTHON` (set by
+/// `tools/test` to the project's virtual environment), else `python3`.
+pub fn python_cmd() -> Command {
+    Command::new(std::env::var_os("PSNS_PYTHON").unwrap_or_else(|| "python3".into()))
+}
+
+/// Panics (the test fails, it never passes silently) when the interpreter lacks numpy.
+pub fn require_numpy() {
+    let ok = python_cmd()
+        .args(["-c", "import numpy"])
+        .status()
+        .is_ok_and(|s| s.success());
+    assert!(
+        ok,
+        "this test runs the numpy stream reader: run the suite with tools/test (it makes .venv with \
+         numpy), or point PSNS_PYTHON at a Python that has numpy"
+    );
+}
