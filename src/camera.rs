@@ -92,7 +92,25 @@ pub fn euler_matrix(yaw_deg: f64, pitch_deg: f64, roll_deg: f64) -> DMat3 {
     rot_y(roll_deg.to_radians()) * rot_x(pitch_deg.to_radians()) * rot_z(yaw_deg.to_radians())
 }
 
+/// How far from 1 a quaternion's norm may be: four decimals, as users type them
+/// (`0.7071,0,0,0.7071` has norm 0.99999). Within it the quaternion is normalised.
+pub const QUATERNION_TOLERANCE: f64 = 1e-3;
+
 impl Attitude {
+    /// The same attitude with a quaternion scaled to unit norm (Euler angles unchanged).
+    pub fn normalized(&self) -> Self {
+        match *self {
+            Attitude::Quaternion { frame, wxyz } => {
+                let n = wxyz.iter().map(|v| v * v).sum::<f64>().sqrt();
+                Attitude::Quaternion {
+                    frame,
+                    wxyz: wxyz.map(|v| v / n),
+                }
+            }
+            e => e,
+        }
+    }
+
     /// ENU attitude from yaw/pitch/roll in degrees.
     pub fn enu(yaw_deg: f64, pitch_deg: f64, roll_deg: f64) -> Self {
         Attitude::Euler {
@@ -113,7 +131,9 @@ impl Attitude {
         }
     }
 
-    /// Checks for non-finite angles and malformed quaternions (norm not within 1e-6 of 1).
+    /// Checks the angle ranges (yaw −720..720 like a sun azimuth, pitch and roll −360..360)
+    /// and quaternions (norm within [`QUATERNION_TOLERANCE`] of 1; such a quaternion is used
+    /// normalised).
     pub fn validate(&self) -> Result<()> {
         match *self {
             Attitude::Euler {
@@ -122,18 +142,17 @@ impl Attitude {
                 roll_deg,
                 ..
             } => {
-                for (n, v) in [("yaw", yaw_deg), ("pitch", pitch_deg), ("roll", roll_deg)] {
-                    if !v.is_finite() {
-                        return Err(Error::range(n, v, "a finite angle in degrees"));
-                    }
-                }
+                check_range("yaw", yaw_deg, -720.0, 720.0)?;
+                check_range("pitch", pitch_deg, -360.0, 360.0)?;
+                check_range("roll", roll_deg, -360.0, 360.0)?;
             }
             Attitude::Quaternion { wxyz, .. } => {
                 let n = wxyz.iter().map(|v| v * v).sum::<f64>().sqrt();
-                if !n.is_finite() || (n - 1.0).abs() > 1e-6 {
+                if !n.is_finite() || (n - 1.0).abs() > QUATERNION_TOLERANCE {
+                    let f = |v: f64| crate::error::num(v);
                     return Err(Error::Invalid(format!(
-                        "quaternion {},{},{},{} is not a unit quaternion (norm {n}; allowed 1 +- 1e-6)",
-                        wxyz[0], wxyz[1], wxyz[2], wxyz[3]
+                        "quaternion {},{},{},{} is not a unit quaternion (norm {}; allowed 1 +- 0.001)",
+                        f(wxyz[0]), f(wxyz[1]), f(wxyz[2]), f(wxyz[3]), format!("{n:.6}")
                     )));
                 }
             }

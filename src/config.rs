@@ -67,7 +67,7 @@ impl SunConfig {
             ));
         }
         let zenith = match (self.zenith_deg, self.altitude_deg) {
-            (Some(z), _) => check_range("sun-zenith", z, -90.0, 180.0)?,
+            (Some(z), _) => check_range("sun-zenith", z, 0.0, 180.0)?,
             (None, Some(a)) => 90.0 - check_range("sun-altitude", a, -90.0, 90.0)?,
             (None, None) => DEFAULT_SUN.zenith_deg,
         };
@@ -76,6 +76,18 @@ impl SunConfig {
             None => DEFAULT_SUN.azimuth_deg,
         };
         Ok(SunPosition::new(zenith, az))
+    }
+}
+
+impl SunConfig {
+    /// Prefixes a sun-below-the-horizon error with the `--time` that put the sun there.
+    pub fn name_time(&self, e: Error) -> Error {
+        match (&self.time, e) {
+            (Some(t), Error::Invalid(m)) if m.starts_with("sun altitude") => {
+                Error::Invalid(format!("--time {t}: {m}"))
+            }
+            (_, e) => e,
+        }
     }
 }
 
@@ -254,7 +266,7 @@ impl SceneConfig {
     /// Resolves the sun, validates everything and builds the sky and the posed camera.
     pub fn build(&self) -> Result<(Sky, Camera)> {
         let sun = self.sun.resolve()?;
-        let sky = Sky::new(sun, &self.sky)?;
+        let sky = Sky::new(sun, &self.sky).map_err(|e| self.sun.name_time(e))?;
         let cam = Camera::new(
             self.camera.intrinsics,
             &self.camera.attitude,

@@ -38,8 +38,23 @@ impl Error {
     pub fn range(name: &str, value: f64, allowed: &str) -> Self {
         Error::OutOfRange {
             name: name.to_string(),
-            value: format!("{value}"),
+            value: num(value),
             allowed: allowed.to_string(),
+        }
+    }
+
+    /// An error reading an input file the user named: a missing, unreadable or wrong kind of file
+    /// (a directory, say) is bad input (exit code 2); other failures stay I/O errors.
+    pub fn input(path: &std::path::Path, source: std::io::Error) -> Self {
+        use std::io::ErrorKind as K;
+        match source.kind() {
+            K::NotFound
+            | K::PermissionDenied
+            | K::IsADirectory
+            | K::InvalidData
+            | K::InvalidInput
+            | K::UnexpectedEof => Error::Invalid(format!("{}: {source}", path.display())),
+            _ => Error::io(format!("reading {}", path.display()), source),
         }
     }
 
@@ -51,9 +66,13 @@ impl Error {
         }
     }
 
-    /// True for errors caused by the user's input (exit code 2 in the binary).
+    /// True for errors caused by the user's input, including an input file that is not what it
+    /// should be (exit code 2 in the binary).
     pub fn is_usage(&self) -> bool {
-        matches!(self, Error::OutOfRange { .. } | Error::Invalid(_))
+        matches!(
+            self,
+            Error::OutOfRange { .. } | Error::Invalid(_) | Error::Format(_)
+        )
     }
 
     /// True when the error is a closed pipe downstream (the program should end quietly).
@@ -86,6 +105,26 @@ impl std::error::Error for Error {
     }
 }
 
+/// Formats a number for a message: short and exact for ordinary values, in exponent form for
+/// huge or tiny ones (a user's `1e308` is printed as `1e308`, not as 309 digits).
+///
+/// ```
+/// use psns::error::num;
+/// assert_eq!(num(12.5), "12.5");
+/// assert_eq!(num(-90.0), "-90");
+/// assert_eq!(num(1e308), "1e308");
+/// assert_eq!(num(-2.5e-9), "-2.5e-9");
+/// assert_eq!(num(f64::NAN), "NaN");
+/// ```
+pub fn num(v: f64) -> String {
+    let a = v.abs();
+    if v.is_finite() && v != 0.0 && !(1e-6..1e9).contains(&a) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
 /// Checks that `value` is finite and within `[lo, hi]`.
 ///
 /// ```
@@ -97,7 +136,11 @@ pub fn check_range(name: &str, value: f64, lo: f64, hi: f64) -> Result<f64> {
     if value.is_finite() && value >= lo && value <= hi {
         Ok(value)
     } else {
-        Err(Error::range(name, value, &format!("{lo}..{hi}")))
+        Err(Error::range(
+            name,
+            value,
+            &format!("{}..{}", num(lo), num(hi)),
+        ))
     }
 }
 

@@ -4,7 +4,7 @@
 
 mod cli;
 
-use clap::{Parser, Subcommand};
+use clap::{CommandFactory, FromArgMatches, Parser, Subcommand};
 use std::process::ExitCode;
 
 #[derive(Parser)]
@@ -57,7 +57,22 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     }
 }
 
+/// Lets every option that takes a value accept a negative number, so `--frames -1` gets a
+/// message about the value instead of clap's "unexpected argument '-1'".
+fn negative_numbers(cmd: clap::Command) -> clap::Command {
+    cmd.mut_args(|a| {
+        if a.get_action().takes_values() && !a.is_positional() {
+            a.allow_negative_numbers(true)
+        } else {
+            a
+        }
+    })
+    .mut_subcommands(negative_numbers)
+}
+
 fn main() -> ExitCode {
-    let cli = Cli::parse(); // usage errors exit with code 2
+    let matches = negative_numbers(Cli::command()).get_matches();
+    // usage errors exit with code 2
+    let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     cli::exit_code(run(cli))
 }

@@ -156,7 +156,7 @@ impl RawPipeline {
         let scene_s = t0.elapsed().as_secs_f64();
         if self.cfg.raw.scene == SceneKind::Sky && !info.sky_valid {
             // a static render needs the sun up (sky.md §8)
-            crate::error::check_range("sun-zenith", sun.zenith_deg, 0.0, 90.0)?;
+            sun.check_up().map_err(|e| self.cfg.sun.name_time(e))?;
         }
         Ok((self.frame(&st, self.cfg.raw.frame_index)?, info, scene_s))
     }

@@ -36,6 +36,23 @@ impl SunPosition {
         90.0 - self.zenith_deg
     }
 
+    /// Checks that the sun is up, as a sky render needs (θ_s in 0..90).
+    ///
+    /// ```
+    /// let e = psns::sun::SunPosition::new(95.0, 10.0).check_up().unwrap_err();
+    /// assert_eq!(e.to_string(), "sun altitude -5 deg: the sun is below the horizon (a sky render needs altitude 0..90)");
+    /// ```
+    pub fn check_up(&self) -> Result<()> {
+        let z = self.zenith_deg;
+        if z.is_finite() && z > 90.0 {
+            return Err(Error::Invalid(format!(
+                "sun altitude {} deg: the sun is below the horizon (a sky render needs altitude 0..90)",
+                crate::error::num(((90.0 - z) * 1e6).round() / 1e6)
+            )));
+        }
+        check_range("sun-zenith", z, 0.0, 90.0).map(|_| ())
+    }
+
     /// Unit vector toward the sun in ENU (x east, y north, z up).
     ///
     /// ```
@@ -111,14 +128,15 @@ pub fn spa(
     )
     .map_err(|e| Error::Invalid(format!("bad time {time}: {e}")))?;
     let refr = match refraction {
-        Some(r) => Some(
-            RefractionCorrection::new(r.pressure_hpa, r.temperature_c).map_err(|e| {
-                Error::Invalid(format!(
-                    "bad refraction settings (pressure {} hPa, temperature {} C): {e}",
-                    r.pressure_hpa, r.temperature_c
-                ))
-            })?,
-        ),
+        Some(r) => {
+            // the ranges SPA's refraction formula is meant for (sea level to high mountains)
+            check_range("pressure", r.pressure_hpa, 1.0, 1100.0)?;
+            check_range("temperature", r.temperature_c, -90.0, 60.0)?;
+            Some(
+                RefractionCorrection::new(r.pressure_hpa, r.temperature_c)
+                    .map_err(|e| Error::Invalid(format!("refraction settings: {e}")))?,
+            )
+        }
         None => None,
     };
     let loc = Location {

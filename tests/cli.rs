@@ -98,6 +98,72 @@ fn assert_rejected(args: &[&str], needle: &str, out: &Path) {
 }
 
 #[test]
+fn other_commands_print_short_range_messages() {
+    let cases: &[(&[&str], &str)] = &[
+        (
+            &[
+                "sun",
+                "--time",
+                "2020-06-01T12:00:00Z",
+                "--lat",
+                "0",
+                "--lon",
+                "0",
+                "--refraction",
+                "--pressure",
+                "1e308",
+            ],
+            "pressure = 1e308 is out of range (allowed 1..1100)",
+        ),
+        (
+            &["stream", "--frames", "-1", "--out", "/dev/null"],
+            "-1 is out of range",
+        ),
+        (
+            &["bench", "sky", "--runs", "0"],
+            "0 is out of range (allowed 1..1000)",
+        ),
+    ];
+    for (args, needle) in cases {
+        let o = psns(args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        let e = stderr(&o);
+        assert!(e.contains(needle), "{args:?}: stderr lacks '{needle}': {e}");
+        assert!(e.len() < 300, "{args:?}: message too long: {e}");
+    }
+}
+
+/// A typed quaternion rounded to four decimals is accepted, normalised, and the note says so.
+#[test]
+fn rounded_quaternion_is_normalised() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("q");
+    let o = psns(&[
+        "render",
+        "--quaternion",
+        "0.7071,0,0,0.7071",
+        "--width",
+        "8",
+        "--height",
+        "8",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(stderr(&o).contains("normalised"), "{}", stderr(&o));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("scene.json")).unwrap()).unwrap();
+    let q: Vec<f64> = v["camera"]["attitude"]["wxyz"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|x| x.as_f64().unwrap())
+        .collect();
+    let n = q.iter().map(|x| x * x).sum::<f64>().sqrt();
+    assert!((n - 1.0).abs() < 1e-12, "{q:?}");
+}
+
+#[test]
 fn bad_input_exits_2_and_writes_nothing() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("o");
@@ -107,7 +173,37 @@ fn bad_input_exits_2_and_writes_nothing() {
         (&["--turbidity", "0.5"], "allowed 1..10"),
         (&["--wavelength", "300"], "wavelength = 300"),
         (&["--albedo", "1.5"], "albedo = 1.5"),
-        (&["--sun-zenith", "95"], "sun-zenith = 95"),
+        (
+            &["--sun-zenith", "95"],
+            "sun altitude -5 deg: the sun is below the horizon",
+        ),
+        (
+            &["--sun-altitude", "-5"],
+            "sun altitude -5 deg: the sun is below the horizon",
+        ),
+        (
+            &[
+                "--time",
+                "2020-01-01T00:00:00Z",
+                "--lat",
+                "48",
+                "--lon",
+                "11",
+            ],
+            "--time 2020-01-01T00:00:00Z: sun altitude",
+        ),
+        // huge numbers are printed short, and both out-of-range zeniths give one range
+        (
+            &["--sun-zenith", "1e308"],
+            "sun-zenith = 1e308 is out of range (allowed 0..180)",
+        ),
+        (&["--sun-zenith", "200"], "(allowed 0..180)"),
+        (&["--yaw", "1e308"], "yaw = 1e308 is out of range"),
+        (&["--pitch", "-400"], "pitch = -400 is out of range"),
+        (&["--roll", "1000"], "roll = 1000 is out of range"),
+        // negative values reach the range message instead of clap's "unexpected argument"
+        (&["--seed", "-1"], "-1 is out of range"),
+        (&["--frame-index", "-3"], "-3 is out of range"),
         (&["--neutral-distance", "70"], "babinet = 70"),
         (&["--focal-length", "0"], "focal-length = 0"),
         (&["--pixel-pitch", "-3"], "pixel-pitch = -3"),

@@ -198,7 +198,7 @@ fn bad_raw_input_exits_2_and_writes_nothing() {
         (&["--sensor-set", "bogus=1"], "bogus"),
         (&["--sky-grid", "0"], "sky-grid = 0"),
         (&["--wavelength", "350"], "wavelength (raw frames) = 350"),
-        (&["--pixel-pitch", "1e-306"], "pixel-pitch = 0.000"),
+        (&["--pixel-pitch", "1e-306"], "pixel-pitch = 1e-306 is out"),
         (
             &["--width", "65536", "--height", "65536"],
             "at most 100000000",

@@ -325,10 +325,7 @@ fn python_memmap_full_size_mono16() {
         root().join("tools").to_str().unwrap(),
         p.to_str().unwrap()
     );
-    let out = common::python_cmd()
-        .args(["-c", &script])
-        .output()
-        .unwrap();
+    let out = common::python_cmd().args(["-c", &script]).output().unwrap();
     assert!(
         out.status.success(),
         "{}",

@@ -23,6 +23,28 @@ pub(crate) fn finite(s: &str) -> Result<f64, String> {
     }
 }
 
+/// Parses a whole number 0..2^64-1 (a count, an index or a seed), with a range message for a
+/// negative or fractional value.
+pub(crate) fn whole(s: &str) -> Result<u64, String> {
+    let t = s.trim();
+    t.parse::<u64>().map_err(|_| match t.parse::<f64>() {
+        Ok(v) => format!(
+            "{} is out of range (allowed a whole number 0..{})",
+            psns::error::num(v),
+            u64::MAX
+        ),
+        Err(_) => format!("'{s}' is not a whole number"),
+    })
+}
+
+/// Parses a repetition count, 1..1000.
+pub(crate) fn runs(s: &str) -> Result<usize, String> {
+    match whole(s)? {
+        v @ 1..=1000 => Ok(v as usize),
+        v => Err(format!("{v} is out of range (allowed 1..1000)")),
+    }
+}
+
 /// Parses `a,b,...` with exactly N finite numbers.
 pub(crate) fn finite_list<const N: usize>(s: &str) -> Result<[f64; N], String> {
     let v: Vec<f64> = s.split(',').map(finite).collect::<Result<_, _>>()?;
@@ -234,10 +256,17 @@ impl SceneArgs {
                 let frame = match current {
                     Attitude::Euler { frame, .. } | Attitude::Quaternion { frame, .. } => frame,
                 };
-                cam.attitude = Attitude::Quaternion {
+                let a = Attitude::Quaternion {
                     frame: frame_given.unwrap_or(frame),
                     wxyz: q,
                 };
+                a.validate()?;
+                let norm = q.iter().map(|v| v * v).sum::<f64>().sqrt();
+                if (norm - 1.0).abs() > 1e-12 {
+                    // typed quaternions are rounded: use the unit one, and record that in scene.json
+                    eprintln!("psns: note: --quaternion normalised (its norm was {norm:.6})");
+                }
+                cam.attitude = a.normalized();
             }
             (None, Attitude::Quaternion { frame, wxyz }) => {
                 if euler_given {
@@ -339,10 +368,10 @@ pub(crate) struct RawArgs {
     #[arg(long, value_parser = parse_pixel_format)]
     pub(crate) pixel_format: Option<PixelFormat>,
     /// Camera seed (fixed patterns and noise).
-    #[arg(long)]
+    #[arg(long, value_parser = whole)]
     pub(crate) seed: Option<u64>,
     /// Frame index of that camera (temporal noise).
-    #[arg(long)]
+    #[arg(long, value_parser = whole)]
     pub(crate) frame_index: Option<u64>,
     /// Draw the solar disc (default: on for the camera preset, off for PSNS presets).
     #[arg(long, value_enum)]

@@ -32,7 +32,7 @@ pub struct DemosaicArgs {
     #[arg(long, default_value = "out")]
     out: PathBuf,
     /// Frame index (stream input).
-    #[arg(long)]
+    #[arg(long, value_parser = super::args::whole)]
     frame: Option<u64>,
     /// Mosaic layout of a PNG/TIFF input, e.g. "90,45/135,0".
     #[arg(long, default_value = "90,45/135,0", value_parser = parse_layout)]

@@ -55,7 +55,7 @@ pub struct StreamArgs {
     #[arg(long, default_value = "-", value_name = "PATH|-")]
     out: PathBuf,
     /// Stop after N frames.
-    #[arg(long, value_name = "N")]
+    #[arg(long, value_name = "N", value_parser = super::args::whole)]
     frames: Option<u64>,
     /// Pace output in real time at FPS against the trajectory clock (default: unpaced).
     #[arg(long, value_parser = finite, value_name = "FPS")]

@@ -156,7 +156,7 @@ impl PolarizationField {
     /// Cooks the field. Errors for parameters out of range or θ_s outside 0..90.
     pub fn new(sun: SunPosition, params: &SkyParams) -> Result<Self> {
         params.validate()?;
-        check_range("sun-zenith", sun.zenith_deg, 0.0, 90.0)?;
+        sun.check_up()?;
         check_range("sun-azimuth", sun.azimuth_deg, -720.0, 720.0)?;
         Ok(PolarizationField {
             model: params.model,

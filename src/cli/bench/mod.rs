@@ -21,7 +21,7 @@ pub enum BenchCmd {
         #[arg(long, default_value = "docs/bench")]
         out: PathBuf,
         /// Timed runs per method (median reported).
-        #[arg(long, default_value_t = 7)]
+        #[arg(long, default_value_t = 7, value_parser = crate::cli::args::runs)]
         runs: usize,
         /// Small frames and few runs (a quick look; not for the docs).
         #[arg(long)]
@@ -35,7 +35,7 @@ pub enum BenchCmd {
         #[arg(long, default_value = "docs/bench")]
         out: PathBuf,
         /// Timed runs per setting (median reported).
-        #[arg(long, default_value_t = 5)]
+        #[arg(long, default_value_t = 5, value_parser = crate::cli::args::runs)]
         runs: usize,
     },
 }
