@@ -237,13 +237,25 @@ pub struct SceneConfig {
 impl SceneConfig {
     /// Reads a TOML (`.toml`) or JSON (anything else that starts with `{`) scene file.
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| {
-            if e.kind() == std::io::ErrorKind::NotFound {
+        let text = std::fs::read_to_string(path).map_err(|e| match e.kind() {
+            std::io::ErrorKind::NotFound => {
                 Error::Invalid(format!("config file {} does not exist", path.display()))
-            } else {
-                Error::io(format!("reading config {}", path.display()), e)
             }
+            _ => Error::input(path, e),
         })?;
+        let empty = text
+            .trim()
+            .trim_start_matches('{')
+            .trim_end_matches('}')
+            .trim()
+            .is_empty();
+        if empty {
+            // an empty file is a failed redirect or a typo far more often than a wish for defaults
+            return Err(Error::Invalid(format!(
+                "config {} sets nothing; give at least one setting, or leave out --config for the default scene",
+                path.display()
+            )));
+        }
         let mut cfg: SceneConfig = if text.trim_start().starts_with('{') {
             serde_json::from_str(&text).map_err(|e| {
                 Error::Invalid(format!(

@@ -232,38 +232,61 @@ pub struct GrayImage {
     pub bits: u8,
 }
 
-/// Reads an 8- or 16-bit greyscale PNG.
-pub fn read_png_gray(path: &Path) -> Result<GrayImage> {
-    let f = File::open(path).map_err(|e| Error::io(format!("reading {}", path.display()), e))?;
+/// The most pixels an input image may have: the same cap as a rendered frame.
+pub const MAX_INPUT_PIXELS: u64 = 100_000_000;
+
+/// Reads an 8- or 16-bit greyscale PNG or TIFF (format from the file's magic bytes) through the
+/// `image` crate with decoding limits: at most [`MAX_INPUT_PIXELS`] pixels, 65 536 per side, and
+/// the decoder's allocations capped, so a small file declaring a huge image is refused from its
+/// header instead of exhausting memory. Colour, other depths and damaged files are
+/// [`Error::Format`].
+pub fn read_gray(path: &Path) -> Result<GrayImage> {
     let fmt = |m: String| Error::Format(format!("{}: {m}", path.display()));
-    let dec = png::Decoder::new(std::io::BufReader::new(f));
-    let mut reader = dec.read_info().map_err(|e| fmt(e.to_string()))?;
-    let mut buf = vec![0; reader.output_buffer_size().unwrap_or(0)];
-    let info = reader
-        .next_frame(&mut buf)
-        .map_err(|e| fmt(e.to_string()))?;
-    if info.color_type != png::ColorType::Grayscale {
-        return Err(fmt(format!(
-            "expected a greyscale raw mosaic, found {:?}",
-            info.color_type
+    let open = || {
+        image::ImageReader::open(path)
+            .and_then(|r| r.with_guessed_format())
+            .map_err(|e| Error::input(path, e))
+    };
+    let (w, h) = open()?
+        .into_dimensions()
+        .map_err(|e| fmt(format!("not a readable PNG or TIFF image ({e})")))?;
+    let pixels = w as u64 * h as u64;
+    if pixels > MAX_INPUT_PIXELS || w > 65_536 || h > 65_536 {
+        return Err(Error::Invalid(format!(
+            "{}: {w} x {h} pixels is too large (allowed at most 65536 per side and {MAX_INPUT_PIXELS} pixels)",
+            path.display()
         )));
     }
-    let (w, h) = (info.width as usize, info.height as usize);
-    let (data, bits) = match info.bit_depth {
-        png::BitDepth::Eight => (buf[..w * h].iter().map(|&v| v as u16).collect(), 8),
-        png::BitDepth::Sixteen => (
-            buf[..w * h * 2]
-                .chunks_exact(2)
-                .map(|c| u16::from_be_bytes([c[0], c[1]]))
-                .collect(),
-            16,
-        ),
-        d => return Err(fmt(format!("unsupported bit depth {d:?}"))),
+    let mut reader = open()?;
+    let mut limits = image::Limits::default();
+    limits.max_image_width = Some(65_536);
+    limits.max_image_height = Some(65_536);
+    limits.max_alloc = Some(pixels * 2 + (64 << 20));
+    reader.limits(limits);
+    let img = reader
+        .decode()
+        .map_err(|e| fmt(format!("cannot decode ({e})")))?;
+    let (data, bits) = match img {
+        image::DynamicImage::ImageLuma8(g) => {
+            (g.into_raw().into_iter().map(u16::from).collect(), 8)
+        }
+        image::DynamicImage::ImageLuma16(g) => (g.into_raw(), 16),
+        other => {
+            return Err(fmt(format!(
+                "expected a greyscale raw mosaic (8 or 16 bit), found {:?}",
+                other.color()
+            )))
+        }
     };
     Ok(GrayImage {
-        image: Image::from_vec(w, h, data),
+        image: Image::from_vec(w as usize, h as usize, data),
         bits,
     })
+}
+
+/// Reads an 8- or 16-bit greyscale PNG (see [`read_gray`]).
+pub fn read_png_gray(path: &Path) -> Result<GrayImage> {
+    read_gray(path)
 }
 
 /// Writes a 16-bit greyscale TIFF.
@@ -280,26 +303,9 @@ pub fn write_tiff_u16(path: &Path, img: &Image<u16>) -> Result<()> {
     })
 }
 
-/// Reads a 16- or 8-bit greyscale TIFF.
+/// Reads a 16- or 8-bit greyscale TIFF (see [`read_gray`]).
 pub fn read_tiff_gray(path: &Path) -> Result<GrayImage> {
-    let f = File::open(path).map_err(|e| Error::io(format!("reading {}", path.display()), e))?;
-    let fmt = |m: String| Error::Format(format!("{}: {m}", path.display()));
-    let mut dec =
-        tiff::decoder::Decoder::new(std::io::BufReader::new(f)).map_err(|e| fmt(e.to_string()))?;
-    let (w, h) = dec.dimensions().map_err(|e| fmt(e.to_string()))?;
-    let img = dec.read_image().map_err(|e| fmt(e.to_string()))?;
-    let (data, bits) = match img {
-        tiff::decoder::DecodingResult::U16(v) => (v, 16),
-        tiff::decoder::DecodingResult::U8(v) => (v.into_iter().map(u16::from).collect(), 8),
-        _ => return Err(fmt("expected an 8- or 16-bit greyscale TIFF".into())),
-    };
-    if data.len() != (w * h) as usize {
-        return Err(fmt("expected a single-channel image".into()));
-    }
-    Ok(GrayImage {
-        image: Image::from_vec(w as usize, h as usize, data),
-        bits,
-    })
+    read_gray(path)
 }
 
 #[cfg(test)]

@@ -265,3 +265,131 @@ fn demosaic_command_with_dolp_debias() {
     ]);
     assert_eq!(o.status.code(), Some(2), "{}", err(&o));
 }
+
+/// A PNG declaring `w` x `h` 16-bit grey with an empty image stream: tiny on disk.
+fn png_header_only(w: u32, h: u32) -> Vec<u8> {
+    let chunk = |kind: &[u8], data: &[u8]| {
+        let mut c = (data.len() as u32).to_be_bytes().to_vec();
+        c.extend_from_slice(kind);
+        c.extend_from_slice(data);
+        let crc = crc32fast::hash(&c[4..]);
+        c.extend_from_slice(&crc.to_be_bytes());
+        c
+    };
+    let mut ihdr = w.to_be_bytes().to_vec();
+    ihdr.extend_from_slice(&h.to_be_bytes());
+    ihdr.extend_from_slice(&[16, 0, 0, 0, 0]); // 16 bit, greyscale
+    let mut b = b"\x89PNG\r\n\x1a\n".to_vec();
+    b.extend(chunk(b"IHDR", &ihdr));
+    b.extend(chunk(b"IDAT", &[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01])); // empty zlib
+    b.extend(chunk(b"IEND", &[]));
+    b
+}
+
+/// Bad input files and options for `psns demosaic` (issue 14 items 1, 2, 13): exit 2, a message,
+/// and nothing written, never a crash or a partial set of arrays.
+#[test]
+fn demosaic_bad_input_exits_2_and_writes_nothing() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    let raw = d.join("r");
+    let o = psns(&[
+        "render",
+        "--raw",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--out",
+        raw.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", err(&o));
+    let good = raw.join("raw.png");
+    let bytes = std::fs::read(&good).unwrap();
+    std::fs::write(d.join("text.png"), "hello, not an image\n").unwrap();
+    std::fs::write(d.join("empty.png"), "").unwrap();
+    std::fs::write(d.join("cut.png"), &bytes[..bytes.len() / 2]).unwrap();
+    std::fs::write(d.join("huge.png"), png_header_only(30_000, 30_000)).unwrap();
+    std::fs::create_dir(d.join("adir")).unwrap();
+    {
+        let f = std::fs::File::create(d.join("rgb.png")).unwrap();
+        let mut e = png::Encoder::new(f, 4, 4);
+        e.set_color(png::ColorType::Rgb);
+        e.set_depth(png::BitDepth::Eight);
+        e.write_header()
+            .unwrap()
+            .write_image_data(&[7u8; 48])
+            .unwrap();
+    }
+    let p = |n: &str| d.join(n).to_str().unwrap().to_string();
+    let g = good.to_str().unwrap().to_string();
+    let cases: Vec<(Vec<String>, &str)> = vec![
+        (
+            vec![g.clone(), "--dolp-debias".into(), "-1".into()],
+            "dolp-debias = -1",
+        ),
+        (
+            vec![g.clone(), "--dolp-debias".into(), "1e9".into()],
+            "dolp-debias = 1e9",
+        ),
+        (vec![p("text.png")], "not a PNG, TIFF or psns stream"),
+        (vec![p("empty.png")], "too short"),
+        (vec![p("cut.png")], "cannot decode"),
+        (vec![p("huge.png")], "30000 x 30000 pixels is too large"),
+        (vec![p("rgb.png")], "expected a greyscale raw mosaic"),
+        (vec![p("adir")], "adir"),
+        (vec![p("missing.png")], "missing.png"),
+    ];
+    for (i, (extra, needle)) in cases.iter().enumerate() {
+        let out = d.join(format!("o{i}"));
+        let mut args = vec!["demosaic".to_string()];
+        args.extend(extra.iter().cloned());
+        args.extend(["--out".into(), out.to_str().unwrap().into()]);
+        let a: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
+        let o = psns(&a);
+        assert_eq!(o.status.code(), Some(2), "{extra:?}: {}", err(&o));
+        assert!(
+            err(&o).contains(needle),
+            "{extra:?}: '{needle}' not in {}",
+            err(&o)
+        );
+        assert!(!out.exists(), "{extra:?} wrote {}", out.display());
+    }
+}
+
+/// Bad scene files for `--config`: exit 2 and nothing written (issue 14 item 13).
+#[test]
+fn bad_config_files_exit_2() {
+    let dir = tempfile::tempdir().unwrap();
+    let d = dir.path();
+    std::fs::write(d.join("garbage.toml"), "\u{1}\u{2} this is not = = toml").unwrap();
+    std::fs::write(d.join("empty.json"), "{ }").unwrap();
+    std::fs::write(d.join("empty.toml"), "").unwrap();
+    std::fs::create_dir(d.join("cfgdir")).unwrap();
+    for (name, needle) in [
+        ("garbage.toml", "is not a valid scene"),
+        ("empty.json", "sets nothing"),
+        ("empty.toml", "sets nothing"),
+        ("cfgdir", "cfgdir"),
+    ] {
+        let out = d.join("o");
+        let o = psns(&[
+            "render",
+            "--config",
+            d.join(name).to_str().unwrap(),
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{name}: {}", err(&o));
+        assert!(
+            err(&o).contains(needle),
+            "{name}: '{needle}' not in {}",
+            err(&o)
+        );
+        assert!(!out.exists(), "{name} wrote output");
+    }
+}

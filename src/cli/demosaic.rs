@@ -96,14 +96,11 @@ pub fn load_raw(input: &Path, layout: MosaicLayout, frame: Option<u64>) -> Resul
     let mut head = [0u8; 8];
     {
         use std::io::Read;
-        let mut f = std::fs::File::open(input)
-            .map_err(|e| Error::io(format!("opening {}", input.display()), e))?;
-        let n = f
-            .read(&mut head)
-            .map_err(|e| Error::io(format!("reading {}", input.display()), e))?;
+        let mut f = std::fs::File::open(input).map_err(|e| Error::input(input, e))?;
+        let n = f.read(&mut head).map_err(|e| Error::input(input, e))?;
         if n < 8 {
             return Err(Error::Format(format!(
-                "{}: too short for a raw image or stream",
+                "{}: too short for a raw image or stream ({n} bytes)",
                 input.display()
             )));
         }
@@ -111,16 +108,15 @@ pub fn load_raw(input: &Path, layout: MosaicLayout, frame: Option<u64>) -> Resul
     if head == psns::stream::FILE_MAGIC {
         return load_stream(input, frame);
     }
-    let g = if head.starts_with(b"\x89PNG") {
-        io::read_png_gray(input)?
-    } else if head.starts_with(b"II*\0") || head.starts_with(b"MM\0*") {
-        io::read_tiff_gray(input)?
-    } else {
+    let is_image =
+        head.starts_with(b"\x89PNG") || head.starts_with(b"II*\0") || head.starts_with(b"MM\0*");
+    if !is_image {
         return Err(Error::Format(format!(
             "{}: not a PNG, TIFF or psns stream",
             input.display()
         )));
-    };
+    }
+    let g = io::read_gray(input)?;
     if frame.is_some() {
         return Err(Error::Invalid(
             "--frame applies to stream input only".into(),
@@ -179,6 +175,9 @@ pub fn demosaic_codes(
 /// `aolp.png` (cyclic hue), `aolp_dolp.png` (AoLP as hue, DoLP as brightness, full at 0.5);
 /// `demosaic.json` records the input, method, layout, black level and time.
 pub fn demosaic_to_dir(opts: &DemosaicOptions) -> Result<Vec<String>> {
+    if let Some(sigma) = opts.debias_sigma {
+        psns::error::check_range("dolp-debias", sigma, 0.0, 1e6)?;
+    }
     let raw = load_raw(&opts.input, opts.layout, opts.frame)?;
     psns::demosaic::check_raw(&raw.codes)?;
     let t0 = Instant::now();
@@ -197,7 +196,6 @@ pub fn demosaic_to_dir(opts: &DemosaicOptions) -> Result<Vec<String>> {
     io::write_npy(&put("dolp.npy"), &p.dolp)?;
     io::write_npy(&put("aolp.npy"), &p.aolp_deg)?;
     if let Some(sigma) = opts.debias_sigma {
-        psns::error::check_range("dolp-debias", sigma, 0.0, 1e6)?;
         let d = psns::stokes::debiased_dolp_image(&p.stokes, sigma as f32);
         io::write_npy(&put("dolp_debiased.npy"), &d)?;
     }

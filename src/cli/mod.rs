@@ -27,8 +27,10 @@ pub fn open_input(path: &Path) -> Result<Box<dyn std::io::Read>> {
     if path.as_os_str() == "-" {
         Ok(Box::new(std::io::stdin().lock()))
     } else {
-        let f = std::fs::File::open(path)
-            .map_err(|e| Error::io(format!("opening {}", path.display()), e))?;
+        let f = std::fs::File::open(path).map_err(|e| Error::input(path, e))?;
+        if f.metadata().is_ok_and(|m| m.is_dir()) {
+            return Err(Error::Invalid(format!("{} is a directory", path.display())));
+        }
         Ok(Box::new(std::io::BufReader::with_capacity(1 << 20, f)))
     }
 }
