@@ -14,6 +14,7 @@ Command line:
     psns_stream.py frame FILE N OUT   write frame N's values as raw uint16 little-endian
 """
 import json
+import os
 import struct
 import sys
 import zlib
@@ -552,4 +553,12 @@ class _Prefixed:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv))
+    try:
+        status = main(sys.argv)
+        sys.stdout.flush()
+    except BrokenPipeError:
+        # the reader of stdout went away (e.g. `| head`): end quietly, status 0 like `psns stream`;
+        # stdout goes to /dev/null so the interpreter's final flush does not complain either
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        status = 0
+    sys.exit(status)
