@@ -390,3 +390,50 @@ fn recover_infers_geometry_or_asks_for_it() {
     assert_eq!((rep.header.width, rep.header.height), (40, 30), "{rep}");
     assert_eq!(rep.frames, 1);
 }
+
+#[test]
+fn python_reader_recovers_a_damaged_header() {
+    require_numpy();
+    let d = tempfile::tempdir().unwrap();
+    let good = streamed(d.path(), "a.psns", &[]);
+    let tool = concat!(env!("CARGO_MANIFEST_DIR"), "/tools/psns_stream.py");
+    let dump = |f: &Path, extra: &[&str]| {
+        python_cmd()
+            .arg(tool)
+            .arg("dump")
+            .args(extra)
+            .arg(f)
+            .output()
+            .unwrap()
+    };
+    let want = stdout(&dump(&good, &[]));
+    let want_frames: Vec<&str> = want.lines().skip(1).collect();
+    assert_eq!(want_frames.len(), 3);
+    let bytes = std::fs::read(&good).unwrap();
+    for pos in [1usize, 20, 25, 28, 57, 300, 4093] {
+        let mut b = bytes.clone();
+        b[pos] ^= 0x5a;
+        let f = d.path().join(format!("d{pos}.psns"));
+        std::fs::write(&f, &b).unwrap();
+        let o = dump(&f, &[]);
+        assert_eq!(o.status.code(), Some(1), "pos {pos}");
+        assert!(
+            stderr(&o).contains("--recover"),
+            "pos {pos}: {}",
+            stderr(&o)
+        );
+        let o = dump(&f, &["--recover"]);
+        assert!(o.status.success(), "pos {pos}: {}", stderr(&o));
+        assert!(stderr(&o).contains("DEGRADED MODE"), "pos {pos}");
+        let got = stdout(&o);
+        assert!(
+            got.starts_with("header 64 48 01100007 12 "),
+            "pos {pos}: {got}"
+        );
+        assert_eq!(
+            got.lines().skip(1).collect::<Vec<_>>(),
+            want_frames,
+            "pos {pos}"
+        );
+    }
+}
