@@ -404,7 +404,7 @@ fn infer_header(
         // no frame to check against: the user's geometry as given
         cands.push((3, f, w, h));
     }
-    cands.sort_by(|a, b| b.0.cmp(&a.0));
+    cands.sort_by_key(|c| std::cmp::Reverse(c.0));
     let said = format!(
         "frames found: {}; stride {}; payload {}; header fields say {w_s} x {h_s}, PFNC 0x{code_s:08X}, payload {p_s} B, stride {s_s} B",
         found.len(),
