@@ -358,7 +358,7 @@ fn golden_stream_fixture() {
     assert_eq!(hash, want_hash.trim());
     assert_eq!(bytes, want);
     let rep = verify(Cursor::new(&want)).unwrap();
-    assert!(rep.clean() && rep.frames == 3, "{rep}");
+    assert!(rep.intact() && rep.frames == 3, "{rep}");
 }
 
 /// A stream whose file header is `base` with fields patched (and its CRC recomputed, so only the
@@ -593,7 +593,7 @@ fn golden_streams_every_format() {
         assert_eq!(bytes, want, "{name}");
         assert!(want.len() < 20_000, "{name}: {} bytes", want.len());
         let rep = verify(Cursor::new(&want)).unwrap();
-        assert!(rep.clean() && rep.frames == 3, "{name}: {rep}");
+        assert!(rep.intact() && rep.frames == 3, "{name}: {rep}");
     }
 }
 

@@ -102,7 +102,7 @@ fn round_trip_every_format() {
         }
         assert_eq!(n, 3);
         let rep = verify(Cursor::new(&bytes)).unwrap();
-        assert!(rep.clean(), "{rep}");
+        assert!(rep.intact(), "{rep}");
         assert_eq!(rep.frames, 3);
     }
 }
@@ -176,7 +176,7 @@ fn bit_flips_in_headers_and_payloads() {
     // a flip in the pad is not an error (the pad is not covered)
     let mut b = bytes.clone();
     b[4096 + 2 * stride + 256 + 256 + 10] ^= 1;
-    assert!(verify(Cursor::new(&b)).unwrap().clean());
+    assert!(verify(Cursor::new(&b)).unwrap().intact());
     // file header damage: error, nothing read
     let mut b = bytes.clone();
     b[30] ^= 1;
@@ -217,7 +217,7 @@ fn truncation_at_every_offset_of_last_record() {
     }
     // cut exactly at a record boundary: clean but shorter
     let rep = verify(Cursor::new(&bytes[..start])).unwrap();
-    assert!(rep.clean());
+    assert!(rep.intact());
     assert_eq!(rep.frames, 2);
 }
 

@@ -12,8 +12,11 @@ Command line:
     psns_stream.py dump FILE|-        canonical text lines, one per event (used by the test suite)
     psns_stream.py mmdump FILE        canonical lines of the whole records via numpy.memmap
     psns_stream.py frame FILE N OUT   write frame N's values as raw uint16 little-endian
+    dump and frame take --recover [--width W --height H --pixel-format F]: degraded mode for a
+    damaged file header (docs/stream-format.md)
 """
 import json
+import os
 import struct
 import sys
 import zlib
@@ -204,7 +207,169 @@ def _frame_header_ok(b):
         zlib.crc32(b[:252]) == struct.unpack_from("<I", b, 252)[0]
 
 
-def iter_events(f):
+RECOVER_SCAN_MAX = 256 << 20
+DEFAULT_ANGLES = [90, 45, 135, 0]
+
+
+def _frames_in(buf, want):
+    """(offset, index, payload_crc) of the first `want` frame headers with a valid CRC."""
+    out, frm = [], 0
+    while len(out) < want:
+        j = buf.find(FRAME_MAGIC, frm)
+        if j < 0:
+            break
+        if j + 256 <= len(buf) and _frame_header_ok(buf[j:j + 256]):
+            out.append((j, struct.unpack_from("<Q", buf, j + 8)[0],
+                        struct.unpack_from("<I", buf, j + 20)[0]))
+        frm = j + 1
+    return out
+
+
+def recover_header(buf, eof, damage, width=None, height=None, pixel_format=None):
+    """Degraded mode (docs/stream-format.md, "Degraded mode"): infers the header of a stream whose
+    file header is damaged from the frames found in `buf` (the start of the stream; `eof` if it is
+    all of it), as the Rust StreamReader::new_recovering does. Returns (header dict, start offset);
+    the dict's "recovered" key says how. Raises StreamError if the geometry cannot be inferred."""
+    buf = bytes(buf)
+    hb = buf[:4096].ljust(4096, b"\0")
+    w_s, h_s, code_s = struct.unpack_from("<III", hb, 20)
+    p_s, s_s = struct.unpack_from("<QQ", hb, 48)
+    found = _frames_in(buf, 3)
+    how, stride = [], None
+    if len(found) >= 2:
+        (a, ia, _), (b, ib, _) = found[:2]
+        if ib > ia and (b - a) % (ib - ia) == 0 and ((b - a) // (ib - ia)) % 4096 == 0:
+            stride = (b - a) // (ib - ia)
+            how.append("stride %d B between frames %d and %d" % (stride, ia, ib))
+    if stride is None and found:
+        a, ia, _ = found[0]
+        if ia > 0 and a > 4096 and (a - 4096) % ia == 0 and ((a - 4096) // ia) % 4096 == 0:
+            stride = (a - 4096) // ia
+            how.append("stride %d B from frame %d at byte %d" % (stride, ia, a))
+        elif ia == 0 and eof and len(found) == 1 and (len(buf) - a) % 4096 == 0 and len(buf) > a:
+            stride = len(buf) - a
+            how.append("stride %d B from the single frame's record" % stride)
+    payload = None
+    for pos, idx, pcrc in found:
+        data = buf[pos + 256:]
+        lo, hi = (max(0, stride - 4351), stride - 256) if stride else (0, min(len(data), MAX_PAYLOAD))
+        hi = min(hi, len(data))
+        if lo > hi:
+            continue
+        crc, hits = zlib.crc32(data[:lo]), []
+        for n in range(lo, hi + 1):
+            if n > lo:
+                crc = zlib.crc32(data[n - 1:n], crc)
+            if n > 0 and crc == pcrc:
+                hits.append(n)
+        if len(hits) == 1:
+            payload = hits[0]
+            how.append("payload %d B from the payload CRC of frame %d" % (payload, idx))
+            stride = stride or stride_for(payload)
+            break
+    target = payload
+    if target is None and stride_for(p_s) == (stride or s_s) and 0 < p_s <= MAX_PAYLOAD:
+        target = p_s
+        how.append("payload %d B from the header (fits the stride)" % p_s)
+    fmts = [pixel_format] if pixel_format else list(CONTAINER_BITS)
+    stored_fmt = PFNC.get(code_s)
+    cands = {}
+    if target is not None:
+        for fmt in fmts:
+            ws = width if width else w_s
+            hs = height if height else h_s
+            pairs = [(ws, hs)]
+            if fmt == "Mono8":
+                ns = [target]
+            elif fmt == "Mono16":
+                ns = [target // 2] if target % 2 == 0 else []
+            else:
+                ns = [n for n in (2 * target // 3, 2 * target // 3 + 1) if (3 * n + 1) // 2 == target]
+            for n in ns:
+                if not width and hs and n % hs == 0:
+                    pairs.append((n // hs, hs))
+                if not height and ws and n % ws == 0:
+                    pairs.append((ws, n // ws))
+            for w, h in pairs:
+                if 1 <= w <= 65535 and 1 <= h <= 65535 and payload_size(fmt, w, h) == target:
+                    score = ((w == w_s) + (h == h_s) + (fmt == stored_fmt) + bool(width)
+                             + bool(height) + bool(pixel_format))
+                    cands[(fmt, w, h)] = score
+    elif width and height and pixel_format:
+        cands[(pixel_format, width, height)] = 3
+    said = ("frames found: %d; stride %s; payload %s; header fields say %d x %d, PFNC 0x%08X"
+            % (len(found), stride, target, w_s, h_s, code_s))
+    ranked = sorted(cands.items(), key=lambda kv: -kv[1])
+    if not ranked:
+        raise StreamError("%s; cannot infer the frame geometry (%s): give width, height and "
+                          "pixel format" % (damage, said))
+    if len(ranked) > 1 and ranked[0][1] == ranked[1][1]:
+        raise StreamError("%s; frame geometry ambiguous (%s or %s; %s): give width, height and "
+                          "pixel format" % (damage, ranked[0][0], ranked[1][0], said))
+    if ranked[0][1] < 2:
+        raise StreamError("%s; the geometry that fits the frames disagrees with more than one "
+                          "header field (%s): give width, height and pixel format" % (damage, said))
+    fmt, w, h = ranked[0][0]
+    p = payload_size(fmt, w, h)
+    if stride and stride_for(p) != stride:
+        raise StreamError("%s; %d x %d %s has stride %d B but the frames found are %d B apart"
+                          % (damage, w, h, fmt, stride_for(p), stride))
+    for name, given, same in (("width", width, w == w_s), ("height", height, h == h_s),
+                              ("pixel format", pixel_format, fmt == stored_fmt)):
+        how.append("%s %s" % (name, "given" if given else "from the header" if same
+                              else "inferred (header field disagrees)"))
+    defaults = []
+    bits, align = struct.unpack_from("<HH", hb, 32)
+    if not (bits == 8 if fmt == "Mono8" else 1 <= bits <= CONTAINER_BITS[fmt]):
+        defaults.append("bits valid (%d -> %d)" % (bits, CONTAINER_BITS[fmt]))
+        bits = CONTAINER_BITS[fmt]
+    if align > 1 or (align == 1 and fmt != "Mono16"):
+        defaults.append("alignment (%d -> LSB)" % align)
+        align = 0
+    angles = list(struct.unpack_from("<4h", hb, 36))
+    if sorted(angles) != [0, 45, 90, 135]:
+        defaults.append("polarizer angles (IMX250MZR 90, 45, 135, 0)")
+        angles = DEFAULT_ANGLES
+    sense = struct.unpack_from("<h", hb, 44)[0]
+    if sense not in (1, -1):
+        defaults.append("angle sense (%d -> +1)" % sense)
+        sense = 1
+    strs = []
+    for off, what in ((160, "producer"), (192, "preset")):
+        try:
+            strs.append(_cstr(hb[off:off + 32], what))
+        except StreamError:
+            defaults.append("%s (empty)" % what)
+            strs.append("")
+    jo, jl = struct.unpack_from("<II", hb, 224)
+    js = ""
+    if (jo, jl) != (0, 0):
+        try:
+            if jo < 232 or jo + jl > 4092:
+                raise ValueError
+            js = hb[jo:jo + jl].decode()
+            if "\0" in js:
+                raise ValueError
+        except ValueError:
+            defaults.append("JSON (dropped)")
+            js = ""
+    major, minor = struct.unpack_from("<HH", hb, 8)
+    code = {v: k for k, v in PFNC.items()}[fmt]
+    seed = struct.unpack_from("<Q", hb, 72)[0]
+    info = ("%s; geometry %d x %d %s (payload %d B, stride %d B): %s"
+            % (damage, w, h, fmt, p, stride_for(p), ", ".join(how)))
+    if defaults:
+        info += "; defaults used for " + ", ".join(defaults)
+    hdr = dict(version=(1, minor), width=w, height=h, pfnc=code, pixel_format=fmt,
+               bits_valid=bits, msb_aligned=bool(align), angles_deg=angles, angle_sense=sense,
+               payload_size=p, stride=stride_for(p), frame_count=0, seed=seed,
+               camera=dict(zip(CAMERA, struct.unpack_from("<10d", hb, 80))), producer=strs[0],
+               preset=strs[1], json=js, recovered=info)
+    start = min(found[0][0], 4096) if found else 4096
+    return hdr, min(start, len(buf))
+
+
+def iter_events(f, recover=False, width=None, height=None, pixel_format=None):
     """Yields the reader's events from a binary file object (file, FIFO, stdin), as the Rust
     StreamReader (src/stream/reader.rs) does:
       ("frame", meta, values, payload_crc_ok, offset)
@@ -213,7 +378,11 @@ def iter_events(f):
       ("truncated", index_or_None, offset, have, need)  partial record (EOF or producer died)
       ("skipped", offset, bytes)                        bytes skipped while resynchronising
       ("restart", header)                               new file header; layout may change
-    The first file header is read first and raises StreamError if it is unusable."""
+      ("recovered", header)                             degraded mode: first event, the inferred
+                                                        header (header["recovered"] says how)
+    The first file header is read first and raises StreamError if it is unusable, unless
+    recover=True: then a damaged header is replaced as recover_header() infers it (width,
+    height, pixel_format: the user's geometry, if known)."""
     st = dict(buf=bytearray(), start=0, off=0, eof=False)
 
     def avail():
@@ -274,9 +443,24 @@ def iter_events(f):
             frm = i + 1
         return None
 
-    fill(4096)
-    hdr = parse_header(view(0, 4096))
-    consume(4096)
+    fill(4096 + 8)
+    try:
+        hdr = parse_header(view(0, 4096))
+        consume(4096)
+    except StreamError as e:
+        if not recover or avail() < 4096 or view(0, 8) != FILE_MAGIC and view(4096, 4104) != FRAME_MAGIC \
+                and sum(x != y for x, y in zip(view(0, 8), FILE_MAGIC)) > 1:
+            raise
+        want = 4096 + (1 << 20)
+        while True:
+            fill(want)
+            if st["eof"] or avail() >= RECOVER_SCAN_MAX or len(_frames_in(view(), 3)) >= 3:
+                break
+            want = min(want * 2, RECOVER_SCAN_MAX)
+        hdr, start = recover_header(view(), st["eof"], "stream file header damaged (%s)" % e,
+                                    width, height, pixel_format)
+        yield ("recovered", hdr)
+        consume(start)
     expected = 0  # next expected index; None right after a restart
 
     while True:
@@ -421,13 +605,15 @@ def iter_events(f):
             return
 
 
-def iter_frames(f, report=None):
+def iter_frames(f, report=None, **recover):
     """Yields (meta, values, payload_crc_ok) from a binary file object (file, FIFO, stdin).
     Everything else (damage, gaps, truncation, restarts) goes to report(str) (default: stderr);
     use iter_events() to see the header in force after a restart."""
     report = report or (lambda s: print(s, file=sys.stderr))
-    for ev in iter_events(f):
-        if ev[0] == "frame":
+    for ev in iter_events(f, **recover):
+        if ev[0] == "recovered":
+            report("DEGRADED MODE: %s" % ev[1]["recovered"])
+        elif ev[0] == "frame":
             _, meta, values, ok, _ = ev
             if not ok:
                 report("frame %d: payload CRC mismatch" % meta["index"])
@@ -494,7 +680,32 @@ def canonical_header(h):
         h["frame_count"], h["payload_size"], h["stride"], ",".join(str(a) for a in h["angles_deg"]))
 
 
+def _recover_opts(argv):
+    """Pops --recover, --width W, --height H, --pixel-format F from argv; returns iter_events kwargs."""
+    kw, rest, i = {}, [], 0
+    names = {"mono8": "Mono8", "mono12p": "Mono12p", "mono12packed": "Mono12Packed", "mono16": "Mono16"}
+    while i < len(argv):
+        a = argv[i]
+        if a == "--recover":
+            kw["recover"] = True
+        elif a in ("--width", "--height", "--pixel-format") and i + 1 < len(argv):
+            v = argv[i + 1]
+            if a == "--pixel-format":
+                if v.lower() not in names:
+                    raise SystemExit("--pixel-format %s is not one of mono8, mono12p, mono12packed, "
+                                     "mono16" % v)
+                kw["pixel_format"] = names[v.lower()]
+            else:
+                kw[a[2:]] = int(v)
+            i += 1
+        else:
+            rest.append(a)
+        i += 1
+    return kw, rest
+
+
 def main(argv):
+    kw, argv = _recover_opts(argv)
     if len(argv) < 3 or argv[1] not in ("info", "dump", "mmdump", "frame"):
         print(__doc__, file=sys.stderr)
         return 2
@@ -505,10 +716,20 @@ def main(argv):
         try:
             print(canonical_header(parse_header(head)))
         except StreamError as e:
-            print("not a valid psns stream header: %s" % e, file=sys.stderr)
+            if not kw.get("recover"):
+                print("not a valid psns stream header: %s (a damaged header: try --recover)" % e,
+                      file=sys.stderr)
+                return 1
+        try:
+            for ev in iter_events(_Prefixed(head, f), **kw):
+                if ev[0] == "recovered":
+                    print("DEGRADED MODE: %s" % ev[1]["recovered"], file=sys.stderr)
+                    print(canonical_header(ev[1]))
+                    continue
+                print(canonical_event(ev))
+        except StreamError as e:
+            print("psns_stream.py: %s" % e, file=sys.stderr)
             return 1
-        for ev in iter_events(_Prefixed(head, f)):
-            print(canonical_event(ev))
         return 0
     if cmd == "mmdump":
         # numpy memmap path (regular files): whole records with a valid header, in file order
@@ -530,7 +751,7 @@ def main(argv):
         print(json.dumps(out, indent=1))
         return 0
     n = int(argv[3])
-    for meta, values, ok in iter_frames(f):
+    for meta, values, ok in iter_frames(f, **kw):
         if meta["index"] == n and ok:
             np.ascontiguousarray(values, dtype="<u2").tofile(argv[4])
             return 0
@@ -552,4 +773,12 @@ class _Prefixed:
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv))
+    try:
+        status = main(sys.argv)
+        sys.stdout.flush()
+    except BrokenPipeError:
+        # the reader of stdout went away (e.g. `| head`): end quietly, status 0 like `psns stream`;
+        # stdout goes to /dev/null so the interpreter's final flush does not complain either
+        os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
+        status = 0
+    sys.exit(status)

@@ -45,6 +45,16 @@ impl std::fmt::Display for NotClean {
 }
 impl std::error::Error for NotClean {}
 
+/// `psns verify` found an intact but unfinished stream: exit code 3 with the report printed.
+#[derive(Debug)]
+pub struct Unfinished;
+impl std::fmt::Display for Unfinished {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "stream is intact but unfinished")
+    }
+}
+impl std::error::Error for Unfinished {}
+
 /// Maps a command's result to the process exit code: 0 on success or when the reader closed the
 /// pipe (a closed pipe ends quietly), 2 for bad input (the library's usage errors), 1 otherwise.
 pub fn exit_code(r: anyhow::Result<()>) -> ExitCode {
@@ -58,6 +68,10 @@ pub fn exit_code(r: anyhow::Result<()>) -> ExitCode {
         .is_some_and(|io| io.kind() == std::io::ErrorKind::BrokenPipe);
     if lib.is_some_and(|l| l.is_broken_pipe()) || io_pipe {
         return ExitCode::SUCCESS;
+    }
+    if e.downcast_ref::<Unfinished>().is_some() {
+        eprintln!("psns: {e}");
+        return ExitCode::from(3);
     }
     match lib {
         Some(l) => eprintln!("psns: error: {l}"),

@@ -74,8 +74,24 @@ pub struct StreamArgs {
     stamp_host_time: bool,
 }
 
+/// The refusal to write binary frames to a terminal: `Some(message)` when the output is stdout
+/// (`-`, the default) and stdout is a terminal.
+fn refuse_terminal(out: &Path, stdout_is_terminal: bool) -> Option<Error> {
+    (out.as_os_str() == "-" && stdout_is_terminal).then(|| {
+        Error::Invalid(
+            "refusing to write binary frames to a terminal: choose --out FILE, or --out - piped \
+             into a program (e.g. psns stream --out - | python3 tools/nav_reader.py -)"
+                .into(),
+        )
+    })
+}
+
 /// Runs `psns stream`.
 pub fn run(a: StreamArgs) -> anyhow::Result<()> {
+    use std::io::IsTerminal;
+    if let Some(e) = refuse_terminal(&a.out, std::io::stdout().is_terminal()) {
+        return Err(e.into());
+    }
     let mut cfg = a.scene.scene()?;
     a.raw.apply(&mut cfg)?;
     let opts = StreamOptions {
@@ -705,6 +721,19 @@ fn write_loop(
 mod tests {
     use super::*;
     use psns::camera::{Attitude, Intrinsics};
+
+    #[test]
+    fn terminal_stdout_is_refused_files_and_pipes_are_not() {
+        let e = refuse_terminal(Path::new("-"), true).expect("refused");
+        assert!(e.is_usage());
+        let m = e.to_string();
+        assert!(
+            m.contains("terminal") && m.contains("--out FILE") && m.contains("--out -"),
+            "{m}"
+        );
+        assert!(refuse_terminal(Path::new("-"), false).is_none());
+        assert!(refuse_terminal(Path::new("run.psns"), true).is_none());
+    }
 
     #[test]
     fn ground_in_view_by_corners() {

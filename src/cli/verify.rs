@@ -1,25 +1,72 @@
 //! `psns verify` (check a frame stream; exit 0 only if clean) and `psns extract` (one frame of a
 //! stream as PNG, TIFF and JSON).
 
-use super::{create_dir, open_input, NotClean};
+use super::args::parse_pixel_format;
+use super::{create_dir, open_input, NotClean, Unfinished};
 use clap::Args;
 use psns::image::Image;
+use psns::sensor::packing::PixelFormat;
+use psns::stream::{FindOptions, RecoverHint, VerifyStatus};
 use psns::{io, Error, Result};
 use std::io::Write;
 use std::path::{Path, PathBuf};
 
+/// Degraded mode for a stream whose file header is damaged (`--recover` and the geometry).
+#[derive(Args, Clone, Copy, Debug, Default)]
+pub struct RecoverArgs {
+    /// Degraded mode for a damaged file header: find the frames by their magic and CRCs and infer
+    /// the geometry from the stride between frames, the payload CRC and the header fields that
+    /// still agree (docs/stream-format.md §5). Always reported as damaged.
+    #[arg(long)]
+    recover: bool,
+    /// With --recover: frame width in pixels, if it cannot be inferred.
+    #[arg(long, requires = "recover", value_parser = clap::value_parser!(u32).range(1..=65535))]
+    width: Option<u32>,
+    /// With --recover: frame height in pixels, if it cannot be inferred.
+    #[arg(long, requires = "recover", value_parser = clap::value_parser!(u32).range(1..=65535))]
+    height: Option<u32>,
+    /// With --recover: payload pixel format (mono8, mono12p, mono12packed, mono16).
+    #[arg(long, requires = "recover", value_parser = parse_pixel_format)]
+    pixel_format: Option<PixelFormat>,
+}
+
+impl RecoverArgs {
+    fn hint(&self) -> Option<RecoverHint> {
+        self.recover.then_some(RecoverHint {
+            width: self.width,
+            height: self.height,
+            pixel_format: self.pixel_format,
+        })
+    }
+}
+
+/// Exit codes of `psns verify`, shown by `psns verify --help`.
+const VERIFY_EXIT_CODES: &str = "Exit status: 0 clean (one stream, nothing damaged, finished: the last frame carries \
+the LAST flag or the header frame count matches); 1 damaged (corrupt, truncated or dropped frames, skipped bytes, \
+a frame-count mismatch, a damaged file header, or more than one stream in the input: concatenated files or a \
+producer restart); 2 bad input (usage error, not a psns stream, or --recover cannot infer the geometry); \
+3 intact but unfinished (header frame count 0 and no LAST flag: the producer was killed or is still writing).";
+
 /// Options of `psns verify`.
 #[derive(Args)]
+#[command(after_help = VERIFY_EXIT_CODES)]
 pub struct VerifyArgs {
     /// Stream file, FIFO, or - for stdin.
     file: PathBuf,
     /// Print the report as JSON.
     #[arg(long)]
     json: bool,
+    #[command(flatten)]
+    recover: RecoverArgs,
 }
 
 /// Options of `psns extract`.
 #[derive(Args)]
+#[command(
+    after_help = "If the input holds more than one stream (concatenated files or a producer restart), \
+the first stream holding the frame is used and a note on stderr says which (\"frame N found in stream copy \
+1 of 2 (byte offset ...)\"); a regular file is read to its end to count the streams."
+)]
 pub struct ExtractArgs {
     /// Stream file, FIFO, or - for stdin.
     file: PathBuf,
@@ -29,35 +76,81 @@ pub struct ExtractArgs {
     /// Output directory.
     #[arg(long, default_value = ".")]
     out: PathBuf,
+    #[command(flatten)]
+    recover: RecoverArgs,
+}
+
+/// Adds the hint to use `--recover` to the error of a damaged file header.
+fn hint_recover(e: Error, cmd: &str) -> anyhow::Error {
+    if psns::stream::header_damaged(&e) {
+        anyhow::anyhow!(
+            "{e}; its frames may still be readable in degraded mode: psns {cmd} --recover \
+             (see docs/stream-format.md)"
+        )
+    } else {
+        anyhow::Error::new(e)
+    }
 }
 
 /// Runs `psns verify`.
 pub fn run_verify(a: VerifyArgs) -> anyhow::Result<()> {
-    let rep = psns::stream::verify(open_input(&a.file)?)?;
+    let hint = a.recover.hint();
+    let rep = psns::stream::verify_with(open_input(&a.file)?, hint.as_ref())
+        .map_err(|e| hint_recover(e, "verify"))?;
     let mut out = std::io::stdout().lock();
     if a.json {
         writeln!(out, "{}", serde_json::to_string_pretty(&rep)?)?;
     } else {
         write!(out, "{rep}")?;
     }
-    if !rep.clean() {
-        return Err(anyhow::Error::new(NotClean));
+    out.flush()?;
+    match rep.status {
+        VerifyStatus::Clean => Ok(()),
+        VerifyStatus::Unfinished => Err(anyhow::Error::new(Unfinished)),
+        VerifyStatus::Damaged => Err(anyhow::Error::new(NotClean)),
     }
-    Ok(())
 }
 
 /// Runs `psns extract`.
 pub fn run_extract(a: ExtractArgs) -> anyhow::Result<()> {
-    for f in extract_to_dir(&a.file, a.frame, &a.out)? {
+    let files = extract_to_dir_with(&a.file, a.frame, &a.out, a.recover.hint().as_ref())
+        .map_err(|e| hint_recover(e, "extract"))?;
+    for f in files {
         eprintln!("wrote {f}");
     }
     Ok(())
 }
 
 /// `psns extract`: one frame of a stream as `frame_N.png` (8- or 16-bit grey holding the values),
-/// `frame_N.tiff` (16-bit) and `frame_N.json` (file header and frame metadata).
-pub fn extract_to_dir(input: &Path, frame: u64, dir: &Path) -> Result<Vec<String>> {
-    let ex = psns::stream::extract_frame(open_input(input)?, frame)?;
+/// `frame_N.tiff` (16-bit) and `frame_N.json` (file header and frame metadata); in degraded mode
+/// with `Some(hint)`. Notes on stderr which stream copy the frame came from when the input holds
+/// several, and how a damaged header was replaced.
+pub fn extract_to_dir_with(
+    input: &Path,
+    frame: u64,
+    dir: &Path,
+    recover: Option<&RecoverHint>,
+) -> Result<Vec<String>> {
+    let regular =
+        input.as_os_str() != "-" && std::fs::metadata(input).is_ok_and(|m| m.file_type().is_file());
+    let opts = FindOptions {
+        recover,
+        count_copies: regular,
+    };
+    let ex = psns::stream::find_frame_with(open_input(input)?, Some(frame), opts)?;
+    if let Some(r) = &ex.recovered {
+        eprintln!("psns: DEGRADED MODE: {r}");
+    }
+    let loc = ex.location;
+    if loc.copy > 1 || loc.copies.is_some_and(|c| c > 1) {
+        eprintln!(
+            "psns: note: frame {frame} found in stream copy {}{} (byte offset {}); the input holds \
+             more than one stream (concatenated files or a producer restart)",
+            loc.copy,
+            loc.copies.map_or(String::new(), |c| format!(" of {c}")),
+            loc.offset
+        );
+    }
     create_dir(dir)?;
     let (w, h) = (ex.header.width as usize, ex.header.height as usize);
     let img = Image::from_vec(w, h, ex.codes.clone());

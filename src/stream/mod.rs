@@ -12,7 +12,11 @@
 mod reader;
 mod writer;
 
-pub use reader::{extract_frame, find_frame, verify, Event, Frame, StreamReader, VerifyReport};
+pub use reader::{
+    extract_frame, find_frame, find_frame_with, header_damaged, verify, verify_with, Event,
+    Extracted, FindOptions, Frame, FrameLocation, RecoverHint, Recovery, StreamReader,
+    VerifyReport, VerifyStatus, HEADER_DAMAGED,
+};
 pub use writer::{FileStreamWriter, StreamWriter};
 
 use crate::error::{Error, Result};

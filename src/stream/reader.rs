@@ -2,9 +2,13 @@
 //! valid frame (or file header) by scanning for the magic. Works on any `Read` (no seeking), so a
 //! file, a growing file, a FIFO and stdin are read the same way.
 
-use super::{FileHeader, FrameMeta, FILE_HEADER_SIZE, FILE_MAGIC, FRAME_HEADER_SIZE, FRAME_MAGIC};
+use super::{
+    stride_for, CameraConstants, FileHeader, FrameMeta, FILE_HEADER_SIZE, FILE_MAGIC, FLAG_LAST,
+    FRAME_HEADER_SIZE, FRAME_MAGIC, JSON_OFFSET,
+};
 use crate::error::{Error, Result};
-use crate::sensor::packing::unpack;
+use crate::sensor::mosaic::MosaicLayout;
+use crate::sensor::packing::{payload_size_checked, unpack, PixelFormat};
 use serde::Serialize;
 use std::collections::VecDeque;
 use std::fmt;
@@ -94,6 +98,8 @@ pub struct StreamReader<R: Read> {
     expected: Option<u64>,
     pending: VecDeque<Event>,
     done: bool,
+    /// Byte offsets of the file headers found after the first (restarts / concatenated copies).
+    restart_at: Vec<u64>,
 }
 
 enum ScanEnd {
@@ -104,6 +110,470 @@ enum ScanEnd {
 
 fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
     hay.windows(needle.len()).position(|w| w == needle)
+}
+
+/// Start of the error message for a first file header that is a damaged psns header (CRC
+/// mismatch, or a magic one byte off / followed by a frame): the frames may still be readable in
+/// degraded mode ([`StreamReader::new_recovering`]).
+pub const HEADER_DAMAGED: &str = "stream file header damaged";
+
+/// True for the error of a damaged first file header (see [`HEADER_DAMAGED`]).
+pub fn header_damaged(e: &Error) -> bool {
+    matches!(e, Error::Format(m) if m.starts_with(HEADER_DAMAGED))
+}
+
+fn hex(b: &[u8]) -> String {
+    b.iter()
+        .map(|c| format!("{c:02x}"))
+        .collect::<Vec<_>>()
+        .join(" ")
+}
+
+/// Checks the first bytes of an input: not a stream at all (`Error::Invalid`, bad input), a
+/// damaged header ([`HEADER_DAMAGED`]), or the decoded header.
+fn decode_first_header(a: &[u8]) -> Result<FileHeader> {
+    if a.is_empty() {
+        return Err(Error::Invalid("not a psns stream (empty input)".into()));
+    }
+    let n = a.len().min(8);
+    if a[..n] != FILE_MAGIC[..n] {
+        let diff = a[..n]
+            .iter()
+            .zip(FILE_MAGIC)
+            .filter(|(x, y)| **x != *y)
+            .count();
+        let frame_follows = a.len() >= FILE_HEADER_SIZE + 8
+            && a[FILE_HEADER_SIZE..FILE_HEADER_SIZE + 8] == FRAME_MAGIC;
+        if n == 8 && (diff == 1 || frame_follows) {
+            return Err(Error::Format(format!(
+                "{HEADER_DAMAGED} (magic {}, expected {})",
+                hex(&a[..8]),
+                hex(&FILE_MAGIC)
+            )));
+        }
+        return Err(Error::Invalid(format!(
+            "not a psns stream (magic {}, expected {} = \\x89PSNSRAW)",
+            hex(&a[..n]),
+            hex(&FILE_MAGIC)
+        )));
+    }
+    if a.len() >= FILE_HEADER_SIZE
+        && super::crc32(&a[..FILE_HEADER_SIZE - 4])
+            != u32::from_le_bytes(
+                a[FILE_HEADER_SIZE - 4..FILE_HEADER_SIZE]
+                    .try_into()
+                    .expect("4"),
+            )
+    {
+        return Err(Error::Format(format!("{HEADER_DAMAGED} (CRC mismatch)")));
+    }
+    FileHeader::decode(a)
+}
+
+/// Geometry given by the user for degraded mode ([`StreamReader::new_recovering`]); `None`
+/// fields are inferred.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RecoverHint {
+    /// Width in pixels.
+    pub width: Option<u32>,
+    /// Height in pixels.
+    pub height: Option<u32>,
+    /// Payload pixel format.
+    pub pixel_format: Option<PixelFormat>,
+}
+
+/// How a damaged file header was replaced in degraded mode.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Recovery {
+    /// Why the header was not usable.
+    pub damage: String,
+    /// Where the geometry came from (stride between frames, payload CRC, header fields, user).
+    pub geometry: String,
+    /// Header fields replaced by defaults because they were invalid.
+    pub defaults: Vec<String>,
+}
+
+impl fmt::Display for Recovery {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}; geometry {}", self.damage, self.geometry)?;
+        if !self.defaults.is_empty() {
+            write!(f, "; defaults used for {}", self.defaults.join(", "))?;
+        }
+        Ok(())
+    }
+}
+
+/// Most bytes degraded mode buffers while looking for two frame headers.
+const RECOVER_SCAN_MAX: usize = 256 << 20;
+
+/// A frame header with a valid CRC found while recovering.
+struct Found {
+    pos: usize,
+    index: u64,
+    pcrc: u32,
+}
+
+fn frames_in(buf: &[u8], want: usize) -> Vec<Found> {
+    let mut out = Vec::new();
+    let mut from = 0;
+    while out.len() < want {
+        let Some(i) = find(&buf[from..], &FRAME_MAGIC) else {
+            break;
+        };
+        let j = from + i;
+        if buf.len() >= j + FRAME_HEADER_SIZE {
+            if let Ok((m, pcrc)) = FrameMeta::decode(&buf[j..]) {
+                out.push(Found {
+                    pos: j,
+                    index: m.index,
+                    pcrc,
+                });
+            }
+        }
+        from = j + 1;
+    }
+    out
+}
+
+/// Payload lengths in `lo..=hi` (capped to the data) whose CRC is `pcrc`.
+fn crc_lengths(data: &[u8], lo: usize, hi: usize, pcrc: u32) -> Vec<usize> {
+    let hi = hi.min(data.len());
+    if lo > hi {
+        return Vec::new();
+    }
+    let mut h = crc32fast::Hasher::new();
+    h.update(&data[..lo]);
+    let mut out = Vec::new();
+    for len in lo..=hi {
+        if len > lo {
+            h.update(&data[len - 1..len]);
+        }
+        if len > 0 && h.clone().finalize() == pcrc {
+            out.push(len);
+        }
+    }
+    out
+}
+
+fn u32_le(b: &[u8], o: usize) -> u32 {
+    u32::from_le_bytes(b[o..o + 4].try_into().expect("4 bytes"))
+}
+fn u64_le(b: &[u8], o: usize) -> u64 {
+    u64::from_le_bytes(b[o..o + 8].try_into().expect("8 bytes"))
+}
+
+/// Infers the file header of a stream whose header is damaged. `buf` starts at the stream's
+/// start; `eof` says whether it holds the whole stream. Returns the header, where reading starts
+/// and the account of what was inferred.
+fn infer_header(
+    buf: &[u8],
+    eof: bool,
+    hint: &RecoverHint,
+    damage: String,
+) -> Result<(FileHeader, usize, Recovery)> {
+    let hb: Vec<u8> = {
+        let mut v = buf[..buf.len().min(FILE_HEADER_SIZE)].to_vec();
+        v.resize(FILE_HEADER_SIZE, 0);
+        v
+    };
+    let (w_s, h_s, code_s) = (u32_le(&hb, 20), u32_le(&hb, 24), u32_le(&hb, 28));
+    let (p_s, s_s) = (u64_le(&hb, 48), u64_le(&hb, 56));
+    let found = frames_in(buf, 3);
+    let mut how: Vec<String> = Vec::new();
+    // stride: between the first two frame headers, else from the first one's position
+    let page = FILE_HEADER_SIZE as u64;
+    let mut stride: Option<u64> = None;
+    if let [a, b, ..] = found.as_slice() {
+        let (d, di) = ((b.pos - a.pos) as u64, b.index.wrapping_sub(a.index));
+        if b.index > a.index && d % di == 0 && (d / di) % page == 0 && d / di > 0 {
+            stride = Some(d / di);
+            how.push(format!(
+                "stride {} B between frames {} and {}",
+                d / di,
+                a.index,
+                b.index
+            ));
+        }
+    }
+    if let (None, Some(a)) = (stride, found.first()) {
+        let off = a.pos as u64;
+        if a.index > 0 && off > page && (off - page) % a.index == 0 {
+            let s = (off - page) / a.index;
+            if s % page == 0 && s > 0 {
+                stride = Some(s);
+                how.push(format!("stride {s} B from frame {} at byte {off}", a.index));
+            }
+        } else if eof && found.len() == 1 {
+            let s = (buf.len() - a.pos) as u64;
+            if s % page == 0 && s > 0 {
+                stride = Some(s);
+                how.push(format!("stride {s} B from the single frame's record"));
+            }
+        }
+    }
+    // exact payload size: the length whose CRC matches a frame header's payload CRC
+    let mut payload: Option<u64> = None;
+    for f in &found {
+        let data = &buf[f.pos + FRAME_HEADER_SIZE..];
+        let (lo, hi) = match stride {
+            Some(s) => (
+                (s as usize).saturating_sub(FILE_HEADER_SIZE + FRAME_HEADER_SIZE - 1),
+                s as usize - FRAME_HEADER_SIZE,
+            ),
+            None => (0, data.len().min(super::MAX_PAYLOAD as usize)),
+        };
+        if lo > data.len() {
+            continue;
+        }
+        if let [p] = crc_lengths(data, lo, hi, f.pcrc)[..] {
+            payload = Some(p as u64);
+            how.push(format!(
+                "payload {p} B from the payload CRC of frame {}",
+                f.index
+            ));
+            if stride.is_none() {
+                stride = Some(stride_for(p as u64));
+            }
+            break;
+        }
+    }
+    // the payload size to match: CRC-proven, else the header's if it fits the stride
+    let target = payload.or_else(|| {
+        let ok = stride.map_or(s_s == stride_for(p_s), |s| s == stride_for(p_s));
+        (ok && p_s > 0 && p_s <= super::MAX_PAYLOAD).then(|| {
+            how.push(format!("payload {p_s} B from the header (fits the stride)"));
+            p_s
+        })
+    });
+    let stored_fmt = PixelFormat::from_pfnc(code_s).ok();
+    let fmts: Vec<PixelFormat> = match hint.pixel_format {
+        Some(f) => vec![f],
+        None => PixelFormat::ALL.to_vec(),
+    };
+    let size = |f: PixelFormat, w: u32, h: u32| {
+        payload_size_checked(f, w as usize, h as usize).map(|p| p as u64)
+    };
+    // candidates (format, width, height) and how many stored fields each keeps
+    let mut cands: Vec<(u32, PixelFormat, u32, u32)> = Vec::new();
+    let n_of = |f: PixelFormat, p: u64| -> Vec<u64> {
+        match f {
+            PixelFormat::Mono8 => vec![p],
+            PixelFormat::Mono16 => {
+                if p % 2 == 0 {
+                    vec![p / 2]
+                } else {
+                    vec![]
+                }
+            }
+            _ => vec![(2 * p) / 3, (2 * p) / 3 + 1]
+                .into_iter()
+                .filter(|&n| n.checked_mul(3).map(|x| x.div_ceil(2)) == Some(p))
+                .collect(),
+        }
+    };
+    let ok_dim = |x: u64| (1..=65_535).contains(&x);
+    if let Some(p) = target {
+        for &f in &fmts {
+            let mut pairs: Vec<(u32, u32)> = Vec::new();
+            let ws = hint.width.unwrap_or(w_s);
+            let hs = hint.height.unwrap_or(h_s);
+            pairs.push((ws, hs));
+            for n in n_of(f, p) {
+                if hint.width.is_none() && hs > 0 && n % hs as u64 == 0 && ok_dim(n / hs as u64) {
+                    pairs.push(((n / hs as u64) as u32, hs));
+                }
+                if hint.height.is_none() && ws > 0 && n % ws as u64 == 0 && ok_dim(n / ws as u64) {
+                    pairs.push((ws, (n / ws as u64) as u32));
+                }
+            }
+            for (w, h) in pairs {
+                if ok_dim(w as u64) && ok_dim(h as u64) && size(f, w, h) == Some(p) {
+                    let score = (w == w_s) as u32
+                        + (h == h_s) as u32
+                        + (Some(f) == stored_fmt) as u32
+                        + hint.width.is_some() as u32
+                        + hint.height.is_some() as u32
+                        + hint.pixel_format.is_some() as u32;
+                    if !cands.iter().any(|c| (c.1, c.2, c.3) == (f, w, h)) {
+                        cands.push((score, f, w, h));
+                    }
+                }
+            }
+        }
+    } else if let (Some(f), Some(w), Some(h)) = (hint.pixel_format, hint.width, hint.height) {
+        // no frame to check against: the user's geometry as given
+        cands.push((3, f, w, h));
+    }
+    cands.sort_by_key(|c| std::cmp::Reverse(c.0));
+    let said = format!(
+        "frames found: {}; stride {}; payload {}; header fields say {w_s} x {h_s}, PFNC 0x{code_s:08X}, payload {p_s} B, stride {s_s} B",
+        found.len(),
+        stride.map_or("unknown".into(), |s| format!("{s} B")),
+        target.map_or("unknown".into(), |p| format!("{p} B")),
+    );
+    let best = match cands.as_slice() {
+        [] => {
+            return Err(Error::Invalid(format!(
+                "{damage}; cannot infer the frame geometry ({said}): give width, height and pixel format"
+            )))
+        }
+        [a, b, ..] if a.0 == b.0 => {
+            return Err(Error::Invalid(format!(
+                "{damage}; frame geometry ambiguous ({} x {} {} or {} x {} {}; {said}): give width, height and pixel format",
+                a.2, a.3, a.1, b.2, b.3, b.1
+            )))
+        }
+        [a, ..] if a.0 < 2 => {
+            return Err(Error::Invalid(format!(
+                "{damage}; only {} x {} {} fits the frames, which disagrees with more than one header field ({said}): give width, height and pixel format",
+                a.2, a.3, a.1
+            )))
+        }
+        [a, ..] => *a,
+    };
+    let (_, fmt, width, height) = best;
+    if let Some(s) = stride {
+        if size(fmt, width, height).map(stride_for) != Some(s) {
+            return Err(Error::Invalid(format!(
+                "{damage}; {width} x {height} {fmt} has stride {} B but the frames found are {s} B apart",
+                size(fmt, width, height).map_or(0, stride_for)
+            )));
+        }
+    }
+    let mut agree = Vec::new();
+    for (name, given, same) in [
+        ("width", hint.width.is_some(), width == w_s),
+        ("height", hint.height.is_some(), height == h_s),
+        (
+            "pixel format",
+            hint.pixel_format.is_some(),
+            Some(fmt) == stored_fmt,
+        ),
+    ] {
+        agree.push(if given {
+            format!("{name} given")
+        } else if same {
+            format!("{name} from the header")
+        } else {
+            format!("{name} inferred (header field disagrees)")
+        });
+    }
+    how.extend(agree);
+    // the other fields: as stored when valid, else defaults
+    let mut defaults = Vec::new();
+    let bits = u16::from_le_bytes([hb[32], hb[33]]);
+    let bits_ok = if fmt == PixelFormat::Mono8 {
+        bits == 8
+    } else {
+        (1..=fmt.container_bits() as u16).contains(&bits)
+    };
+    let bits_valid = if bits_ok {
+        bits as u8
+    } else {
+        defaults.push(format!("bits valid ({bits} -> {})", fmt.container_bits()));
+        fmt.container_bits()
+    };
+    let align = u16::from_le_bytes([hb[34], hb[35]]);
+    if align > 1 || (align == 1 && fmt != PixelFormat::Mono16) {
+        defaults.push(format!("alignment ({align} -> LSB)"));
+    }
+    let msb_aligned = align == 1 && fmt == PixelFormat::Mono16;
+    let mut ch = [0u8; 4];
+    let mut angles_ok = true;
+    for (k, c) in ch.iter_mut().enumerate() {
+        *c = match i16::from_le_bytes([hb[36 + 2 * k], hb[37 + 2 * k]]) {
+            0 => 0,
+            45 => 1,
+            90 => 2,
+            135 => 3,
+            _ => {
+                angles_ok = false;
+                0
+            }
+        };
+    }
+    let layout = match (angles_ok, MosaicLayout::from_channels(ch)) {
+        (true, Ok(l)) => l,
+        _ => {
+            defaults.push("polarizer angles (IMX250MZR 90, 45, 135, 0)".into());
+            MosaicLayout::IMX250MZR
+        }
+    };
+    let sense = i16::from_le_bytes([hb[44], hb[45]]);
+    let angle_sense = if sense == 1 || sense == -1 {
+        sense
+    } else {
+        defaults.push(format!("angle sense ({sense} -> +1)"));
+        1
+    };
+    let text = |off: usize, what: &str, defaults: &mut Vec<String>| {
+        super::get_str(&hb, off, what).unwrap_or_else(|_| {
+            defaults.push(format!("{what} (empty)"));
+            String::new()
+        })
+    };
+    let producer = text(160, "producer", &mut defaults);
+    let preset = text(192, "preset", &mut defaults);
+    let (jo, jl) = (u32_le(&hb, 224) as usize, u32_le(&hb, 228) as usize);
+    let json = if jo == 0 && jl == 0 {
+        String::new()
+    } else if jo >= JSON_OFFSET
+        && jo
+            .checked_add(jl)
+            .is_some_and(|e| e <= FILE_HEADER_SIZE - 4)
+    {
+        match std::str::from_utf8(&hb[jo..jo + jl]) {
+            Ok(t) if !t.contains('\0') => t.to_string(),
+            _ => {
+                defaults.push("JSON (dropped)".into());
+                String::new()
+            }
+        }
+    } else {
+        defaults.push("JSON (dropped)".into());
+        String::new()
+    };
+    let mut cam = [0f64; 10];
+    for (k, v) in cam.iter_mut().enumerate() {
+        *v = f64::from_le_bytes(hb[80 + 8 * k..88 + 8 * k].try_into().expect("8 bytes"));
+    }
+    let header = FileHeader {
+        version_minor: u16::from_le_bytes([hb[10], hb[11]]),
+        width,
+        height,
+        pixel_format: fmt,
+        bits_valid,
+        msb_aligned,
+        layout,
+        angle_sense,
+        frame_count: 0,
+        seed: u64_le(&hb, 72),
+        camera: CameraConstants::from_array(cam),
+        producer,
+        preset,
+        json,
+    };
+    header.validate()?;
+    // read from the first frame if it lies inside the header's 4096 bytes, else after them
+    let start = found
+        .first()
+        .map_or(FILE_HEADER_SIZE, |f| f.pos.min(FILE_HEADER_SIZE))
+        .min(buf.len());
+    let geometry = format!(
+        "{width} x {height} {fmt} (payload {} B, stride {} B): {}",
+        header.payload_size(),
+        header.stride(),
+        how.join(", ")
+    );
+    Ok((
+        header,
+        start,
+        Recovery {
+            damage,
+            geometry,
+            defaults,
+        },
+    ))
 }
 
 impl<R: Read> StreamReader<R> {
@@ -119,11 +589,66 @@ impl<R: Read> StreamReader<R> {
             expected: Some(0),
             pending: VecDeque::new(),
             done: false,
+            restart_at: Vec::new(),
         };
-        r.fill(FILE_HEADER_SIZE)?;
-        r.header = FileHeader::decode(r.avail())?;
+        r.fill(FILE_HEADER_SIZE + 8)?;
+        r.header = decode_first_header(r.avail())?;
         r.consume(FILE_HEADER_SIZE);
         Ok(r)
+    }
+
+    /// Degraded mode: like [`new`](Self::new), but if the file header is damaged
+    /// ([`header_damaged`]) its geometry is inferred from the frames (the stride between two
+    /// frame headers with valid CRCs, the payload length whose CRC matches a frame's payload CRC,
+    /// and the header fields that still agree) or taken from `hint`; reading then starts at byte
+    /// 4096 (or at the first frame header, if earlier). The header's frame count is not trusted
+    /// (0). Returns how the header was replaced, `None` if it was intact. A file that is not a
+    /// stream at all, or a truncated header, still fails.
+    pub fn new_recovering(src: R, hint: &RecoverHint) -> Result<(Self, Option<Recovery>)> {
+        let mut r = StreamReader {
+            src,
+            buf: Vec::new(),
+            start: 0,
+            offset: 0,
+            eof: false,
+            header: FileHeader::default(),
+            expected: Some(0),
+            pending: VecDeque::new(),
+            done: false,
+            restart_at: Vec::new(),
+        };
+        r.fill(FILE_HEADER_SIZE + 8)?;
+        let damage = match decode_first_header(r.avail()) {
+            Ok(h) => {
+                r.header = h;
+                r.consume(FILE_HEADER_SIZE);
+                return Ok((r, None));
+            }
+            Err(e) if header_damaged(&e) => e.to_string(),
+            Err(Error::Format(m)) if r.avail().len() >= FILE_HEADER_SIZE => {
+                format!("{HEADER_DAMAGED} ({m})")
+            }
+            Err(e) => return Err(e),
+        };
+        // buffer until three frame headers are seen (or the end, or the cap)
+        let mut want = FILE_HEADER_SIZE + (1 << 20);
+        loop {
+            r.fill(want)?;
+            if r.eof || r.avail().len() >= RECOVER_SCAN_MAX || frames_in(r.avail(), 3).len() >= 3 {
+                break;
+            }
+            want = (want * 2).min(RECOVER_SCAN_MAX);
+        }
+        let (h, start, rec) = infer_header(r.avail(), r.eof, hint, damage)?;
+        r.header = h;
+        r.consume(start);
+        Ok((r, Some(rec)))
+    }
+
+    /// Byte offsets of the file headers met after the first one ([`Event::Restart`]): producer
+    /// restarts, or streams concatenated into one file.
+    pub fn restart_offsets(&self) -> &[u64] {
+        &self.restart_at
     }
 
     /// The current file header (changes after [`Event::Restart`]).
@@ -213,6 +738,7 @@ impl<R: Read> StreamReader<R> {
             }
             match FileHeader::decode(self.avail()) {
                 Ok(h) => {
+                    self.restart_at.push(self.offset);
                     self.consume(FILE_HEADER_SIZE);
                     self.header = h.clone();
                     self.expected = None;
@@ -475,9 +1001,28 @@ pub struct Damage {
     pub reason: String,
 }
 
+/// Verdict of [`verify`] (`psns verify` exit codes 0, 3 and 1).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum VerifyStatus {
+    /// One stream, nothing damaged, and finished: its last frame carries [`FLAG_LAST`] or the
+    /// header's frame count (patched by the writer on close) equals the records found.
+    Clean,
+    /// Nothing damaged, but the stream is not marked finished (count 0 and no LAST flag): a
+    /// producer killed between records, one still writing, or a pipe whose trajectory came from
+    /// stdin (see `docs/stream-format.md`).
+    Unfinished,
+    /// Damaged records, drops, skipped bytes, a count mismatch, a damaged file header (degraded
+    /// mode), or more than one stream in the input (a second file header: concatenated files or a
+    /// producer restart).
+    Damaged,
+}
+
 /// Result of [`verify`].
 #[derive(Clone, Debug, PartialEq, Serialize)]
 pub struct VerifyReport {
+    /// The verdict (see [`VerifyStatus`]).
+    pub status: VerifyStatus,
     /// The (first) file header.
     pub header: FileHeader,
     /// Records with a valid header and payload CRC.
@@ -498,24 +1043,51 @@ pub struct VerifyReport {
     pub skipped_bytes: u64,
     /// Producer restarts (new file headers).
     pub restarts: u64,
+    /// Byte offsets of the file headers after the first (one per restart).
+    pub restart_offsets: Vec<u64>,
     /// Header frame count disagrees with the records found: (declared, found).
     pub count_mismatch: Option<(u64, u64)>,
+    /// The last record is a frame with the LAST flag, or the header frame count matches.
+    pub finished: bool,
+    /// Degraded mode: how a damaged file header was replaced (`None`: header intact).
+    pub recovered: Option<Recovery>,
 }
 
 impl VerifyReport {
-    /// True when nothing is damaged, truncated, skipped or dropped.
-    pub fn clean(&self) -> bool {
+    /// True when nothing is damaged, truncated, skipped or dropped, the file header was intact
+    /// and the input holds one stream (it may be unfinished).
+    pub fn intact(&self) -> bool {
         self.corrupt.is_empty()
             && self.truncated.is_empty()
             && self.dropped == 0
             && self.skipped_bytes == 0
             && self.count_mismatch.is_none()
+            && self.restarts == 0
+            && self.recovered.is_none()
+    }
+
+    /// True when [`intact`](Self::intact) and finished ([`VerifyStatus::Clean`]).
+    pub fn clean(&self) -> bool {
+        self.status == VerifyStatus::Clean
+    }
+
+    fn compute_status(&self) -> VerifyStatus {
+        if !self.intact() {
+            VerifyStatus::Damaged
+        } else if !self.finished {
+            VerifyStatus::Unfinished
+        } else {
+            VerifyStatus::Clean
+        }
     }
 }
 
 impl fmt::Display for VerifyReport {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         let h = &self.header;
+        if let Some(r) = &self.recovered {
+            writeln!(f, "DEGRADED MODE: {r}")?;
+        }
         writeln!(
             f,
             "stream: {} x {} {} ({} bits{}), payload {} B, stride {} B",
@@ -561,20 +1133,42 @@ impl fmt::Display for VerifyReport {
             writeln!(f, "skipped bytes: {}", self.skipped_bytes)?;
         }
         if self.restarts > 0 {
-            writeln!(f, "producer restarts: {}", self.restarts)?;
+            let at: Vec<String> = self.restart_offsets.iter().map(|o| o.to_string()).collect();
+            writeln!(
+                f,
+                "streams: {} (another file header at byte {}: concatenated files or a producer restart; frame indexes may repeat)",
+                self.restarts + 1,
+                at.join(", ")
+            )?;
         }
         if let Some((d, n)) = self.count_mismatch {
             writeln!(f, "header declares {d} frames, found {n}")?;
         }
-        writeln!(f, "{}", if self.clean() { "clean" } else { "NOT clean" })
+        match self.status {
+            VerifyStatus::Clean => writeln!(f, "clean"),
+            VerifyStatus::Unfinished => writeln!(
+                f,
+                "intact but UNFINISHED: header frame count 0 and no frame carries the LAST flag (producer killed or still writing)"
+            ),
+            VerifyStatus::Damaged => writeln!(f, "NOT clean"),
+        }
     }
 }
 
 /// Reads a whole stream and reports on it. Fails only if the file header is unusable or on an
 /// I/O error.
 pub fn verify<R: Read>(r: R) -> Result<VerifyReport> {
-    let mut rd = StreamReader::new(r)?;
+    verify_with(r, None)
+}
+
+/// [`verify`], in degraded mode with `Some(hint)` ([`StreamReader::new_recovering`]).
+pub fn verify_with<R: Read>(r: R, recover: Option<&RecoverHint>) -> Result<VerifyReport> {
+    let (mut rd, recovered) = match recover {
+        Some(h) => StreamReader::new_recovering(r, h)?,
+        None => (StreamReader::new(r)?, None),
+    };
     let mut rep = VerifyReport {
+        status: VerifyStatus::Damaged,
         header: rd.header().clone(),
         frames: 0,
         first_index: None,
@@ -585,13 +1179,18 @@ pub fn verify<R: Read>(r: R) -> Result<VerifyReport> {
         truncated: Vec::new(),
         skipped_bytes: 0,
         restarts: 0,
+        restart_offsets: Vec::new(),
         count_mismatch: None,
+        finished: false,
+        recovered,
     };
     let mut records = 0u64;
+    let mut last_flag = false;
     while let Some(ev) = rd.next_event()? {
         match ev {
             Event::Frame(fr) => {
                 records += 1;
+                last_flag = fr.meta.flags & FLAG_LAST != 0;
                 rep.first_index.get_or_insert(fr.meta.index);
                 rep.last_index = Some(fr.meta.index);
                 if fr.payload_crc_ok {
@@ -610,6 +1209,7 @@ pub fn verify<R: Read>(r: R) -> Result<VerifyReport> {
                 reason,
             } => {
                 records += 1;
+                last_flag = false;
                 rep.corrupt.push(Damage {
                     index,
                     offset,
@@ -627,6 +1227,7 @@ pub fn verify<R: Read>(r: R) -> Result<VerifyReport> {
                 need,
             } => {
                 records += 1;
+                last_flag = false;
                 rep.truncated.push(Damage {
                     index,
                     offset,
@@ -634,13 +1235,19 @@ pub fn verify<R: Read>(r: R) -> Result<VerifyReport> {
                 })
             }
             Event::Skipped { bytes, .. } => rep.skipped_bytes += bytes,
-            Event::Restart(_) => rep.restarts += 1,
+            Event::Restart(_) => {
+                rep.restarts += 1;
+                last_flag = false;
+            }
         }
     }
+    rep.restart_offsets = rd.restart_offsets().to_vec();
     let declared = rep.header.frame_count;
     if declared != 0 && rep.restarts == 0 && declared != records {
         rep.count_mismatch = Some((declared, records));
     }
+    rep.finished = last_flag || (declared != 0 && rep.restarts == 0 && declared == records);
+    rep.status = rep.compute_status();
     Ok(rep)
 }
 
@@ -654,6 +1261,34 @@ pub struct Extracted {
     /// Unpacked values (`width·height`, row-major, `bits_valid` bits).
     #[serde(skip)]
     pub codes: Vec<u16>,
+    /// Where the frame was found.
+    #[serde(skip)]
+    pub location: FrameLocation,
+    /// Degraded mode: how a damaged file header was replaced.
+    #[serde(skip)]
+    pub recovered: Option<Recovery>,
+}
+
+/// Where [`find_frame_with`] found a frame.
+#[derive(Clone, Copy, Debug, Default, PartialEq, Serialize)]
+pub struct FrameLocation {
+    /// Byte offset of the record.
+    pub offset: u64,
+    /// Which stream of the input holds it: 1 = the first; n = after the (n−1)-th further file
+    /// header (concatenated files or producer restarts).
+    pub copy: u64,
+    /// Streams in the whole input when [`FindOptions::count_copies`] was set (the input was read
+    /// to its end), else `None`.
+    pub copies: Option<u64>,
+}
+
+/// Options of [`find_frame_with`].
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct FindOptions<'a> {
+    /// Degraded mode with this geometry hint ([`StreamReader::new_recovering`]).
+    pub recover: Option<&'a RecoverHint>,
+    /// After the frame is found, read on to the end to count the streams in the input.
+    pub count_copies: bool,
 }
 
 /// Finds the first frame with index `n` and unpacks it; fails if it is missing or its payload CRC
@@ -665,9 +1300,26 @@ pub fn extract_frame<R: Read>(r: R, n: u64) -> Result<Extracted> {
 /// Unpacks frame `n`, or with `None` the first intact frame of the stream; fails if it is missing
 /// or its payload CRC is wrong.
 pub fn find_frame<R: Read>(r: R, n: Option<u64>) -> Result<Extracted> {
-    let mut rd = StreamReader::new(r)?;
+    find_frame_with(r, n, FindOptions::default())
+}
+
+/// [`find_frame`] with options: degraded mode, counting the streams in the input. The first
+/// stream (copy) that holds frame `n` is used; [`Extracted::location`] says which.
+pub fn find_frame_with<R: Read>(r: R, n: Option<u64>, opts: FindOptions) -> Result<Extracted> {
+    let (mut rd, recovered) = match opts.recover {
+        Some(h) => StreamReader::new_recovering(r, h)?,
+        None => (StreamReader::new(r)?, None),
+    };
+    let mut copy = 1u64;
     while let Some(ev) = rd.next_event()? {
-        let Event::Frame(fr) = ev else { continue };
+        let fr = match ev {
+            Event::Frame(fr) => fr,
+            Event::Restart(_) => {
+                copy += 1;
+                continue;
+            }
+            _ => continue,
+        };
         let wanted = n.is_none_or(|n| n == fr.meta.index);
         if !wanted {
             continue;
@@ -682,10 +1334,28 @@ pub fn find_frame<R: Read>(r: R, n: Option<u64>) -> Result<Extracted> {
             continue;
         }
         let codes = fr.codes(rd.header())?;
+        let header = rd.header().clone();
+        let copies = if opts.count_copies {
+            let mut c = copy;
+            while let Some(ev) = rd.next_event()? {
+                if let Event::Restart(_) = ev {
+                    c += 1;
+                }
+            }
+            Some(c)
+        } else {
+            None
+        };
         return Ok(Extracted {
-            header: rd.header().clone(),
+            header,
             meta: fr.meta,
             codes,
+            location: FrameLocation {
+                offset: fr.offset,
+                copy,
+                copies,
+            },
+            recovered,
         });
     }
     Err(Error::Invalid(match n {
