@@ -440,3 +440,31 @@ fn closed_stdout_ends_quietly() {
     assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
     assert!(stderr(&o).is_empty(), "{}", stderr(&o));
 }
+
+/// `--out` naming an existing file, or a directory holding the user's own files: exit 2, and
+/// the file and directory are left as they were (issue 14 items 5, 13).
+#[test]
+fn out_onto_a_file_or_a_foreign_directory_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let f = dir.path().join("notes.txt");
+    std::fs::write(&f, "mine").unwrap();
+    for out in [f.clone(), dir.path().to_path_buf()] {
+        let o = psns(&[
+            "render",
+            "--width",
+            "8",
+            "--height",
+            "8",
+            "--out",
+            out.to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("not a directory") || stderr(&o).contains("psns did not write"),
+            "{}",
+            stderr(&o)
+        );
+    }
+    assert_eq!(std::fs::read_to_string(&f).unwrap(), "mine");
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
+}

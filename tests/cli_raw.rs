@@ -281,7 +281,10 @@ fn png_header_only(w: u32, h: u32) -> Vec<u8> {
     ihdr.extend_from_slice(&[16, 0, 0, 0, 0]); // 16 bit, greyscale
     let mut b = b"\x89PNG\r\n\x1a\n".to_vec();
     b.extend(chunk(b"IHDR", &ihdr));
-    b.extend(chunk(b"IDAT", &[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01])); // empty zlib
+    b.extend(chunk(
+        b"IDAT",
+        &[0x78, 0x9c, 0x03, 0x00, 0x00, 0x00, 0x00, 0x01],
+    )); // empty zlib
     b.extend(chunk(b"IEND", &[]));
     b
 }
@@ -392,4 +395,113 @@ fn bad_config_files_exit_2() {
         );
         assert!(!out.exists(), "{name} wrote output");
     }
+}
+
+/// Issue 14 item 3: a render larger than the memory the process may use is refused with exit 2
+/// and a message naming the memory, instead of aborting halfway with partial files.
+#[test]
+fn render_beyond_the_memory_limit_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("big");
+    let o = std::process::Command::new("sh")
+        .arg("-c")
+        .arg(format!(
+            "ulimit -v 4000000 && exec {} render --width 10000 --height 10000 --out {}",
+            env!("CARGO_BIN_EXE_psns"),
+            out.display()
+        ))
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(2), "{}", err(&o));
+    assert!(err(&o).contains("needs about"), "{}", err(&o));
+    assert!(!out.exists());
+    assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
+}
+
+/// Issue 14 item 5: a re-render into an existing directory that is killed leaves the previous
+/// run's files whole (never li.npy of one scene beside scene.json of another), and the next run
+/// removes the killed run's temporaries.
+#[test]
+fn killed_rerender_leaves_the_previous_output_whole() {
+    let dir = tempfile::tempdir().unwrap();
+    let m = dir.path().join("M");
+    let ms = m.to_str().unwrap();
+    let full = ["--width", "2448", "--height", "2048"];
+    let render = |t: &str, out: &str| {
+        let mut a = vec!["render", "--raw", "--turbidity", t, "--out", out];
+        a.extend(full);
+        a.iter().map(|s| s.to_string()).collect::<Vec<_>>()
+    };
+    let o = psns(
+        &render("2", ms)
+            .iter()
+            .map(|s| s.as_str())
+            .collect::<Vec<_>>(),
+    );
+    assert!(o.status.success(), "{}", err(&o));
+    let snapshot = |d: &Path| -> Vec<(String, Vec<u8>)> {
+        let mut v: Vec<_> = std::fs::read_dir(d)
+            .unwrap()
+            .map(|e| {
+                let e = e.unwrap();
+                (
+                    e.file_name().to_string_lossy().into_owned(),
+                    std::fs::read(e.path()).unwrap(),
+                )
+            })
+            .collect();
+        v.sort();
+        v
+    };
+    let first = snapshot(&m);
+    // kill the second run at several points of its life: scene, sensor, writing
+    let mut replaced = false;
+    for delay_ms in [300u64, 1200, 2200, 2800, 3400] {
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_psns"))
+            .args(render("8", ms))
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(std::time::Duration::from_millis(delay_ms));
+        let _ = child.kill();
+        let status = child.wait().unwrap();
+        let now = snapshot(&m);
+        if status.success() {
+            // finished before the kill: the new set, whole
+            let scene =
+                String::from_utf8(now.iter().find(|f| f.0 == "scene.json").unwrap().1.clone())
+                    .unwrap();
+            assert!(scene.contains("\"turbidity\": 8.0"), "{scene}");
+            assert_eq!(now.len(), first.len());
+            replaced = true;
+            break;
+        }
+        assert!(
+            now == first,
+            "killed after {delay_ms} ms: the directory changed"
+        );
+    }
+    // the next run cleans the killed runs' hidden directories
+    let o = psns(
+        &render("2", ms)
+            .iter()
+            .map(|s| s.as_str())
+            .collect::<Vec<_>>(),
+    );
+    assert!(o.status.success(), "{}", err(&o));
+    let names: Vec<String> = std::fs::read_dir(dir.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names, ["M"], "temporaries left: {names:?}");
+    // same scene, same bytes (scene.json differs only in its timings)
+    let data = |v: Vec<(String, Vec<u8>)>| {
+        v.into_iter()
+            .filter(|f| f.0 != "scene.json")
+            .collect::<Vec<_>>()
+    };
+    assert!(
+        data(snapshot(&m)) == data(first),
+        "replaced before: {replaced}"
+    );
 }

@@ -2,7 +2,8 @@
 //! written as `.npy` arrays and pictures.
 
 use super::args::finite;
-use super::{create_dir, vis, write_text};
+use super::output::{check_memory, memory_available, memory_need, OutDir};
+use super::{vis, write_text};
 use clap::Args;
 use psns::demosaic::{full_chain, Method, PolarImages};
 use psns::image::Image;
@@ -28,7 +29,8 @@ pub struct DemosaicArgs {
     /// Method: superpixel, bilinear, bicubic, ppid, newton, eari.
     #[arg(long, default_value = "bilinear", value_parser = parse_method)]
     method: Method,
-    /// Output directory.
+    /// Output directory: new, empty, or a previous psns run's (replaced whole when this run
+    /// has written everything).
     #[arg(long, default_value = "out")]
     out: PathBuf,
     /// Frame index (stream input).
@@ -180,15 +182,23 @@ pub fn demosaic_to_dir(opts: &DemosaicOptions) -> Result<Vec<String>> {
     }
     let raw = load_raw(&opts.input, opts.layout, opts.frame)?;
     psns::demosaic::check_raw(&raw.codes)?;
+    // peak resident 27 B/pixel (bilinear) to 73 B/pixel (eari), measured on 3000² mosaics
+    check_memory(
+        &format!(
+            "demosaicing {} x {} pixels",
+            raw.codes.width, raw.codes.height
+        ),
+        memory_need(raw.codes.data.len(), 80),
+        memory_available(),
+    )?;
+    let outdir = OutDir::begin(&opts.out)?;
     let t0 = Instant::now();
     let p = demosaic_codes(&raw.codes, raw.black_level, raw.layout, opts.method)?;
     let ms = t0.elapsed().as_secs_f64() * 1e3;
-    create_dir(&opts.out)?;
     let mut files = Vec::new();
     let mut put = |name: &str| {
-        let p = opts.out.join(name);
-        files.push(p.display().to_string());
-        p
+        files.push(opts.out.join(name).display().to_string());
+        outdir.path().join(name)
     };
     io::write_npy(&put("s0.npy"), &p.stokes.s0)?;
     io::write_npy(&put("s1.npy"), &p.stokes.s1)?;
@@ -224,5 +234,6 @@ pub fn demosaic_to_dir(opts: &DemosaicOptions) -> Result<Vec<String>> {
         &put("demosaic.json"),
         &serde_json::to_string_pretty(&meta).expect("json"),
     )?;
+    outdir.commit()?;
     Ok(files)
 }
