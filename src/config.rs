@@ -80,6 +80,19 @@ impl SunConfig {
 }
 
 impl SunConfig {
+    /// For the record (`scene.json`): a directly given sun with its defaults written out, so the
+    /// file says where the sun was without reading `derived`. A timed sun is left as given.
+    pub fn filled(&self) -> SunConfig {
+        let mut s = self.clone();
+        if s.time.is_none() {
+            if s.zenith_deg.is_none() && s.altitude_deg.is_none() {
+                s.zenith_deg = Some(DEFAULT_SUN.zenith_deg);
+            }
+            s.azimuth_deg = s.azimuth_deg.or(Some(DEFAULT_SUN.azimuth_deg));
+        }
+        s
+    }
+
     /// Prefixes a sun-below-the-horizon error with the `--time` that put the sun there.
     pub fn name_time(&self, e: Error) -> Error {
         match (&self.time, e) {

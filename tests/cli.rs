@@ -468,3 +468,36 @@ fn out_onto_a_file_or_a_foreign_directory_is_refused() {
     assert_eq!(std::fs::read_to_string(&f).unwrap(), "mine");
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 1);
 }
+
+/// Options that would do nothing are refused instead of ignored, and scene.json writes the sun
+/// out for the default scene (issue 14 item 13).
+#[test]
+fn ignored_options_are_refused_and_the_sun_is_recorded() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o");
+    let o_s = out.to_str().unwrap();
+    for (extra, needle) in [
+        (
+            &["--lat", "10", "--lon", "20"][..],
+            "--lat places the observer for --time",
+        ),
+        (
+            &["--exposure-us", "100"][..],
+            "--exposure-us applies to the raw frame",
+        ),
+        (&["--seed", "3"][..], "--seed applies to the raw frame"),
+    ] {
+        let mut a = vec!["render", "--width", "8", "--height", "8", "--out", o_s];
+        a.extend_from_slice(extra);
+        let o = psns(&a);
+        assert_eq!(o.status.code(), Some(2), "{extra:?}: {}", stderr(&o));
+        assert!(stderr(&o).contains(needle), "{extra:?}: {}", stderr(&o));
+        assert!(!out.exists());
+    }
+    let o = psns(&["render", "--width", "8", "--height", "8", "--out", o_s]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let v: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(out.join("scene.json")).unwrap()).unwrap();
+    assert_eq!(v["sun"]["zenith_deg"], 50.0);
+    assert_eq!(v["sun"]["azimuth_deg"], 200.0);
+}

@@ -171,6 +171,19 @@ pub(crate) fn size(name: &str, v: i64) -> psns::Result<usize> {
 }
 
 impl SceneArgs {
+    /// The first option given that places the observer (used only with a time).
+    pub(crate) fn place_given(&self) -> Option<&'static str> {
+        [
+            ("lat", self.lat.is_some()),
+            ("lon", self.lon.is_some()),
+            ("observer-height", self.observer_height.is_some()),
+            ("delta-t", self.spa.delta_t.is_some()),
+            ("refraction", self.spa.refraction),
+        ]
+        .into_iter()
+        .find_map(|(n, g)| g.then_some(n))
+    }
+
     /// Scene from --config (or defaults) with every given option applied.
     pub(crate) fn scene(&self) -> psns::Result<SceneConfig> {
         let mut c = match &self.config {
@@ -418,6 +431,38 @@ pub(crate) fn parse_pixel_format(s: &str) -> Result<PixelFormat, String> {
 }
 
 impl RawArgs {
+    /// The raw-frame options given on the command line (they do nothing for ideal images).
+    pub(crate) fn given(&self) -> Vec<&'static str> {
+        [
+            ("preset", self.preset.is_some()),
+            ("flat-radiance", self.flat_radiance.is_some()),
+            ("flat-dolp", self.flat_dolp.is_some()),
+            ("flat-aolp", self.flat_aolp.is_some()),
+            ("exposure-us", self.exposure_us.is_some()),
+            ("auto-exposure", self.auto_exposure),
+            ("gain-db", self.gain_db.is_some()),
+            ("black-level", self.black_level.is_some()),
+            ("bit-depth", self.bit_depth.is_some()),
+            ("pixel-format", self.pixel_format.is_some()),
+            ("seed", self.seed.is_some()),
+            ("frame-index", self.frame_index.is_some()),
+            ("sun-disc", self.sun_disc.is_some()),
+            ("clouds", self.clouds),
+            ("sky-grid", self.sky_grid.is_some()),
+            ("f-number", self.f_number.is_some()),
+            ("read-noise", self.read_noise.is_some()),
+            ("full-well", self.full_well.is_some()),
+            ("sensor-temperature", self.sensor_temperature.is_some()),
+            ("crosstalk", self.crosstalk.is_some()),
+            ("filter-width", self.filter_width.is_some()),
+            ("off", !self.off.is_empty()),
+            ("sensor-set", !self.sensor_set.is_empty()),
+        ]
+        .into_iter()
+        .filter_map(|(n, g)| g.then_some(n))
+        .collect()
+    }
+
     /// Applies the raw options to a scene.
     pub(crate) fn apply(&self, c: &mut SceneConfig) -> psns::Result<()> {
         let r = &mut c.raw;

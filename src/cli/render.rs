@@ -32,8 +32,23 @@ pub struct RenderArgs {
 pub fn run(a: RenderArgs) -> anyhow::Result<()> {
     let mut cfg = a.scene.scene()?;
     a.raw.apply(&mut cfg)?;
+    let raw = a.raw_frame || cfg.raw.scene == SceneKind::Flat;
+    if let (false, Some(opt)) = (raw, a.raw.given().first()) {
+        return Err(Error::Invalid(format!(
+            "--{opt} applies to the raw frame: add --raw (without it psns render writes the ideal images only)"
+        ))
+        .into());
+    }
+    if cfg.sun.time.is_none() {
+        if let Some(opt) = a.scene.place_given() {
+            return Err(Error::Invalid(format!(
+                "--{opt} places the observer for --time; the sun is given directly here, so it would be ignored (add --time, or leave --{opt} out)"
+            ))
+            .into());
+        }
+    }
     let out = a.out;
-    if a.raw_frame || cfg.raw.scene == SceneKind::Flat {
+    if raw {
         let s = render_raw_to_dir(&cfg, &out)?;
         eprintln!(
             "raw frame {}x{}: scene {:.3} s + sensor {:.3} s (camera setup {:.3} s); wrote {} files to {}",
@@ -154,8 +169,10 @@ fn write_ideal(
     Ok((RenderSummary { render_s, files }, extra))
 }
 
-/// Writes `scene.json` (atomically).
+/// Writes `scene.json` (atomically), with the sun written out.
 fn write_scene_json(dir: &Path, scene: &SceneConfig) -> Result<()> {
+    let mut scene = scene.clone();
+    scene.sun = scene.sun.filled();
     let json = scene.to_json();
     io::write_atomic(&dir.join("scene.json"), |w| {
         w.write_all(json.as_bytes())
