@@ -762,6 +762,50 @@ fn check_size(path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// True when `out` lies inside the project's tracked `docs/`: the path as given has a `docs`
+/// component (`docs/bench`, `./docs`, `../psns/docs/x`), or, made absolute against the current
+/// directory and with `.`/`..` resolved, it passes through a `docs` directory that sits beside a
+/// `Cargo.toml` (e.g. `--out bench` run from inside `docs/`).
+pub fn inside_docs(out: &Path) -> bool {
+    use std::path::Component;
+    let is_docs = |c: &Component| c.as_os_str() == "docs";
+    if out.components().any(|c| is_docs(&c)) {
+        return true;
+    }
+    let Ok(cwd) = std::env::current_dir() else {
+        return false;
+    };
+    let mut abs = PathBuf::new();
+    for c in cwd.join(out).components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => {
+                abs.pop();
+            }
+            c => {
+                abs.push(c);
+                if is_docs(&c) && abs.parent().is_some_and(|p| p.join("Cargo.toml").is_file()) {
+                    return true;
+                }
+            }
+        }
+    }
+    false
+}
+
+/// `--quick` with an output directory inside `docs/` is bad input: quick numbers never land in
+/// the docs (the tracked files are regenerated only by a full run with an explicit `--out`).
+pub fn check_quick_out(opts: &BenchOptions) -> Result<()> {
+    if opts.quick && inside_docs(&opts.out) {
+        return Err(Error::Invalid(format!(
+            "--quick with --out {}: quick numbers never land in docs; drop --quick, or write \
+             elsewhere (default out/bench)",
+            opts.out.display()
+        )));
+    }
+    Ok(())
+}
+
 /// `psns bench demosaic`; returns the files written.
 ///
 /// Writes `demosaic.csv` (one row per method and scene, plus clear-sky at 8 bit),
@@ -769,6 +813,7 @@ fn check_size(path: &Path) -> Result<()> {
 /// `sun-in-view` (methods left to right in [`Method::ALL`] order, top: whole frame max-pooled;
 /// bottom: a native-resolution crop), `demosaic_noise.csv` and `demosaic_noise.svg`.
 pub fn bench_demosaic(opts: &BenchOptions) -> Result<Vec<String>> {
+    check_quick_out(opts)?;
     let (w, h, runs, sweep_size) = if opts.quick {
         (512, 512, opts.runs.clamp(1, 2), 64)
     } else {

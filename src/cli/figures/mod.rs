@@ -13,8 +13,8 @@ use std::path::{Path, PathBuf};
 /// Options of `psns figures`.
 #[derive(Args)]
 pub struct FiguresArgs {
-    /// Output directory.
-    #[arg(long, default_value = "docs/img")]
+    /// Output directory (regenerate the docs' pictures with `--out docs/img`).
+    #[arg(long, default_value = "out/figures")]
     out: PathBuf,
 }
 
