@@ -6,6 +6,7 @@ pub mod args;
 pub mod bench;
 pub mod demosaic;
 pub mod figures;
+pub mod progress;
 pub mod render;
 pub mod sky;
 pub mod stream;
