@@ -213,34 +213,33 @@ impl Progress {
                 start: Instant::now(),
             },
             Mode::Bar => {
-                let target = ProgressDrawTarget::stderr();
-                let bar = match total {
-                    Some(t) => {
-                        let b = ProgressBar::with_draw_target(Some(t), target);
-                        let tpl = format!(
-                            "{{prefix}}: [{{bar:30}}] {{pos}}/{{len}} {} {{per_sec}} eta {{eta}} {{msg}}",
-                            unit.name()
-                        );
-                        b.set_style(
-                            ProgressStyle::with_template(&tpl)
-                                .unwrap_or_else(|_| ProgressStyle::default_bar())
-                                .progress_chars("=> "),
-                        );
-                        b
-                    }
-                    None => {
-                        let b = ProgressBar::with_draw_target(None, target);
-                        let tpl = format!(
-                            "{{prefix}}: {{spinner}} {{pos}} {} {{per_sec}} {{elapsed}} {{msg}}",
-                            unit.name()
-                        );
-                        b.set_style(
-                            ProgressStyle::with_template(&tpl)
-                                .unwrap_or_else(|_| ProgressStyle::default_spinner()),
-                        );
-                        b
-                    }
+                let tpl = match total {
+                    Some(_) => format!(
+                        "{{prefix}}: [{{bar:30}}] {{pos}}/{{len}} {}, {{rate}}, eta {{eta}} {{wide_msg}}",
+                        unit.name()
+                    ),
+                    None => format!(
+                        "{{prefix}}: {{spinner}} {{pos}} {}, {{rate}}, {{elapsed}} {{wide_msg}}",
+                        unit.name()
+                    ),
                 };
+                let rate_unit = unit.rate();
+                let style = ProgressStyle::with_template(&tpl)
+                    .unwrap_or_else(|_| ProgressStyle::default_bar())
+                    .progress_chars("=> ")
+                    .with_key(
+                        "rate",
+                        move |st: &indicatif::ProgressState, w: &mut dyn std::fmt::Write| {
+                            let r = st.per_sec();
+                            let _ = if r >= 10.0 {
+                                write!(w, "{r:.1} {rate_unit}")
+                            } else {
+                                write!(w, "{r:.2} {rate_unit}")
+                            };
+                        },
+                    );
+                let bar = ProgressBar::with_draw_target(total, ProgressDrawTarget::stderr());
+                bar.set_style(style);
                 bar.set_prefix(prefix.to_string());
                 bar.enable_steady_tick(Duration::from_millis(200));
                 Inner::Bar(bar)
