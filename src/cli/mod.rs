@@ -7,6 +7,7 @@ pub mod bench;
 pub mod demosaic;
 pub mod figures;
 pub mod output;
+pub mod progress;
 pub mod render;
 pub mod sky;
 pub mod stream;

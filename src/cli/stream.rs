@@ -21,6 +21,7 @@
 //! writes frame k (`sync_channel(1)`); the order and bytes do not depend on the timing.
 
 use super::args::{finite, RawArgs, SceneArgs};
+use super::progress::{Progress, Unit};
 use chrono::{DateTime, Utc};
 use glam::DMat3;
 use psns::camera::camera_to_enu_quaternion;
@@ -645,7 +646,10 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
         Err(e) => return Err(e),
     };
     let t_open = Instant::now();
-    let res = write_loop(&mut out, &rx, opts);
+    // frames/s and ETA on stderr: a bar on a terminal, plain lines for long jobs otherwise
+    let mut progress = Progress::new("psns stream", Unit::Frames, opts.frames, false);
+    let res = write_loop(&mut out, &rx, opts, &mut progress);
+    drop(progress);
     drop(rx); // a producer blocked on send ends now
     let mut summary = StreamSummary::default();
     let err = match res {
@@ -688,6 +692,7 @@ fn write_loop(
     out: &mut Output,
     rx: &Receiver<Result<Rendered>>,
     opts: &StreamOptions,
+    progress: &mut Progress,
 ) -> std::result::Result<(u64, u64), (u64, u64, Error)> {
     let (mut n, mut late) = (0u64, 0u64);
     let mut t0: Option<Instant> = None;
@@ -713,6 +718,7 @@ fn write_loop(
             return Err((n, late, e));
         }
         n += 1;
+        progress.inc(1);
     }
     Ok((n, late))
 }

@@ -20,6 +20,7 @@
 
 use crate::cli::bench::scenes::{self, Scene, SceneFrame};
 use crate::cli::demosaic::demosaic_codes;
+use crate::cli::progress::{Progress, Unit};
 use crate::cli::{create_dir, vis, write_text};
 use psns::angle::SensorAngle;
 use psns::demosaic::{full_chain, full_chain_into, Method, PolarImages, RawPixel};
@@ -762,6 +763,50 @@ fn check_size(path: &Path) -> Result<()> {
     Ok(())
 }
 
+/// True when `out` lies inside the project's tracked `docs/`: the path as given has a `docs`
+/// component (`docs/bench`, `./docs`, `../psns/docs/x`), or, made absolute against the current
+/// directory and with `.`/`..` resolved, it passes through a `docs` directory that sits beside a
+/// `Cargo.toml` (e.g. `--out bench` run from inside `docs/`).
+pub fn inside_docs(out: &Path) -> bool {
+    use std::path::Component;
+    let is_docs = |c: &Component| c.as_os_str() == "docs";
+    if out.components().any(|c| is_docs(&c)) {
+        return true;
+    }
+    let Ok(cwd) = std::env::current_dir() else {
+        return false;
+    };
+    let mut abs = PathBuf::new();
+    for c in cwd.join(out).components() {
+        match c {
+            Component::CurDir => {}
+            Component::ParentDir => {
+                abs.pop();
+            }
+            c => {
+                abs.push(c);
+                if is_docs(&c) && abs.parent().is_some_and(|p| p.join("Cargo.toml").is_file()) {
+                    return true;
+                }
+            }
+        }
+    }
+    false
+}
+
+/// `--quick` with an output directory inside `docs/` is bad input: quick numbers never land in
+/// the docs (the tracked files are regenerated only by a full run with an explicit `--out`).
+pub fn check_quick_out(opts: &BenchOptions) -> Result<()> {
+    if opts.quick && inside_docs(&opts.out) {
+        return Err(Error::Invalid(format!(
+            "--quick with --out {}: quick numbers never land in docs; drop --quick, or write \
+             elsewhere (default out/bench)",
+            opts.out.display()
+        )));
+    }
+    Ok(())
+}
+
 /// `psns bench demosaic`; returns the files written.
 ///
 /// Writes `demosaic.csv` (one row per method and scene, plus clear-sky at 8 bit),
@@ -769,6 +814,7 @@ fn check_size(path: &Path) -> Result<()> {
 /// `sun-in-view` (methods left to right in [`Method::ALL`] order, top: whole frame max-pooled;
 /// bottom: a native-resolution crop), `demosaic_noise.csv` and `demosaic_noise.svg`.
 pub fn bench_demosaic(opts: &BenchOptions) -> Result<Vec<String>> {
+    check_quick_out(opts)?;
     let (w, h, runs, sweep_size) = if opts.quick {
         (512, 512, opts.runs.clamp(1, 2), 64)
     } else {
@@ -784,24 +830,39 @@ pub fn bench_demosaic(opts: &BenchOptions) -> Result<Vec<String>> {
     let methods = Method::ALL;
     let mut scenes_todo: Vec<(Scene, u8)> = Scene::ALL.iter().map(|&s| (s, 12)).collect();
     scenes_todo.push((Scene::ClearSky, 8));
+    // steps: one timing per method, one score per method and scene, the two noise sweeps; a full
+    // run takes minutes, so it counts as long from the start
+    let steps = methods.len() * (1 + scenes_todo.len()) + 2;
+    let mut progress = Progress::new(
+        "psns bench demosaic",
+        Unit::Steps,
+        Some(steps as u64),
+        !opts.quick,
+    );
 
     // timing on the clear-sky frame
     let t_render = Instant::now();
+    progress.set_message("rendering clear-sky");
     let clear = scenes::render(Scene::ClearSky, w, h, 12)?;
-    eprintln!(
+    progress.println(format!(
         "clear-sky {w} x {h} rendered in {:.1} s",
         t_render.elapsed().as_secs_f64()
-    );
+    ));
     let layout = MosaicLayout::IMX250MZR;
     let mut timing = Vec::new();
     for &m in &methods {
+        progress.set_message(format!("timing {m}"));
         let (reused, fresh) = time_full_chain(&clear.frame.codes, layout, m, runs)?;
-        eprintln!("{m:>10}: {reused:8.1} ms/frame (buffers reused), {fresh:8.1} ms (fresh)");
+        progress.println(format!(
+            "{m:>10}: {reused:8.1} ms/frame (buffers reused), {fresh:8.1} ms (fresh)"
+        ));
         timing.push((m, reused, fresh));
+        progress.inc(1);
     }
 
     let mut rows: Vec<BenchRow> = Vec::new();
     for &(scene, bits) in &scenes_todo {
+        progress.set_message(format!("scoring {scene} {bits} bit"));
         let sf = if scene == Scene::ClearSky && bits == 12 {
             clear.clone()
         } else {
@@ -817,10 +878,11 @@ pub fn bench_demosaic(opts: &BenchOptions) -> Result<Vec<String>> {
         for &(m, reused, fresh) in &timing {
             let sc = score_scene(&sf, m, &sat)?;
             let (s, all, p) = (sc.scores, sc.aolp_rmse_all_deg, &sc.images);
-            eprintln!(
+            progress.println(format!(
                 "{m:>10} {scene:>14} {bits:>2} bit: S0 {:6.2} dB, DoLP RMSE {:.4} bias {:+.4}, AoLP RMSE {:7.3} deg (all {:7.3})",
                 s.s0_psnr_db, s.dolp_rmse, s.dolp_bias, s.aolp_rmse_deg, all
-            );
+            ));
+            progress.inc(1);
             if maps {
                 let e = aolp_error_map(&p.stokes, &sf.frame.truth);
                 pooled.push(index_map(&max_pool(&e, factor)));
@@ -876,8 +938,12 @@ pub fn bench_demosaic(opts: &BenchOptions) -> Result<Vec<String>> {
     } else {
         vec![30.0, 100.0, 300.0, 1000.0, 3000.0, 10000.0]
     };
+    progress.set_message("noise sweep, DoLP 0");
     let bias = noise_sweep(sweep_size, &ns, 0.0, &methods, 11)?;
+    progress.inc(1);
+    progress.set_message("noise sweep, DoLP 0.1");
     let sigma = noise_sweep(sweep_size, &ns, 0.1, &methods, 12)?;
+    progress.inc(1);
     let mut csv = String::from(
         "method,electrons,dolp,mean_dolp,aolp_rms_err_deg,theory_bias,theory_sigma_deg\n",
     );

@@ -17,13 +17,13 @@ pub enum BenchCmd {
     /// Time every demosaic method on full-size frames and score it on the named scenes; writes
     /// demosaic.csv, the speed-vs-accuracy chart and stability maps.
     Demosaic {
-        /// Output directory.
-        #[arg(long, default_value = "docs/bench")]
+        /// Output directory (regenerate the docs' numbers with `--out docs/bench`).
+        #[arg(long, default_value = "out/bench")]
         out: PathBuf,
         /// Timed runs per method (median reported).
         #[arg(long, default_value_t = 7, value_parser = crate::cli::args::runs)]
         runs: usize,
-        /// Small frames and few runs (a quick look; not for the docs).
+        /// Small frames and few runs (a quick look; refused with an --out inside docs/).
         #[arg(long)]
         quick: bool,
     },
@@ -31,8 +31,8 @@ pub enum BenchCmd {
     Sky {
         #[command(flatten)]
         scene: SceneArgs,
-        /// Output directory.
-        #[arg(long, default_value = "docs/bench")]
+        /// Output directory (regenerate the docs' numbers with `--out docs/bench`).
+        #[arg(long, default_value = "out/bench")]
         out: PathBuf,
         /// Timed runs per setting (median reported).
         #[arg(long, default_value_t = 5, value_parser = crate::cli::args::runs)]

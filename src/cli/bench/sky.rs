@@ -2,6 +2,7 @@
 //! full frame and error.
 
 use crate::cli::create_dir;
+use crate::cli::progress::{Progress, Unit};
 use psns::config::SceneConfig;
 use psns::{io, render, Error, Result};
 use std::io::Write;
@@ -66,11 +67,13 @@ pub fn stokes_errors(
     (rel, dop, max, p99)
 }
 
-/// `psns bench sky`: exact vs coarse-grid Stokes rendering of a scene, time and accuracy.
+/// `psns bench sky`: exact vs coarse-grid Stokes rendering of a scene, time and accuracy;
+/// `on_row` sees each row as soon as it is measured.
 pub fn bench_sky_grid(
     cfg: &SceneConfig,
     steps: &[usize],
     runs: usize,
+    on_row: &mut dyn FnMut(&GridBenchRow),
 ) -> Result<Vec<GridBenchRow>> {
     let (sky, cam) = cfg.build()?;
     let opts = render::StokesOptions { sun_disc: false };
@@ -87,14 +90,16 @@ pub fn bench_sky_grid(
         }
         times.sort_by(|a, b| a.total_cmp(b));
         let (max_rel_s0, max_dop, max_aop_deg, p99_aop_deg) = stokes_errors(&exact, &last.unwrap());
-        rows.push(GridBenchRow {
+        let row = GridBenchRow {
             step,
             ms_per_frame: times[times.len() / 2],
             max_rel_s0,
             max_dop,
             max_aop_deg,
             p99_aop_deg,
-        });
+        };
+        on_row(&row);
+        rows.push(row);
     }
     Ok(rows)
 }
@@ -117,18 +122,29 @@ pub fn bench_sky_to_dir(cfg: &SceneConfig, dir: &Path, runs: usize) -> Result<Ve
     let mut csv = String::from(
         "view,step,ms_per_frame,max_rel_s0,max_dop_err,max_aop_err_deg,p99_aop_err_deg\n",
     );
+    let steps = [1, 2, 4, 8, 16];
+    let mut progress = Progress::new(
+        "psns bench sky",
+        Unit::Steps,
+        Some((views.len() * steps.len()) as u64),
+        false,
+    );
     for (name, att) in views {
         let mut c = cfg.clone();
         c.camera.attitude = att;
-        for r in bench_sky_grid(&c, &[1, 2, 4, 8, 16], runs)? {
+        progress.set_message(name);
+        bench_sky_grid(&c, &steps, runs, &mut |r| {
             let line = format!(
-                "{name},{},{:.1},{:.3e},{:.3e},{:.3e},{:.3e}\n",
+                "{name},{},{:.1},{:.3e},{:.3e},{:.3e},{:.3e}",
                 r.step, r.ms_per_frame, r.max_rel_s0, r.max_dop, r.max_aop_deg, r.p99_aop_deg
             );
-            eprint!("{line}");
+            progress.println(&line);
             csv.push_str(&line);
-        }
+            csv.push('\n');
+            progress.inc(1);
+        })?;
     }
+    drop(progress);
     let p = dir.join("sky_grid.csv");
     io::write_atomic(&p, |w| {
         w.write_all(csv.as_bytes())

@@ -327,3 +327,35 @@ fn fused_superpixel_chain_matches_demosaic_then_stokes() {
         assert_eq!(out.aolp_deg, a);
     }
 }
+
+#[test]
+fn quick_into_docs_is_refused_before_anything_is_written() {
+    use super::demosaic::inside_docs;
+    use std::path::Path;
+    for p in [
+        "docs/bench",
+        "./docs",
+        "docs",
+        "../psns/docs/bench",
+        "/x/docs/y",
+    ] {
+        assert!(inside_docs(Path::new(p)), "{p}");
+    }
+    for p in ["out/bench", "/tmp/bench", "documents/bench", "docsx"] {
+        assert!(!inside_docs(Path::new(p)), "{p}");
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("docs").join("bench");
+    let e = bench_demosaic(&BenchOptions {
+        out: out.clone(),
+        runs: 1,
+        quick: true,
+    })
+    .unwrap_err();
+    assert!(e.is_usage(), "{e}");
+    assert!(
+        e.to_string().contains("quick numbers never land in docs"),
+        "{e}"
+    );
+    assert!(!dir.path().join("docs").exists(), "something was written");
+}

@@ -7,6 +7,7 @@
 //! so single pixels stay visible. The photon-transfer numbers are written next to the pictures as
 //! `sensor_numbers.json` so the documentation quotes measured values.
 
+use crate::cli::progress::Progress;
 use crate::cli::vis;
 use psns::camera::{Attitude, Camera};
 use psns::config::SceneConfig;
@@ -470,8 +471,12 @@ fn median(mut v: Vec<f64>) -> f64 {
     *v.select_nth_unstable_by(n, |a, b| a.total_cmp(b)).1
 }
 
-/// Writes the sensor figures into `dir`; returns the files written.
-pub fn sensor_figures(dir: &Path) -> Result<Vec<String>> {
+/// Steps of [`sensor_figures`] counted by its progress.
+pub const SENSOR_FIGURE_STEPS: u64 = 6;
+
+/// Writes the sensor figures into `dir`; returns the files written. Counts
+/// [`SENSOR_FIGURE_STEPS`] steps on `progress`.
+pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>> {
     std::fs::create_dir_all(dir)
         .map_err(|e| Error::io(format!("creating {}", dir.display()), e))?;
     let mut files = Vec::new();
@@ -482,6 +487,7 @@ pub fn sensor_figures(dir: &Path) -> Result<Vec<String>> {
         p
     };
 
+    progress.set_message("sensor: raw frame");
     // 1. the default camera frame of the default sky
     let cfg = SceneConfig::default();
     let pipe = RawPipeline::new(&cfg)?;
@@ -502,6 +508,8 @@ pub fn sensor_figures(dir: &Path) -> Result<Vec<String>> {
         }),
     );
 
+    progress.inc(1);
+    progress.set_message("sensor: mosaic zoom, sun frame");
     // 2a. 24 × 24 crop where the truth DoLP is highest, ×12
     let (dolp, _) = frame.truth_dolp_aolp();
     let block = 24;
@@ -598,6 +606,8 @@ pub fn sensor_figures(dir: &Path) -> Result<Vec<String>> {
         }),
     );
 
+    progress.inc(1);
+    progress.set_message("sensor: channels");
     // 3. the four channel sub-images, common scale; second row: I_k / mean of the four
     let subs: Vec<Image<u16>> = (0..4)
         .map(|ch| {
@@ -647,6 +657,8 @@ pub fn sensor_figures(dir: &Path) -> Result<Vec<String>> {
         serde_json::json!({ "display_white_code": ch_white }),
     );
 
+    progress.inc(1);
+    progress.set_message("sensor: presets");
     // 4. PSNS presets and the camera, same sky: full frames /8 and a 152 × 128 corner crop ×2
     let mut top = Vec::new();
     let mut bottom = Vec::new();
@@ -675,6 +687,8 @@ pub fn sensor_figures(dir: &Path) -> Result<Vec<String>> {
         &rgb_to_gray(&vis::vstack(&[&a, &b], 6)),
     )?;
 
+    progress.inc(1);
+    progress.set_message("sensor: photon transfer");
     // 5. photon transfer
     let ptc = photon_transfer_data(&ptc_sensor_config(), 256, 256, 2024, 2)?;
     let svg = photon_transfer_svg(&ptc)?;
@@ -697,6 +711,8 @@ pub fn sensor_figures(dir: &Path) -> Result<Vec<String>> {
         }),
     );
 
+    progress.inc(1);
+    progress.set_message("sensor: DoLP truth vs superpixel");
     // 6. DoLP: ground truth vs a plain superpixel estimate from the raw codes
     let [est, tru] = superpixel_dolp(&frame, &layout);
     let diff = Image::from_vec(
@@ -736,6 +752,7 @@ pub fn sensor_figures(dir: &Path) -> Result<Vec<String>> {
         std::io::Write::write_all(w, json.as_bytes())
             .map_err(|e| Error::io("writing sensor_numbers.json", e))
     })?;
+    progress.inc(1);
     Ok(files)
 }
 
