@@ -84,3 +84,31 @@ fn forced_long_stream_prints_plain_lines_on_a_pipe() {
     ));
     assert_eq!(l.len(), 1, "{l:?}");
 }
+
+/// `psns render` counts its steps (the frame, then each file): nothing extra for a short run,
+/// plain lines when forced long on a pipe.
+#[test]
+fn render_reports_its_steps_when_long() {
+    let d = tempfile::tempdir().unwrap();
+    let run = |name: &str, env: &[(&str, &str)]| {
+        let mut c = Command::new(env!("CARGO_BIN_EXE_psns"));
+        c.args(["render", "--raw", "--width", "64", "--height", "48", "--out"])
+            .arg(d.path().join(name))
+            .env_remove("PSNS_PROGRESS")
+            .env_remove("PSNS_PROGRESS_PERIOD_S");
+        for (k, v) in env {
+            c.env(k, v);
+        }
+        let o = c.output().unwrap();
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        lines(&o)
+    };
+    let short = run("a", &[]);
+    assert_eq!(short.len(), 1, "{short:?}");
+    assert!(short[0].starts_with("raw frame 64x48"), "{short:?}");
+    let long = run("b", &[("PSNS_PROGRESS_PERIOD_S", "0")]);
+    assert!(
+        long.iter().any(|l| l.starts_with("psns render: 25/25 steps")),
+        "{long:?}"
+    );
+}

@@ -3,6 +3,7 @@
 
 use super::args::{RawArgs, SceneArgs};
 use super::output::{check_memory, memory_available, memory_need, OutDir};
+use super::progress::{Progress, Unit};
 use super::vis;
 use clap::Args;
 use psns::config::{Derived, SceneConfig, SceneKind};
@@ -88,7 +89,8 @@ pub fn render_ideal_to_dir(cfg: &SceneConfig, target: &Path) -> Result<RenderSum
     check_size(cfg, IDEAL_BYTES_PER_PIXEL)?;
     let out = OutDir::begin(target)?;
     let dir = out.path();
-    let (summary, extra) = write_ideal(&sky, &cam, dir)?;
+    let mut progress = Progress::new("psns render", Unit::Steps, Some(IDEAL_STEPS), false);
+    let (summary, extra) = write_ideal(&sky, &cam, dir, &mut progress)?;
     let derived = Derived {
         sun: Some(sky.sun()),
         extra,
@@ -105,6 +107,9 @@ pub fn render_ideal_to_dir(cfg: &SceneConfig, target: &Path) -> Result<RenderSum
 /// Peak resident bytes per pixel of `psns render` and `render --raw` (measured at 1000² and
 /// 3000² pixels: 53 and 87 B; rounded up).
 const IDEAL_BYTES_PER_PIXEL: u64 = 56;
+/// Progress steps: the ideal images and their 14 files; the raw frame and its 9 files.
+const IDEAL_STEPS: u64 = 15;
+const RAW_STEPS: u64 = 10;
 const RAW_BYTES_PER_PIXEL: u64 = 90;
 
 /// Refuses a frame too large for the memory this process may use.
@@ -124,12 +129,17 @@ fn write_ideal(
     sky: &psns::sky::Sky,
     cam: &psns::camera::Camera,
     dir: &Path,
+    progress: &mut Progress,
 ) -> Result<(RenderSummary, serde_json::Map<String, serde_json::Value>)> {
     let t0 = Instant::now();
+    progress.set_message("ideal images");
     let ideal = render::render_ideal(sky, cam);
     let render_s = t0.elapsed().as_secs_f64();
+    progress.inc(1);
     let mut files = Vec::new();
     let mut put = |name: &str| {
+        progress.set_message(name);
+        progress.inc(1);
         files.push(name.to_string());
         dir.join(name)
     };
@@ -206,18 +216,24 @@ pub fn render_raw_to_dir(cfg: &SceneConfig, target: &Path) -> Result<RawSummary>
         SceneKind::Flat => None,
     };
     let t1 = Instant::now();
+    let total = RAW_STEPS + if ideal_scene.is_some() { IDEAL_STEPS } else { 0 };
+    let mut progress = Progress::new("psns render", Unit::Steps, Some(total), false);
+    progress.set_message("raw frame");
     let (frame, info, scene_s) = pipe.render_configured_timed()?;
+    progress.inc(1);
     let sensor_s = t1.elapsed().as_secs_f64() - scene_s;
     let outdir = OutDir::begin(target)?;
     let dir = outdir.path();
     let (mut files, mut extra) = match &ideal_scene {
         Some((sky, cam)) => {
-            let (s, x) = write_ideal(sky, cam, dir)?;
+            let (s, x) = write_ideal(sky, cam, dir, &mut progress)?;
             (s.files, x)
         }
         None => (Vec::new(), serde_json::Map::new()),
     };
     let mut put = |name: &str| {
+        progress.set_message(name);
+        progress.inc(1);
         files.push(name.to_string());
         dir.join(name)
     };

@@ -800,7 +800,7 @@ pub fn check_quick_out(opts: &BenchOptions) -> Result<()> {
     if opts.quick && inside_docs(&opts.out) {
         return Err(Error::Invalid(format!(
             "--quick with --out {}: quick numbers never land in docs; drop --quick, or write \
-             elsewhere (default out/bench)",
+             elsewhere (default out-bench)",
             opts.out.display()
         )));
     }

@@ -18,7 +18,7 @@ pub enum BenchCmd {
     /// demosaic.csv, the speed-vs-accuracy chart and stability maps.
     Demosaic {
         /// Output directory (regenerate the docs' numbers with `--out docs/bench`).
-        #[arg(long, default_value = "out/bench")]
+        #[arg(long, default_value = "out-bench")]
         out: PathBuf,
         /// Timed runs per method (median reported).
         #[arg(long, default_value_t = 7, value_parser = crate::cli::args::runs)]
@@ -32,7 +32,7 @@ pub enum BenchCmd {
         #[command(flatten)]
         scene: SceneArgs,
         /// Output directory (regenerate the docs' numbers with `--out docs/bench`).
-        #[arg(long, default_value = "out/bench")]
+        #[arg(long, default_value = "out-bench")]
         out: PathBuf,
         /// Timed runs per setting (median reported).
         #[arg(long, default_value_t = 5, value_parser = crate::cli::args::runs)]

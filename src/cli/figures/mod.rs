@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 #[derive(Args)]
 pub struct FiguresArgs {
     /// Output directory (regenerate the docs' pictures with `--out docs/img`).
-    #[arg(long, default_value = "out/figures")]
+    #[arg(long, default_value = "out-figures")]
     out: PathBuf,
 }
 
