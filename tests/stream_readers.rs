@@ -703,3 +703,21 @@ fn nav_reader_black_level_msb_aligned() {
         );
     }
 }
+
+/// Without numpy the Python readers say what is missing, not a traceback (numpy is hidden from
+/// the interpreter to test this wherever it is installed).
+#[test]
+fn python_readers_without_numpy_say_so() {
+    for tool in ["psns_stream.py", "nav_reader.py"] {
+        let path = root().join("tools").join(tool);
+        let code = format!(
+            "import sys; sys.modules['numpy'] = None; sys.argv = ['{tool}', 'dump', 'x']; \
+             exec(compile(open(r'{}').read(), '{tool}', 'exec'))",
+            path.display()
+        );
+        let o = common::python_cmd().args(["-c", &code]).output().unwrap();
+        let e = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{tool}: {e}");
+        assert!(e.contains("needs numpy") && !e.contains("Traceback"), "{tool}: {e}");
+    }
+}

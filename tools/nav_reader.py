@@ -33,7 +33,11 @@ import os
 import sys
 import time
 
-import numpy as np
+try:
+    import numpy as np
+except ImportError:  # a message, not a traceback
+    sys.exit("nav_reader.py needs numpy: python3 -m pip install numpy "
+             "(or use the project's .venv made by tools/test)")
 
 sys.path.insert(0, os.path.dirname(os.path.abspath(__file__)))
 import psns_stream as ps  # noqa: E402

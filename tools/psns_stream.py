@@ -21,7 +21,11 @@ import struct
 import sys
 import zlib
 
-import numpy as np
+try:
+    import numpy as np
+except ImportError:  # a message, not a traceback: the reader's one dependency is missing
+    sys.exit("psns_stream.py needs numpy: python3 -m pip install numpy "
+             "(or use the project's .venv made by tools/test)")
 
 FILE_MAGIC = b"\x89PSNSRAW"
 FRAME_MAGIC = b"\x89PSNSFRM"
