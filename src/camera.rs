@@ -151,8 +151,8 @@ impl Attitude {
                 if !n.is_finite() || (n - 1.0).abs() > QUATERNION_TOLERANCE {
                     let f = |v: f64| crate::error::num(v);
                     return Err(Error::Invalid(format!(
-                        "quaternion {},{},{},{} is not a unit quaternion (norm {}; allowed 1 +- 0.001)",
-                        f(wxyz[0]), f(wxyz[1]), f(wxyz[2]), f(wxyz[3]), format!("{n:.6}")
+                        "quaternion {},{},{},{} is not a unit quaternion (norm {n:.6}; allowed 1 +- 0.001)",
+                        f(wxyz[0]), f(wxyz[1]), f(wxyz[2]), f(wxyz[3])
                     )));
                 }
             }

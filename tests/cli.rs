@@ -460,7 +460,7 @@ fn out_onto_a_file_or_a_foreign_directory_is_refused() {
         ]);
         assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
         assert!(
-            stderr(&o).contains("not a directory") || stderr(&o).contains("psns did not write"),
+            stderr(&o).contains("not a directory") || stderr(&o).contains("does not write"),
             "{}",
             stderr(&o)
         );

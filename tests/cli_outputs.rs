@@ -48,7 +48,10 @@ fn default_outputs_are_outside_docs() {
         // .gitignore keeps it untracked
         let gi =
             std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/.gitignore")).unwrap();
-        assert!(gi.lines().any(|l| l.trim() == format!("/{d}")), "{d} not ignored");
+        assert!(
+            gi.lines().any(|l| l.trim() == format!("/{d}")),
+            "{d} not ignored"
+        );
     }
 }
 

@@ -342,12 +342,19 @@ fn demosaic_bad_input_exits_2_and_writes_nothing() {
         (vec![p("rgb.png")], "expected a greyscale raw mosaic"),
         (vec![p("adir")], "adir"),
         (vec![p("missing.png")], "missing.png"),
+        // into the render's own directory: it would replace the input
+        (
+            vec![g.clone(), "--out".into(), raw.to_str().unwrap().into()],
+            "holds '",
+        ),
     ];
     for (i, (extra, needle)) in cases.iter().enumerate() {
         let out = d.join(format!("o{i}"));
         let mut args = vec!["demosaic".to_string()];
         args.extend(extra.iter().cloned());
-        args.extend(["--out".into(), out.to_str().unwrap().into()]);
+        if !extra.contains(&"--out".to_string()) {
+            args.extend(["--out".into(), out.to_str().unwrap().into()]);
+        }
         let a: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
         let o = psns(&a);
         assert_eq!(o.status.code(), Some(2), "{extra:?}: {}", err(&o));
@@ -358,6 +365,11 @@ fn demosaic_bad_input_exits_2_and_writes_nothing() {
         );
         assert!(!out.exists(), "{extra:?} wrote {}", out.display());
     }
+    assert_eq!(
+        std::fs::read(&good).unwrap(),
+        bytes,
+        "the input was touched"
+    );
 }
 
 /// Bad scene files for `--config`: exit 2 and nothing written (issue 14 item 13).

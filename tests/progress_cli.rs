@@ -92,10 +92,12 @@ fn render_reports_its_steps_when_long() {
     let d = tempfile::tempdir().unwrap();
     let run = |name: &str, env: &[(&str, &str)]| {
         let mut c = Command::new(env!("CARGO_BIN_EXE_psns"));
-        c.args(["render", "--raw", "--width", "64", "--height", "48", "--out"])
-            .arg(d.path().join(name))
-            .env_remove("PSNS_PROGRESS")
-            .env_remove("PSNS_PROGRESS_PERIOD_S");
+        c.args([
+            "render", "--raw", "--width", "64", "--height", "48", "--out",
+        ])
+        .arg(d.path().join(name))
+        .env_remove("PSNS_PROGRESS")
+        .env_remove("PSNS_PROGRESS_PERIOD_S");
         for (k, v) in env {
             c.env(k, v);
         }
@@ -108,7 +110,8 @@ fn render_reports_its_steps_when_long() {
     assert!(short[0].starts_with("raw frame 64x48"), "{short:?}");
     let long = run("b", &[("PSNS_PROGRESS_PERIOD_S", "0")]);
     assert!(
-        long.iter().any(|l| l.starts_with("psns render: 25/25 steps")),
+        long.iter()
+            .any(|l| l.starts_with("psns render: 25/25 steps")),
         "{long:?}"
     );
 }

@@ -718,6 +718,9 @@ fn python_readers_without_numpy_say_so() {
         let o = common::python_cmd().args(["-c", &code]).output().unwrap();
         let e = String::from_utf8_lossy(&o.stderr);
         assert_eq!(o.status.code(), Some(1), "{tool}: {e}");
-        assert!(e.contains("needs numpy") && !e.contains("Traceback"), "{tool}: {e}");
+        assert!(
+            e.contains("needs numpy") && !e.contains("Traceback"),
+            "{tool}: {e}"
+        );
     }
 }

@@ -2,7 +2,7 @@
 //! written as `.npy` arrays and pictures.
 
 use super::args::finite;
-use super::output::{check_memory, memory_available, memory_need, OutDir};
+use super::output::{check_memory, memory_available, memory_need, OutDir, DEMOSAIC_FILES};
 use super::{vis, write_text};
 use clap::Args;
 use psns::demosaic::{full_chain, Method, PolarImages};
@@ -191,7 +191,7 @@ pub fn demosaic_to_dir(opts: &DemosaicOptions) -> Result<Vec<String>> {
         memory_need(raw.codes.data.len(), 80),
         memory_available(),
     )?;
-    let outdir = OutDir::begin(&opts.out)?;
+    let outdir = OutDir::begin(&opts.out, DEMOSAIC_FILES)?;
     let t0 = Instant::now();
     let p = demosaic_codes(&raw.codes, raw.black_level, raw.layout, opts.method)?;
     let ms = t0.elapsed().as_secs_f64() * 1e3;

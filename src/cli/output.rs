@@ -10,8 +10,8 @@
 use psns::{Error, Result};
 use std::path::{Path, PathBuf};
 
-/// Files a psns run may leave in its output directory (render, render --raw, demosaic).
-const KNOWN: &[&str] = &[
+/// Files `psns render` (and `render --raw`) leaves in its output directory.
+pub const RENDER_FILES: &[&str] = &[
     "li.npy",
     "dop.npy",
     "aop.npy",
@@ -36,6 +36,10 @@ const KNOWN: &[&str] = &[
     "truth_s2.npy",
     "truth_dolp.npy",
     "truth_aolp.npy",
+];
+
+/// Files `psns demosaic` leaves in its output directory.
+pub const DEMOSAIC_FILES: &[&str] = &[
     "s0.npy",
     "s1.npy",
     "s2.npy",
@@ -74,9 +78,10 @@ fn temp_pid(name: &str, base: &str) -> Option<u32> {
 }
 
 impl OutDir {
-    /// Prepares `dir` for a run: checks it can be replaced, removes temporaries of killed runs and
+    /// Prepares `dir` for a run: checks it can be replaced (it holds nothing but `known`, the
+    /// files of an earlier run of the same command), removes temporaries of killed runs and
     /// creates the hidden directory the run writes into.
-    pub fn begin(dir: &Path) -> Result<OutDir> {
+    pub fn begin(dir: &Path, known: &[&str]) -> Result<OutDir> {
         let bad = |m: String| Error::Invalid(format!("--out {}: {m}", dir.display()));
         if dir.exists() && !dir.is_dir() {
             return Err(bad("exists and is not a directory".into()));
@@ -96,14 +101,14 @@ impl OutDir {
             let entries = std::fs::read_dir(&abs).map_err(|e| Error::input(dir, e))?;
             for e in entries.flatten() {
                 let n = e.file_name().to_string_lossy().into_owned();
-                let ours = KNOWN.contains(&n.as_str()) && e.path().is_file();
+                let ours = known.contains(&n.as_str()) && e.path().is_file();
                 // a hidden `.FILE.tmp-PID` of a killed run that wrote file by file
                 let stale = n.starts_with('.')
                     && n.rsplit_once(".tmp-")
                         .is_some_and(|(_, p)| p.parse::<u32>().is_ok());
                 if !ours && !stale {
                     return Err(bad(format!(
-                        "holds '{n}', which psns did not write; give a new or empty directory (a run replaces its directory whole)"
+                        "holds '{n}', which this command does not write; give a new or empty directory (a run replaces its directory whole)"
                     )));
                 }
             }
@@ -264,19 +269,19 @@ mod tests {
         let root = tempfile::tempdir().unwrap();
         let out = root.path().join("o");
         // first run: new directory
-        let w = OutDir::begin(&out).unwrap();
+        let w = OutDir::begin(&out, RENDER_FILES).unwrap();
         std::fs::write(w.path().join("li.npy"), "old").unwrap();
         std::fs::write(w.path().join("raw.png"), "old").unwrap();
         w.commit().unwrap();
         assert_eq!(names(&out), ["li.npy", "raw.png"]);
         // a failed run leaves the directory as it was and no temporaries
-        let w = OutDir::begin(&out).unwrap();
+        let w = OutDir::begin(&out, RENDER_FILES).unwrap();
         std::fs::write(w.path().join("li.npy"), "new").unwrap();
         drop(w);
         assert_eq!(std::fs::read_to_string(out.join("li.npy")).unwrap(), "old");
         assert_eq!(names(root.path()), ["o"]);
         // a run that finishes replaces every file, also those it did not write again
-        let w = OutDir::begin(&out).unwrap();
+        let w = OutDir::begin(&out, RENDER_FILES).unwrap();
         std::fs::write(w.path().join("li.npy"), "new").unwrap();
         w.commit().unwrap();
         assert_eq!(names(&out), ["li.npy"]);
@@ -292,17 +297,23 @@ mod tests {
         // a killed run's hidden directory (PID 4294967295 never runs) and a killed file write
         std::fs::create_dir(root.path().join(".o.tmp-4294967295")).unwrap();
         std::fs::write(out.join(".li.npy.tmp-4294967295"), "x").unwrap();
-        let w = OutDir::begin(&out).unwrap();
+        let w = OutDir::begin(&out, RENDER_FILES).unwrap();
         w.commit().unwrap();
         assert_eq!(names(root.path()), ["o"]);
         assert!(names(&out).is_empty());
         // the user's own file: refused before any work, and kept
         std::fs::write(out.join("notes.txt"), "mine").unwrap();
-        let e = OutDir::begin(&out).unwrap_err();
+        let e = OutDir::begin(&out, RENDER_FILES).unwrap_err();
         assert!(e.is_usage() && e.to_string().contains("notes.txt"), "{e}");
         assert_eq!(names(&out), ["notes.txt"]);
+        // another command's output is not replaced either
+        std::fs::remove_file(out.join("notes.txt")).unwrap();
+        std::fs::write(out.join("raw.png"), "render's").unwrap();
+        let e = OutDir::begin(&out, DEMOSAIC_FILES).unwrap_err();
+        assert!(e.to_string().contains("raw.png"), "{e}");
+        std::fs::write(out.join("notes.txt"), "mine").unwrap();
         // a file where the directory should be
-        let e = OutDir::begin(&out.join("notes.txt")).unwrap_err();
+        let e = OutDir::begin(&out.join("notes.txt"), RENDER_FILES).unwrap_err();
         assert!(e.to_string().contains("not a directory"), "{e}");
     }
 

@@ -2,7 +2,7 @@
 //! with `--raw`, the IMX250MZR raw frame with its ground truth, written into a directory.
 
 use super::args::{RawArgs, SceneArgs};
-use super::output::{check_memory, memory_available, memory_need, OutDir};
+use super::output::{check_memory, memory_available, memory_need, OutDir, RENDER_FILES};
 use super::progress::{Progress, Unit};
 use super::vis;
 use clap::Args;
@@ -87,7 +87,7 @@ pub struct RenderSummary {
 pub fn render_ideal_to_dir(cfg: &SceneConfig, target: &Path) -> Result<RenderSummary> {
     let (sky, cam) = cfg.build()?; // validates everything before anything is written
     check_size(cfg, IDEAL_BYTES_PER_PIXEL)?;
-    let out = OutDir::begin(target)?;
+    let out = OutDir::begin(target, RENDER_FILES)?;
     let dir = out.path();
     let mut progress = Progress::new("psns render", Unit::Steps, Some(IDEAL_STEPS), false);
     let (summary, extra) = write_ideal(&sky, &cam, dir, &mut progress)?;
@@ -216,13 +216,18 @@ pub fn render_raw_to_dir(cfg: &SceneConfig, target: &Path) -> Result<RawSummary>
         SceneKind::Flat => None,
     };
     let t1 = Instant::now();
-    let total = RAW_STEPS + if ideal_scene.is_some() { IDEAL_STEPS } else { 0 };
+    let total = RAW_STEPS
+        + if ideal_scene.is_some() {
+            IDEAL_STEPS
+        } else {
+            0
+        };
     let mut progress = Progress::new("psns render", Unit::Steps, Some(total), false);
     progress.set_message("raw frame");
     let (frame, info, scene_s) = pipe.render_configured_timed()?;
     progress.inc(1);
     let sensor_s = t1.elapsed().as_secs_f64() - scene_s;
-    let outdir = OutDir::begin(target)?;
+    let outdir = OutDir::begin(target, RENDER_FILES)?;
     let dir = outdir.path();
     let (mut files, mut extra) = match &ideal_scene {
         Some((sky, cam)) => {
