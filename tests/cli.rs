@@ -115,6 +115,21 @@ fn other_commands_print_short_range_messages() {
             ],
             "pressure = 1e308 is out of range (allowed 1..1100)",
         ),
+        // refraction settings without --refraction would be ignored
+        (
+            &[
+                "sun",
+                "--time",
+                "2020-06-01T12:00:00Z",
+                "--lat",
+                "0",
+                "--lon",
+                "0",
+                "--pressure",
+                "900",
+            ],
+            "--refraction",
+        ),
         (
             &["stream", "--frames", "-1", "--out", "/dev/null"],
             "-1 is out of range",

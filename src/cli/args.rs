@@ -565,19 +565,19 @@ pub(crate) struct SpaArgs {
     /// Apply atmospheric refraction (default: geometric position).
     #[arg(long)]
     pub(crate) refraction: bool,
-    /// Pressure for --refraction, hPa.
-    #[arg(long, value_parser = finite, default_value_t = 1010.0, value_name = "HPA")]
-    pub(crate) pressure: f64,
-    /// Temperature for --refraction, °C.
-    #[arg(long, value_parser = finite, default_value_t = 10.0, allow_negative_numbers = true, value_name = "C")]
-    pub(crate) temperature: f64,
+    /// Pressure for --refraction, hPa (default 1010).
+    #[arg(long, value_parser = finite, value_name = "HPA", requires = "refraction")]
+    pub(crate) pressure: Option<f64>,
+    /// Temperature for --refraction, °C (default 10).
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "C", requires = "refraction")]
+    pub(crate) temperature: Option<f64>,
 }
 
 impl SpaArgs {
     pub(crate) fn refraction(&self) -> Option<Refraction> {
         self.refraction.then_some(Refraction {
-            pressure_hpa: self.pressure,
-            temperature_c: self.temperature,
+            pressure_hpa: self.pressure.unwrap_or(1010.0),
+            temperature_c: self.temperature.unwrap_or(10.0),
         })
     }
 }
