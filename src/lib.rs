@@ -18,6 +18,7 @@ pub mod camera;
 pub mod config;
 pub mod demosaic;
 pub mod error;
+pub mod heading;
 pub mod image;
 pub mod io;
 pub mod pipeline;

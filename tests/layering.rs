@@ -18,6 +18,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("demosaic", 7),
     ("stream", 8),
     ("trajectory", 8),
+    ("heading", 8),
     ("config", 9),
     ("io", 9),
     ("pipeline", 10),
