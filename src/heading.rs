@@ -223,6 +223,33 @@ pub fn eigenvector_heading(
     })
 }
 
+/// Marks as unusable (DoLP = NaN) every pixel within one pixel of a raw code at `full_scale`:
+/// a clipped channel gives a false, structured AoLP that the estimator cannot tell from sky, and
+/// interpolating demosaics spread it to the neighbours. Returns how many pixels were masked.
+pub fn mask_saturated(dolp: &mut Image<f32>, codes: &Image<u16>, full_scale: u16) -> usize {
+    let (w, h) = (codes.width, codes.height);
+    let mut masked = 0;
+    let mut bad = vec![false; w * h];
+    for r in 0..h {
+        for c in 0..w {
+            if codes.data[r * w + c] >= full_scale {
+                for rr in r.saturating_sub(1)..(r + 2).min(h) {
+                    for cc in c.saturating_sub(1)..(c + 2).min(w) {
+                        bad[rr * w + cc] = true;
+                    }
+                }
+            }
+        }
+    }
+    for (d, b) in dolp.data.iter_mut().zip(bad) {
+        if b {
+            *d = f32::NAN;
+            masked += 1;
+        }
+    }
+    masked
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -332,6 +359,15 @@ mod tests {
         );
         eprintln!("zenith sun: {e:?}");
         assert!(e.confidence < 0.2, "{e:?}");
+    }
+
+    #[test]
+    fn saturated_codes_mask_their_neighbourhood() {
+        let mut codes = Image::from_vec(5, 4, vec![100u16; 20]);
+        codes.data[2 * 5 + 2] = 4095;
+        let mut d = Image::from_vec(5, 4, vec![0.3f32; 20]);
+        assert_eq!(mask_saturated(&mut d, &codes, 4095), 9);
+        assert!(d.data[5 + 1].is_nan() && d.data[3 * 5 + 3].is_nan() && !d.data[0].is_nan());
     }
 
     #[test]

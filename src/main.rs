@@ -34,6 +34,8 @@ enum Cmd {
     Extract(cli::verify::ExtractArgs),
     /// Demosaic a raw mosaic (PNG/TIFF) or a stream frame into S0, S1, S2, DoLP, AoLP.
     Demosaic(cli::demosaic::DemosaicArgs),
+    /// The camera's yaw from one raw frame's polarization (sun-vector estimator), as CSV.
+    Heading(cli::heading::HeadingArgs),
     /// Benchmarks that chart speed against accuracy.
     Bench {
         #[command(subcommand)]
@@ -52,6 +54,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Cmd::Verify(a) => cli::verify::run_verify(a),
         Cmd::Extract(a) => cli::verify::run_extract(a),
         Cmd::Demosaic(a) => cli::demosaic::run(a),
+        Cmd::Heading(a) => cli::heading::run(a),
         Cmd::Bench { what } => cli::bench::run(what),
         Cmd::Figures(a) => cli::figures::run(a),
     }
@@ -75,4 +78,15 @@ fn main() -> ExitCode {
     // usage errors exit with code 2
     let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     cli::exit_code(run(cli))
+}
+
+#[cfg(test)]
+mod tests {
+    /// clap's consistency checks (duplicate option names, bad defaults) run only in debug builds
+    /// and only when parsing: run them over every command here.
+    #[test]
+    fn command_line_is_consistent() {
+        use clap::CommandFactory;
+        super::negative_numbers(super::Cli::command()).debug_assert();
+    }
 }

@@ -58,3 +58,86 @@ fn raw_frames_give_the_true_yaw() {
         assert!(err < 1.0, "default sky yaw {yaw}: error {err}");
     }
 }
+
+mod common;
+
+/// `psns heading IMAGE` as a user with a camera calls it: pixels, sun, intrinsics and tilt.
+#[test]
+fn heading_command_recovers_the_rendered_yaw_and_refuses_a_clipped_frame() {
+    let dir = tempfile::tempdir().unwrap();
+    let geom = ["--width", "612", "--height", "512", "--pixel-pitch", "13.8"];
+    let render = |name: &str, exposure: &[&str]| {
+        let out = dir.path().join(name);
+        let mut a = vec![
+            "render",
+            "--raw",
+            "--model",
+            "rayleigh",
+            "--frame",
+            "enu",
+            "--yaw",
+            "137",
+            "--pitch",
+            "3",
+            "--roll",
+            "-4",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        a.extend(geom);
+        a.extend(exposure);
+        let o = common::psns(&a);
+        assert!(o.status.success(), "{}", common::stderr(&o));
+        out.join("raw.png").to_str().unwrap().to_string()
+    };
+    let heading = |raw: &str, extra: &[&str]| {
+        let mut a = vec!["heading", raw, "--sun-zenith", "50", "--sun-azimuth", "200"];
+        a.extend(geom);
+        a.extend(extra);
+        common::psns(&a)
+    };
+    let good = render("good", &["--auto-exposure"]);
+    let o = heading(&good, &["--pitch", "3", "--roll", "-4"]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let text = String::from_utf8(o.stdout).unwrap();
+    let mut lines = text.lines();
+    assert_eq!(
+        lines.next(),
+        Some("yaw_deg,confidence,pixels,saturated_pixels")
+    );
+    let v: Vec<f64> = lines
+        .next()
+        .unwrap()
+        .split(',')
+        .map(|x| x.parse().unwrap())
+        .collect();
+    assert!(
+        (v[0] - 137.0).abs() < 0.05 && v[1] > 0.9 && v[3] == 0.0,
+        "{text}"
+    );
+    // every pixel clipped: no heading and zero confidence, never a confident wrong answer
+    let clipped = render("clipped", &["--exposure-us", "5000000"]);
+    let o = heading(&clipped, &["--pitch", "3", "--roll", "-4"]);
+    let text = String::from_utf8(o.stdout).unwrap();
+    assert!(
+        o.status.success() && text.lines().nth(1).unwrap().starts_with("nan,0,0,"),
+        "{text}"
+    );
+    // the yaw is the unknown; and the intrinsics must match the image
+    let o = heading(&good, &["--yaw", "10"]);
+    assert_eq!(o.status.code(), Some(2));
+    let o = common::psns(&[
+        "heading",
+        &good,
+        "--sun-zenith",
+        "50",
+        "--sun-azimuth",
+        "200",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        common::stderr(&o).contains("give --width/--height"),
+        "{}",
+        common::stderr(&o)
+    );
+}

@@ -6,6 +6,7 @@ pub mod args;
 pub mod bench;
 pub mod demosaic;
 pub mod figures;
+pub mod heading;
 pub mod output;
 pub mod progress;
 pub mod render;
