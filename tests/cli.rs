@@ -170,7 +170,11 @@ fn bad_input_exits_2_and_writes_nothing() {
     let o = out.to_str().unwrap();
     let cases: &[(&[&str], &str)] = &[
         (&["--turbidity", "12"], "turbidity = 12"),
-        (&["--turbidity", "0.5"], "allowed 1..10"),
+        (
+            &["--turbidity", "0.5"],
+            "allowed 1.7..10 with --dop-model wang-bounded",
+        ),
+        (&["--turbidity", "1.5"], "1..10 with --dop-model wang-paper"),
         (&["--wavelength", "300"], "wavelength = 300"),
         (&["--albedo", "1.5"], "albedo = 1.5"),
         (
