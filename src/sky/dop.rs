@@ -430,7 +430,7 @@ pub fn check_turbidity(turbidity: f64, model: DopModel) -> Result<f64> {
 }
 
 /// x up to `knee`, then knee + (c − knee)·tanh((x − knee)/(c − knee)): continuous with a
-/// continuous slope, increasing, below c.
+/// continuous slope, non-decreasing, never above c.
 #[inline]
 pub fn soft_cap(x: f64, knee: f64, c: f64) -> f64 {
     if x > knee {
@@ -443,7 +443,7 @@ pub fn soft_cap(x: f64, knee: f64, c: f64) -> f64 {
 
 /// The bounded model's output map: 0 for x ≤ 0 (and NaN), x up to [`DOP_KNEE`], then
 /// k + (c − k)·tanh((x − k)/(c − k)) (c = [`DOP_CEILING`]): continuous with a continuous
-/// slope, increasing, below c for every finite x.
+/// slope, non-decreasing, never above c (reached only in floating point, for x far above).
 #[inline]
 pub fn soft_ceiling(x: f64) -> f64 {
     if x > 0.0 {
@@ -497,6 +497,36 @@ mod tests {
         let ts = 50f64.to_radians();
         assert!(d.s_weight(ts.cos(), 0.0, 1.0).abs() < 1e-12);
         assert!((d.s_weight(40f64.to_radians().cos(), FRAC_PI_2, 0.0) - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn soft_ceiling_is_identity_below_the_knee_and_below_the_ceiling_above() {
+        for i in 0..=650 {
+            let x = i as f64 * 1e-3;
+            assert_eq!(soft_ceiling(x), x.min(DOP_KNEE));
+        }
+        assert_eq!(soft_ceiling(-1.0), 0.0);
+        assert_eq!(soft_ceiling(f64::NAN), 0.0);
+        let mut prev = soft_ceiling(DOP_KNEE);
+        for i in 1..20_000 {
+            let y = soft_ceiling(DOP_KNEE + i as f64 * 1e-3);
+            assert!(y >= prev && y <= DOP_CEILING && y - prev <= 1e-3 + 1e-15);
+            prev = y;
+        }
+        assert!(soft_ceiling(1e300) <= DOP_CEILING);
+        assert!(soft_cap(1e300, S_KNEE, S_CEILING) <= S_CEILING);
+    }
+
+    #[test]
+    fn bounded_s_is_finite_and_capped_where_preetham_turns_negative() {
+        // T = 1.8, sun on the horizon, 380 nm: S_D < 0 within ~20° of the sun
+        let d = WangDop::with_model(90.0, 1.8, 380.0, 0.1, DopNorm::Clamp, DopModel::WangBounded)
+            .unwrap();
+        assert!(d.s_sun < 0.0 && d.s_ref > 0.0);
+        let s = d.s_weight(0.01745, 0.01745, 0.01745f64.cos());
+        assert!(s > 2.0 && s <= S_CEILING, "{s}");
+        let p = WangDop::new(90.0, 1.8, 380.0, 0.1, DopNorm::Clamp).unwrap();
+        assert!(p.s_weight(0.01745, 0.01745, 0.01745f64.cos()) < 0.0);
     }
 
     #[test]
