@@ -366,14 +366,20 @@ fn draw_map(
                 .draw()?;
             for (i, (_, r)) in rows_m.iter().enumerate() {
                 let (x0, x1) = (edges[i], edges[i + 1]);
-                for &z in zs {
-                    let (y0, y1) = (z - 1.0, z + 1.0);
-                    let [cr, cg, cb] = cell_color(r, z, k);
-                    let color = RGBColor(cr, cg, cb);
+                // one rectangle per run of equal colours down the column (keeps the SVG small)
+                let colors: Vec<[u8; 3]> = zs.iter().map(|&z| cell_color(r, z, k)).collect();
+                let mut j = 0;
+                while j < zs.len() {
+                    let mut e = j;
+                    while e + 1 < zs.len() && colors[e + 1] == colors[j] {
+                        e += 1;
+                    }
+                    let [cr, cg, cb] = colors[j];
                     ch.draw_series(std::iter::once(Rectangle::new(
-                        [(x0, y0), (x1, y1)],
-                        color.filled(),
+                        [(x0, zs[j] - 1.0), (x1, zs[e] + 1.0)],
+                        RGBColor(cr, cg, cb).filled(),
                     )))?;
+                    j = e + 1;
                 }
             }
         }

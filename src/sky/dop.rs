@@ -19,10 +19,25 @@
 //! daylight basis S0 + M₁S1 + M₂S2 normalised to luminance (CIE 15; table [`CIE_DAYLIGHT`]).
 //! Only ratios of S_D enter S, so the absolute scale of Y cancels.
 //!
-//! By default no 2/π factor is applied and the result is clamped to [0, 1] ([`DopNorm::Clamp`]);
-//! Wilkie et al.'s 2/π normalisation is [`DopNorm::Wilkie`]. Frame: θ, γ as in `sky.md` §1.
+//! By default no 2/π factor is applied ([`DopNorm::Clamp`]); Wilkie et al.'s 2/π normalisation is
+//! [`DopNorm::Wilkie`]. Frame: θ, γ as in `sky.md` §1.
+//!
+//! Two forms ([`DopModel`], `docs/sky.md` "Where the published DOP fails"):
+//!
+//! * [`DopModel::WangPaper`]: S as above, the DOP clamped to [0, 1]. S assumes S_D is largest at
+//!   the sun, smaller at S_90 and positive; Preetham's sky breaks all three inside the accepted
+//!   range (S_sun/S_90 passes through 1 for a low sun, e.g. T = 4 at θ_s ≈ 86.3°; S_D exceeds
+//!   S_sun 40° from the sun at T = 10, θ_s = 70°; S_D < 0 near the zenith for 1.203 < T < 1.645,
+//!   where the luminance gradation 1 + A_Y e^{B_Y/cos θ} changes sign inside the sky), and the
+//!   clamp turns the blow-ups into plateaus of DOP 0 or 1.
+//! * [`DopModel::WangBounded`] (default): S = (S_ref/S_D − 1)/(S_ref/S_90 − 1) with S_ref the
+//!   brightest S_D of the sky, S_D and S_90 floored at [`S_D_FLOOR`]·S_ref, the contrast
+//!   S_ref/S_90 floored at [`R_MIN`], S ≥ 0 saturating above [`S_KNEE`] toward [`S_CEILING`], and
+//!   the DOP saturating above [`DOP_KNEE`] toward [`DOP_CEILING`]; turbidity 1.7..10. Every
+//!   threshold lies outside the default scene's range, so there the two forms agree bit for bit.
 
-use super::{DopModel, DopNorm};
+use super::DopNorm;
+pub use super::DopModel;
 use crate::error::{check_range, Result};
 use std::f64::consts::{FRAC_PI_2, PI};
 
