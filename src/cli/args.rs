@@ -109,7 +109,7 @@ pub(crate) struct SceneArgs {
     /// Polarization model.
     #[arg(long, value_enum)]
     pub(crate) model: Option<ModelArg>,
-    /// Turbidity, 1..10.
+    /// Turbidity, 1.7..10 (1..10 with --dop-model wang-paper or --model rayleigh).
     #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "T")]
     pub(crate) turbidity: Option<f64>,
     /// Wavelength, nm, 320..720.

@@ -75,7 +75,8 @@ pub enum DopModel {
 pub struct SkyParams {
     /// `wang` (default) or `rayleigh`.
     pub model: PolarizationModel,
-    /// Atmospheric turbidity T, 1..10 (default 4).
+    /// Atmospheric turbidity T, 1.7..10 for the default `wang-bounded` DOP, 1..10 for
+    /// `wang-paper` and the Rayleigh model (default 4).
     pub turbidity: f64,
     /// Wavelength in nm, 320..720 (default 450).
     pub wavelength_nm: f64,
@@ -114,7 +115,7 @@ impl Default for SkyParams {
 }
 
 impl SkyParams {
-    /// Checks every range of `sky.md` §8.
+    /// Checks every range of `sky.md` §8 (turbidity from 1.7 for the `wang-bounded` DOP).
     pub fn validate(&self) -> Result<()> {
         match self.model {
             PolarizationModel::Wang => dop::check_turbidity(self.turbidity, self.dop_model)?,
