@@ -514,7 +514,11 @@ fn sky_stability_map() {
     let out = dir.path().join("st");
     let o = psns(&["sky", "--stability", "--out", out.to_str().unwrap()]);
     assert!(o.status.success(), "{}", stderr(&o));
-    for f in ["dop_stability.csv", "dop_stability.svg", "dop_stability.png"] {
+    for f in [
+        "dop_stability.csv",
+        "dop_stability.svg",
+        "dop_stability.png",
+    ] {
         assert!(out.join(f).is_file(), "{f}");
     }
     let csv = std::fs::read_to_string(out.join("dop_stability.csv")).unwrap();
@@ -533,7 +537,21 @@ fn sky_stability_map() {
     assert_eq!((bounded_bad, bounded_ok), (0, 4140));
     assert_eq!(bounded_refused, 460);
     assert!(paper_bad > 500, "{paper_bad}");
-    // --out belongs to --stability
+    // --out belongs to --stability, and --stability sweeps what it would otherwise take
     let o = psns(&["sky", "--out", out.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2));
+    let o = psns(&[
+        "sky",
+        "--stability",
+        "--turbidity",
+        "3",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("--turbidity would be ignored"),
+        "{}",
+        stderr(&o)
+    );
 }

@@ -30,6 +30,23 @@ pub struct SkyArgs {
 pub fn run(a: SkyArgs) -> anyhow::Result<()> {
     let cfg = a.scene.scene()?;
     if a.stability {
+        let sc = &a.scene;
+        let swept = [
+            ("sun-zenith", sc.sun_zenith.is_some()),
+            ("sun-altitude", sc.sun_altitude.is_some()),
+            ("sun-azimuth", sc.sun_azimuth.is_some()),
+            ("time", sc.time.is_some()),
+            ("turbidity", sc.turbidity.is_some()),
+            ("wavelength", sc.wavelength.is_some()),
+            ("model", sc.model.is_some()),
+            ("dop-model", sc.dop_model.is_some()),
+        ];
+        if let Some((n, _)) = swept.iter().find(|(_, g)| *g) {
+            return Err(Error::Invalid(format!(
+                "--{n} would be ignored: --stability sweeps the sun, turbidity and wavelength for both DOP models"
+            ))
+            .into());
+        }
         let dir = a.out.unwrap_or_else(|| PathBuf::from("out-stability"));
         for f in write_stability(&cfg.sky, &dir)? {
             eprintln!("psns sky: wrote {f}");

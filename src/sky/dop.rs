@@ -36,8 +36,8 @@
 //!   the DOP saturating above [`DOP_KNEE`] toward [`DOP_CEILING`]; turbidity 1.7..10. Every
 //!   threshold lies outside the default scene's range, so there the two forms agree bit for bit.
 
-use super::DopNorm;
 pub use super::DopModel;
+use super::DopNorm;
 use crate::error::{check_range, Result};
 use std::f64::consts::{FRAC_PI_2, PI};
 
