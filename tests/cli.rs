@@ -185,7 +185,11 @@ fn bad_input_exits_2_and_writes_nothing() {
     let o = out.to_str().unwrap();
     let cases: &[(&[&str], &str)] = &[
         (&["--turbidity", "12"], "turbidity = 12"),
-        (&["--turbidity", "0.5"], "allowed 1..10"),
+        (
+            &["--turbidity", "0.5"],
+            "allowed 1.7..10 with --dop-model wang-bounded",
+        ),
+        (&["--turbidity", "1.5"], "1..10 with --dop-model wang-paper"),
         (&["--wavelength", "300"], "wavelength = 300"),
         (&["--albedo", "1.5"], "albedo = 1.5"),
         (
@@ -515,4 +519,54 @@ fn ignored_options_are_refused_and_the_sun_is_recorded() {
         serde_json::from_str(&std::fs::read_to_string(out.join("scene.json")).unwrap()).unwrap();
     assert_eq!(v["sun"]["zenith_deg"], 50.0);
     assert_eq!(v["sun"]["azimuth_deg"], 200.0);
+}
+
+/// `psns sky --stability --out DIR` writes the stability map of both DOP models (issue 10):
+/// the published formula has unstable cells at T >= 1.7, the default none, and refuses T < 1.7.
+#[test]
+fn sky_stability_map() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("st");
+    let o = psns(&["sky", "--stability", "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    for f in [
+        "dop_stability.csv",
+        "dop_stability.svg",
+        "dop_stability.png",
+    ] {
+        assert!(out.join(f).is_file(), "{f}");
+    }
+    let csv = std::fs::read_to_string(out.join("dop_stability.csv")).unwrap();
+    let (mut paper_bad, mut bounded_bad, mut bounded_refused, mut bounded_ok) = (0, 0, 0, 0);
+    for l in csv.lines().skip(1) {
+        let c: Vec<&str> = l.split(',').collect();
+        let t: f64 = c[1].parse().unwrap();
+        match (c[0], c[4]) {
+            ("wang-paper", "unstable") if t >= 1.7 => paper_bad += 1,
+            ("wang-bounded", "unstable") => bounded_bad += 1,
+            ("wang-bounded", "refused") => bounded_refused += 1,
+            ("wang-bounded", "stable") => bounded_ok += 1,
+            _ => {}
+        }
+    }
+    assert_eq!((bounded_bad, bounded_ok), (0, 4140));
+    assert_eq!(bounded_refused, 460);
+    assert!(paper_bad > 500, "{paper_bad}");
+    // --out belongs to --stability, and --stability sweeps what it would otherwise take
+    let o = psns(&["sky", "--out", out.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2));
+    let o = psns(&[
+        "sky",
+        "--stability",
+        "--turbidity",
+        "3",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("--turbidity would be ignored"),
+        "{}",
+        stderr(&o)
+    );
 }

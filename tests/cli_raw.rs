@@ -478,20 +478,25 @@ fn killed_rerender_leaves_the_previous_output_whole() {
         let _ = child.kill();
         let status = child.wait().unwrap();
         let now = snapshot(&m);
-        if status.success() {
-            // finished before the kill: the new set, whole
-            let scene =
-                String::from_utf8(now.iter().find(|f| f.0 == "scene.json").unwrap().1.clone())
-                    .unwrap();
-            assert!(scene.contains("\"turbidity\": 8.0"), "{scene}");
-            assert_eq!(now.len(), first.len());
-            replaced = true;
-            break;
+        if now == first {
+            assert!(
+                !status.success(),
+                "a finished run must replace the directory"
+            );
+            continue;
         }
+        // the run got as far as swapping its directory in (it may be killed after that, before
+        // exiting): then the directory is the new set, whole
+        let scene =
+            String::from_utf8(now.iter().find(|f| f.0 == "scene.json").unwrap().1.clone()).unwrap();
         assert!(
-            now == first,
-            "killed after {delay_ms} ms: the directory changed"
+            scene.contains("\"turbidity\": 8.0"),
+            "killed after {delay_ms} ms: mixed set: {scene}"
         );
+        let names = |v: &Vec<(String, Vec<u8>)>| v.iter().map(|f| f.0.clone()).collect::<Vec<_>>();
+        assert_eq!(names(&now), names(&first));
+        replaced = true;
+        break;
     }
     // the next run cleans the killed runs' hidden directories
     let o = psns(

@@ -5,7 +5,7 @@ use glam::DVec3;
 use psns::sky::berry::{chart, BerryField, NeutralPoints};
 use psns::sky::dop::WangDop;
 use psns::sky::{
-    aop_chart_deg, aop_meridian_deg, direction, rayleigh, DopNorm, PolarizationField,
+    aop_chart_deg, aop_meridian_deg, direction, rayleigh, DopModel, DopNorm, PolarizationField,
     PolarizationModel, Sky, SkyParams, SkySample, SunPosition,
 };
 use rand::{Rng, SeedableRng};
@@ -501,6 +501,7 @@ fn no_nan_dop_in_unit_range_everywhere() {
         SkyParams::default(),
         SkyParams {
             turbidity: 1.0,
+            dop_model: DopModel::WangPaper,
             albedo: 0.0,
             babinet_deg: 0.0,
             brewster_deg: 0.0,
@@ -517,6 +518,7 @@ fn no_nan_dop_in_unit_range_everywhere() {
         },
         SkyParams {
             turbidity: 1.1,
+            dop_model: DopModel::WangPaper,
             wavelength_nm: 720.0,
             ..SkyParams::default()
         },
@@ -670,6 +672,7 @@ fn sky_finite_everywhere_for_sun_zenith_0_to_90() {
         SkyParams::default(),
         SkyParams {
             turbidity: 1.0,
+            dop_model: DopModel::WangPaper,
             albedo: 1.0,
             wavelength_nm: 320.0,
             babinet_deg: 0.0,
@@ -737,7 +740,7 @@ proptest::proptest! {
         th in 0.0f64..90.0, az in 0.0f64..360.0,
         t in 1.0f64..=10.0, lam in 320.0f64..=720.0, rho in 0.0f64..=1.0,
         dba in 0.0f64..=60.0, dbr in 0.0f64..=60.0, wilkie in proptest::bool::ANY,
-        rayleigh_model in proptest::bool::ANY,
+        rayleigh_model in proptest::bool::ANY, paper in proptest::bool::ANY,
     ) {
         let p = SkyParams {
             model: if rayleigh_model { PolarizationModel::Rayleigh } else { PolarizationModel::Wang },
@@ -747,6 +750,8 @@ proptest::proptest! {
             babinet_deg: dba,
             brewster_deg: dbr,
             dop_norm: if wilkie { DopNorm::Wilkie } else { DopNorm::Clamp },
+            // the bounded model refuses T < 1.7
+            dop_model: if paper || t < 1.7 { DopModel::WangPaper } else { DopModel::WangBounded },
             ..SkyParams::default()
         };
         let sun = SunPosition::new(ts, as_);
@@ -823,6 +828,7 @@ fn sky_max(p: &SkyParams) -> (f64, f64) {
 fn sky_maximum_dop_statements() {
     let t1 = SkyParams {
         turbidity: 1.0,
+        dop_model: DopModel::WangPaper,
         ..SkyParams::default()
     };
     let (d1, s1) = sky_max(&t1);

@@ -6,7 +6,7 @@ use psns::camera::{Attitude, AttitudeFrame};
 use psns::config::{SceneConfig, SceneKind};
 use psns::sensor::packing::PixelFormat;
 use psns::sensor::{Exposure, Preset, SensorConfig};
-use psns::sky::{DopNorm, PolarizationModel};
+use psns::sky::{DopModel, DopNorm, PolarizationModel};
 use psns::sun::{Place, Refraction};
 use std::path::PathBuf;
 
@@ -65,6 +65,12 @@ pub(crate) enum NormArg {
 }
 
 #[derive(Clone, Copy, ValueEnum)]
+pub(crate) enum DopModelArg {
+    WangBounded,
+    WangPaper,
+}
+
+#[derive(Clone, Copy, ValueEnum)]
 pub(crate) enum FrameArg {
     Solar,
     Enu,
@@ -103,7 +109,7 @@ pub(crate) struct SceneArgs {
     /// Polarization model.
     #[arg(long, value_enum)]
     pub(crate) model: Option<ModelArg>,
-    /// Turbidity, 1..10.
+    /// Turbidity, 1.7..10 (1..10 with --dop-model wang-paper or --model rayleigh).
     #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "T")]
     pub(crate) turbidity: Option<f64>,
     /// Wavelength, nm, 320..720.
@@ -130,6 +136,10 @@ pub(crate) struct SceneArgs {
     /// DOP normalisation of the Wang model (clamp: none; wilkie: 2/π).
     #[arg(long, value_enum)]
     pub(crate) dop_norm: Option<NormArg>,
+    /// Form of the Wang DOP: wang-bounded (default; stable for turbidity 1.7..10, the paper's
+    /// values at the default scene) or wang-paper (eq. (5) as published, turbidity 1..10).
+    #[arg(long, value_enum)]
+    pub(crate) dop_model: Option<DopModelArg>,
     /// Camera yaw, degrees.
     #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG")]
     pub(crate) yaw: Option<f64>,
@@ -256,6 +266,12 @@ impl SceneArgs {
             k.dop_norm = match n {
                 NormArg::Clamp => DopNorm::Clamp,
                 NormArg::Wilkie => DopNorm::Wilkie,
+            };
+        }
+        if let Some(m) = self.dop_model {
+            k.dop_model = match m {
+                DopModelArg::WangBounded => DopModel::WangBounded,
+                DopModelArg::WangPaper => DopModel::WangPaper,
             };
         }
         let cam = &mut c.camera;

@@ -1,22 +1,58 @@
-//! `psns sky`: sky values (radiance, DOP, AOP) for directions read as CSV on stdin.
+//! `psns sky`: sky values (radiance, DOP, AOP) for directions read as CSV on stdin; with
+//! `--stability`, the DOP stability map of both DOP models instead.
 
 use super::args::SceneArgs;
+use super::progress::{Progress, Unit};
 use clap::Args;
 use psns::config::SceneConfig;
-use psns::sky::{aop_chart_deg, aop_meridian_deg, direction};
+use psns::sky::stability::{stability_map, Grid, MapCell, MAX_JUMP};
+use psns::sky::{aop_chart_deg, aop_meridian_deg, direction, DopModel, SkyParams};
 use psns::{Error, Result};
 use std::io::{BufRead, Write};
+use std::path::{Path, PathBuf};
 
 /// Options of `psns sky`.
 #[derive(Args)]
 pub struct SkyArgs {
     #[command(flatten)]
     scene: SceneArgs,
+    /// Instead of reading directions: write the DOP stability map of both DOP models
+    /// (dop_stability.csv, .svg and a small .png) over turbidity 1..10 x sun zenith 0..90 x
+    /// wavelength 380..720 nm; the scene's other sky settings (albedo, neutral points, norm) apply.
+    #[arg(long)]
+    stability: bool,
+    /// Output directory of --stability (regenerate the docs' map with `--out docs/img`).
+    #[arg(long, requires = "stability", value_name = "DIR")]
+    out: Option<PathBuf>,
 }
 
 /// Runs `psns sky`.
 pub fn run(a: SkyArgs) -> anyhow::Result<()> {
     let cfg = a.scene.scene()?;
+    if a.stability {
+        let sc = &a.scene;
+        let swept = [
+            ("sun-zenith", sc.sun_zenith.is_some()),
+            ("sun-altitude", sc.sun_altitude.is_some()),
+            ("sun-azimuth", sc.sun_azimuth.is_some()),
+            ("time", sc.time.is_some()),
+            ("turbidity", sc.turbidity.is_some()),
+            ("wavelength", sc.wavelength.is_some()),
+            ("model", sc.model.is_some()),
+            ("dop-model", sc.dop_model.is_some()),
+        ];
+        if let Some((n, _)) = swept.iter().find(|(_, g)| *g) {
+            return Err(Error::Invalid(format!(
+                "--{n} would be ignored: --stability sweeps the sun, turbidity and wavelength for both DOP models"
+            ))
+            .into());
+        }
+        let dir = a.out.unwrap_or_else(|| PathBuf::from("out-stability"));
+        for f in write_stability(&cfg.sky, &dir)? {
+            eprintln!("psns sky: wrote {f}");
+        }
+        return Ok(());
+    }
     let stdin = std::io::stdin().lock();
     let stdout = std::io::stdout().lock();
     sky_csv(&cfg, stdin, std::io::BufWriter::new(stdout))?;
@@ -105,4 +141,266 @@ pub fn sky_csv(cfg: &SceneConfig, input: impl BufRead, mut output: impl Write) -
     }
     output.flush().map_err(werr)?;
     Ok(n)
+}
+
+/// Turbidities of the stability map: 1..10 every 0.5, plus 1.7 (the bounded model's lowest).
+pub fn map_turbidities() -> Vec<f64> {
+    let mut t: Vec<f64> = (0..=18).map(|i| 1.0 + 0.5 * i as f64).collect();
+    t.push(1.7);
+    t.sort_by(f64::total_cmp);
+    t
+}
+
+/// Sun zeniths of the stability map: 0..90 every 2°.
+pub fn map_sun_zeniths() -> Vec<f64> {
+    (0..=45).map(|i| 2.0 * i as f64).collect()
+}
+
+/// Wavelengths of the stability map, nm.
+pub const MAP_WAVELENGTHS: [f64; 5] = [380.0, 450.0, 550.0, 650.0, 720.0];
+
+/// One model's map: per turbidity, the cells (sun zenith × wavelength) or the refusal.
+type ModelMap = Vec<(f64, std::result::Result<Vec<MapCell>, String>)>;
+
+/// Writes `dop_stability.csv`, `.svg` and `.png` into `dir` (created if missing; other
+/// files are left alone). Returns the files written.
+pub fn write_stability(base: &SkyParams, dir: &Path) -> Result<Vec<String>> {
+    let ts = map_turbidities();
+    let zs = map_sun_zeniths();
+    let models = [DopModel::WangPaper, DopModel::WangBounded];
+    let mut progress = Progress::new(
+        "psns sky --stability",
+        Unit::Steps,
+        Some((models.len() * ts.len()) as u64),
+        false,
+    );
+    let mut maps: Vec<(DopModel, ModelMap)> = Vec::new();
+    for m in models {
+        let p = SkyParams {
+            model: psns::sky::PolarizationModel::Wang,
+            dop_model: m,
+            ..base.clone()
+        };
+        let mut rows = Vec::new();
+        for &t in &ts {
+            progress.set_message(format!("{} T = {t}", model_name(m)));
+            let r = stability_map(&p, &[t], &zs, &MAP_WAVELENGTHS, Grid::default())
+                .map_err(|e| e.to_string());
+            rows.push((t, r));
+            progress.inc(1);
+        }
+        maps.push((m, rows));
+    }
+    super::create_dir(dir)?;
+    let mut csv = String::from(
+        "dop_model,turbidity,sun_zenith_deg,wavelength_nm,status,directions,mid_directions,pinned_low,pinned_high,max_jump,jumps,max_dop\n",
+    );
+    for (m, rows) in &maps {
+        for (t, r) in rows {
+            match r {
+                Ok(cells) => {
+                    for c in cells {
+                        let s = &c.stats;
+                        csv += &format!(
+                            "{},{},{},{},{},{},{},{},{},{:.6},{},{:.6}\n",
+                            model_name(*m),
+                            c.turbidity,
+                            c.sun_zenith_deg,
+                            c.wavelength_nm,
+                            if s.is_stable() { "stable" } else { "unstable" },
+                            s.directions,
+                            s.mid_directions,
+                            s.pinned_low,
+                            s.pinned_high,
+                            s.max_jump,
+                            s.jumps,
+                            s.max_dop
+                        );
+                    }
+                }
+                Err(_) => {
+                    for z in &zs {
+                        for l in MAP_WAVELENGTHS {
+                            csv += &format!("{},{t},{z},{l},refused,,,,,,,\n", model_name(*m));
+                        }
+                    }
+                }
+            }
+        }
+    }
+    let pcsv = dir.join("dop_stability.csv");
+    write(&pcsv, csv.as_bytes())?;
+    let psvg = dir.join("dop_stability.svg");
+    let mut svg = String::new();
+    draw_map(&maps, &ts, &zs, &mut svg)
+        .map_err(|e| Error::Invalid(format!("drawing the stability map: {e}")))?;
+    write(&psvg, svg.as_bytes())?;
+    let ppng = dir.join("dop_stability.png");
+    psns::io::write_png_rgb8(&ppng, &map_png(&maps, &zs))?;
+    Ok(vec![
+        pcsv.display().to_string(),
+        psvg.display().to_string(),
+        ppng.display().to_string(),
+    ])
+}
+
+fn write(p: &Path, bytes: &[u8]) -> Result<()> {
+    std::fs::write(p, bytes).map_err(|e| Error::io(format!("writing {}", p.display()), e))
+}
+
+fn model_name(m: DopModel) -> &'static str {
+    match m {
+        DopModel::WangPaper => "wang-paper",
+        DopModel::WangBounded => "wang-bounded",
+    }
+}
+
+/// Per map cell (turbidity, sun zenith) the worst over the wavelengths of: fraction pinned low,
+/// fraction pinned high, largest jump.
+fn worst(cells: &[MapCell], z: f64) -> [f64; 3] {
+    let mut w = [0.0f64; 3];
+    for c in cells.iter().filter(|c| c.sun_zenith_deg == z) {
+        w[0] = w[0].max(c.stats.low_fraction());
+        w[1] = w[1].max(c.stats.high_fraction());
+        w[2] = w[2].max(c.stats.max_jump);
+    }
+    w
+}
+
+/// Colour of one map cell for metric `k` (0 pinned low, 1 pinned high, 2 jump): grey where the
+/// model refuses the turbidity, pale green for none pinned, white → red with the fraction
+/// pinned; jumps blue up to 0.15, red above.
+fn cell_color(r: &std::result::Result<Vec<MapCell>, String>, z: f64, k: usize) -> [u8; 3] {
+    let cells = match r {
+        Err(_) => return [190, 190, 190],
+        Ok(c) => c,
+    };
+    let v = worst(cells, z)[k];
+    if k == 2 {
+        if v > MAX_JUMP {
+            let f = ((v - MAX_JUMP) / (1.0 - MAX_JUMP)).clamp(0.0, 1.0);
+            let g = (140.0 * (1.0 - f)) as u8;
+            [255, g, g]
+        } else {
+            let g = (255.0 - 120.0 * (v / MAX_JUMP).clamp(0.0, 1.0)) as u8;
+            [g, g, 255]
+        }
+    } else if v > 0.0 {
+        let g = (200.0 * (1.0 - v.clamp(0.0, 1.0).sqrt())) as u8;
+        [255, g, g]
+    } else {
+        [235, 245, 235]
+    }
+}
+
+/// The map as a small PNG without text: rows wang-paper, wang-bounded; columns pinned low,
+/// pinned high, jump; in each panel turbidity grows to the right (one 8-px column per value of
+/// [`map_turbidities`]) and sun zenith downwards (4 px per 2°).
+fn map_png(maps: &[(DopModel, ModelMap)], zs: &[f64]) -> psns::image::Image<[u8; 3]> {
+    let mut rows = Vec::new();
+    for (_, rows_m) in maps {
+        let mut panels = Vec::new();
+        for k in 0..3 {
+            let (w, h) = (rows_m.len() * 8, zs.len() * 4);
+            let mut data = vec![[255u8; 3]; w * h];
+            for (i, (_, r)) in rows_m.iter().enumerate() {
+                for (j, &z) in zs.iter().enumerate() {
+                    let c = cell_color(r, z, k);
+                    for y in j * 4..j * 4 + 4 {
+                        for x in i * 8..i * 8 + 8 {
+                            data[y * w + x] = c;
+                        }
+                    }
+                }
+            }
+            panels.push(psns::image::Image::from_vec(w, h, data));
+        }
+        rows.push(super::vis::hstack(&panels.iter().collect::<Vec<_>>(), 6));
+    }
+    super::vis::vstack(&rows.iter().collect::<Vec<_>>(), 6)
+}
+
+fn draw_map(
+    maps: &[(DopModel, ModelMap)],
+    ts: &[f64],
+    zs: &[f64],
+    svg: &mut String,
+) -> std::result::Result<(), Box<dyn std::error::Error>> {
+    use plotters::prelude::*;
+    let root = SVGBackend::with_string(svg, (1260, 760)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let (title, body) = root.split_vertically(40);
+    title.draw(&Text::new(
+        "DOP stability, worst of 380/450/550/650/720 nm (4050 directions per cell; grey: refused)",
+        (20, 12),
+        ("sans-serif", 17),
+    ))?;
+    let rows = body.split_evenly((maps.len(), 3));
+    // cell edges: turbidity steps are 0.5 except around 1.7
+    let edges: Vec<f64> = {
+        let mut e = vec![ts[0] - 0.25];
+        for w in ts.windows(2) {
+            e.push(0.5 * (w[0] + w[1]));
+        }
+        e.push(ts[ts.len() - 1] + 0.25);
+        e
+    };
+    let metrics = [
+        "pinned DOP <= 0.001 (40..140 deg from sun)",
+        "pinned DOP >= 0.95",
+        "max jump over 2 deg (red: > 0.15)",
+    ];
+    for (mi, (m, rows_m)) in maps.iter().enumerate() {
+        let unstable: usize = rows_m
+            .iter()
+            .filter_map(|(_, r)| r.as_ref().ok())
+            .flat_map(|c| c.iter())
+            .filter(|c| !c.stats.is_stable())
+            .count();
+        let total: usize = rows_m
+            .iter()
+            .filter_map(|(_, r)| r.as_ref().ok())
+            .map(|c| c.len())
+            .sum();
+        for (k, name) in metrics.iter().enumerate() {
+            let area = &rows[mi * 3 + k];
+            let cap = if k == 0 {
+                format!("{}: {name} ({unstable}/{total} unstable)", model_name(*m))
+            } else {
+                format!("{}: {name}", model_name(*m))
+            };
+            let mut ch = ChartBuilder::on(area)
+                .caption(cap, ("sans-serif", 13))
+                .margin(8)
+                .x_label_area_size(32)
+                .y_label_area_size(44)
+                .build_cartesian_2d(edges[0]..edges[edges.len() - 1], -1f64..91f64)?;
+            ch.configure_mesh()
+                .disable_mesh()
+                .x_desc("turbidity")
+                .y_desc("sun zenith (deg)")
+                .label_style(("sans-serif", 11))
+                .draw()?;
+            for (i, (_, r)) in rows_m.iter().enumerate() {
+                let (x0, x1) = (edges[i], edges[i + 1]);
+                // one rectangle per run of equal colours down the column (keeps the SVG small)
+                let colors: Vec<[u8; 3]> = zs.iter().map(|&z| cell_color(r, z, k)).collect();
+                let mut j = 0;
+                while j < zs.len() {
+                    let mut e = j;
+                    while e + 1 < zs.len() && colors[e + 1] == colors[j] {
+                        e += 1;
+                    }
+                    let [cr, cg, cb] = colors[j];
+                    ch.draw_series(std::iter::once(Rectangle::new(
+                        [(x0, zs[j] - 1.0), (x1, zs[e] + 1.0)],
+                        RGBColor(cr, cg, cb).filled(),
+                    )))?;
+                    j = e + 1;
+                }
+            }
+        }
+    }
+    root.present()?;
+    Ok(())
 }

@@ -19,9 +19,24 @@
 //! daylight basis S0 + M₁S1 + M₂S2 normalised to luminance (CIE 15; table [`CIE_DAYLIGHT`]).
 //! Only ratios of S_D enter S, so the absolute scale of Y cancels.
 //!
-//! By default no 2/π factor is applied and the result is clamped to [0, 1] ([`DopNorm::Clamp`]);
-//! Wilkie et al.'s 2/π normalisation is [`DopNorm::Wilkie`]. Frame: θ, γ as in `sky.md` §1.
+//! By default no 2/π factor is applied ([`DopNorm::Clamp`]); Wilkie et al.'s 2/π normalisation is
+//! [`DopNorm::Wilkie`]. Frame: θ, γ as in `sky.md` §1.
+//!
+//! Two forms ([`DopModel`], `docs/sky.md` "Where the published DOP fails"):
+//!
+//! * [`DopModel::WangPaper`]: S as above, the DOP clamped to [0, 1]. S assumes S_D is largest at
+//!   the sun, smaller at S_90 and positive; Preetham's sky breaks all three inside the accepted
+//!   range (S_sun/S_90 passes through 1 for a low sun, e.g. T = 4 at θ_s ≈ 86.3°; S_D exceeds
+//!   S_sun 40° from the sun at T = 10, θ_s = 70°; S_D < 0 near the zenith for 1.203 < T < 1.645,
+//!   where the luminance gradation 1 + A_Y e^{B_Y/cos θ} changes sign inside the sky), and the
+//!   clamp turns the blow-ups into plateaus of DOP 0 or 1.
+//! * [`DopModel::WangBounded`] (default): S = (S_ref/S_D − 1)/(S_ref/S_90 − 1) with S_ref the
+//!   brightest S_D of the sky, S_D and S_90 floored at [`S_D_FLOOR`]·S_ref, the contrast
+//!   S_ref/S_90 floored at [`R_MIN`], S ≥ 0 saturating above [`S_KNEE`] toward [`S_CEILING`], and
+//!   the DOP saturating above [`DOP_KNEE`] toward [`DOP_CEILING`]; turbidity 1.7..10. Every
+//!   threshold lies outside the default scene's range, so there the two forms agree bit for bit.
 
+pub use super::DopModel;
 use super::DopNorm;
 use crate::error::{check_range, Result};
 use std::f64::consts::{FRAC_PI_2, PI};
@@ -226,6 +241,50 @@ pub fn m_dop(turbidity: f64) -> f64 {
     (-turbidity / 4.0 + 0.12).exp()
 }
 
+/// Smallest contrast S_ref/S_90 the bounded model divides by (`wang-bounded`, `sky.md` §5).
+///
+/// The paper's S divides by S_sun/S_90 − 1, which is 2.62 at the default scene but passes through
+/// 0 as the sun sinks (T = 4: S_sun/S_90 = 1.17 at θ_s = 85°, 0.98 at 86.5°) and is 0.19 at
+/// T = 2, θ_s = 10°. Below this floor the bounded model divides by `R_MIN − 1` instead.
+pub const R_MIN: f64 = 2.0;
+/// DOP above which the bounded model starts to saturate. The default scene's sky maximum is
+/// 0.588 at the default neutral-point distance of 25° and at most 0.645 (δ = 0), so the
+/// default scene is untouched for every δ.
+pub const DOP_KNEE: f64 = 0.65;
+/// Ceiling the bounded DOP approaches but never reaches: the Rayleigh limit of air,
+/// (1 − ρ_n)/(1 + ρ_n) with depolarization ratio ρ_n ≈ 0.03.
+pub const DOP_CEILING: f64 = 0.94;
+/// Floor of S_D in the bounded model, as a fraction of S_ref: S_D ≤ 0 (Preetham's luminance
+/// gradation for T < 1.645; the CIE daylight basis at 320–400 nm for the bluest chromaticities
+/// at high turbidity) and S_D → 0 would otherwise send 1/S_D through ±∞. The default scene's
+/// darkest sky is 0.179 S_sun, so it is untouched.
+pub const S_D_FLOOR: f64 = 0.1;
+/// S above which the bounded model's S starts to saturate (the default scene's largest S is
+/// 1.75, so it is untouched).
+pub const S_KNEE: f64 = 1.8;
+/// Ceiling of the bounded model's S.
+pub const S_CEILING: f64 = 2.2;
+/// Lowest turbidity of the bounded model: below T ≈ 1.645 Preetham's luminance gradation
+/// 1 + A_Y e^{B_Y/cos θ} is negative at the zenith, so S_D changes sign inside the sky.
+pub const BOUNDED_MIN_TURBIDITY: f64 = 1.7;
+
+/// Largest S_D over the sky (zenith 0°…89.9° every 1°, azimuth from the sun 0°…180° every 2°;
+/// the sky is symmetric about the solar meridian).
+fn sky_max_s_d(p: &Preetham, sun_zenith_rad: f64) -> f64 {
+    let (ss, cs) = sun_zenith_rad.sin_cos();
+    let mut m = f64::MIN;
+    for i in 0..=90 {
+        let th = (i as f64).min(89.9).to_radians();
+        let (st, ct) = th.sin_cos();
+        for j in 0..=90 {
+            let da = (2.0 * j as f64).to_radians();
+            let cg = (ct * cs + st * ss * da.cos()).clamp(-1.0, 1.0);
+            m = m.max(p.s_d(ct, cg.acos(), cg));
+        }
+    }
+    m
+}
+
 /// PSNS eq. (5) cooked for one scene.
 #[derive(Clone, Debug, PartialEq)]
 pub struct WangDop {
@@ -234,19 +293,23 @@ pub struct WangDop {
     pub s_sun: f64,
     /// S_90 = S_D(|θ_s − 90°|, 90°).
     pub s_90: f64,
-    inv_s_sun: f64,
-    /// S_90 S_sun / (S_sun − S_90).
+    /// Bright reference S_ref: S_sun for the paper, max(S_sun, brightest S_D of the sky) bounded.
+    pub s_ref: f64,
+    inv_s_ref: f64,
+    /// S_90 S_ref / (S_ref − S_90) (paper, or bounded with S_ref/S_90 ≥ R_MIN), else
+    /// S_ref / (R_MIN − 1).
     s_coef: f64,
     albedo: f64,
     /// M_DOP(τ).
     m: f64,
     /// 1 or 2/π.
     norm: f64,
+    model: DopModel,
 }
 
 impl WangDop {
-    /// Cooks the DOP for sun zenith θ_s (degrees, 0..90), turbidity (1..10), wavelength (nm,
-    /// 320..720), albedo (0..1) and normalisation.
+    /// The paper's formula ([`DopModel::WangPaper`]) for sun zenith θ_s (degrees, 0..90),
+    /// turbidity (1..10), wavelength (nm, 320..720), albedo (0..1) and normalisation.
     pub fn new(
         sun_zenith_deg: f64,
         turbidity: f64,
@@ -254,8 +317,28 @@ impl WangDop {
         albedo: f64,
         norm: DopNorm,
     ) -> Result<Self> {
+        Self::with_model(
+            sun_zenith_deg,
+            turbidity,
+            wavelength_nm,
+            albedo,
+            norm,
+            DopModel::WangPaper,
+        )
+    }
+
+    /// As [`WangDop::new`] with a choice of model; [`DopModel::WangBounded`] needs turbidity
+    /// 1.7..10.
+    pub fn with_model(
+        sun_zenith_deg: f64,
+        turbidity: f64,
+        wavelength_nm: f64,
+        albedo: f64,
+        norm: DopNorm,
+        model: DopModel,
+    ) -> Result<Self> {
         check_range("sun-zenith", sun_zenith_deg, 0.0, 90.0)?;
-        check_range("turbidity", turbidity, 1.0, 10.0)?;
+        check_turbidity(turbidity, model)?;
         check_range("wavelength", wavelength_nm, 320.0, 720.0)?;
         check_range("albedo", albedo, 0.0, 1.0)?;
         let ts = sun_zenith_deg.to_radians();
@@ -263,18 +346,32 @@ impl WangDop {
         let s_sun = preetham.s_d(ts.cos(), 0.0, 1.0);
         let t90 = (ts - FRAC_PI_2).abs();
         let s_90 = preetham.s_d(t90.cos(), FRAC_PI_2, 0.0);
+        let (s_ref, s_coef) = match model {
+            DopModel::WangPaper => (s_sun, s_90 * s_sun / (s_sun - s_90)),
+            DopModel::WangBounded => {
+                let b = s_sun.max(sky_max_s_d(&preetham, ts));
+                let s_90 = s_90.max(S_D_FLOOR * b);
+                if b >= R_MIN * s_90 {
+                    (b, s_90 * b / (b - s_90))
+                } else {
+                    (b, b / (R_MIN - 1.0))
+                }
+            }
+        };
         Ok(WangDop {
             preetham,
             s_sun,
             s_90,
-            inv_s_sun: 1.0 / s_sun,
-            s_coef: s_90 * s_sun / (s_sun - s_90),
+            s_ref,
+            inv_s_ref: 1.0 / s_ref,
+            s_coef,
             albedo,
             m: m_dop(turbidity),
             norm: match norm {
                 DopNorm::Clamp => 1.0,
                 DopNorm::Wilkie => 2.0 / PI,
             },
+            model,
         })
     }
 
@@ -283,10 +380,28 @@ impl WangDop {
         &self.preetham
     }
 
-    /// Brightness weight S at view zenith cos θ and scattering angle γ (with its cosine).
+    /// The model.
+    pub fn model(&self) -> DopModel {
+        self.model
+    }
+
+    /// Brightness weight S at view zenith cos θ and scattering angle γ (with its cosine):
+    /// (1/S_D − 1/S_ref)·coef, floored at 0 for the bounded model.
     #[inline]
     pub fn s_weight(&self, cos_theta: f64, gamma: f64, cos_gamma: f64) -> f64 {
-        (1.0 / self.preetham.s_d(cos_theta, gamma, cos_gamma) - self.inv_s_sun) * self.s_coef
+        let sd = self.preetham.s_d(cos_theta, gamma, cos_gamma);
+        match self.model {
+            DopModel::WangPaper => (1.0 / sd - self.inv_s_ref) * self.s_coef,
+            DopModel::WangBounded => {
+                // f64::max ignores a NaN S_D
+                let sd = sd.max(S_D_FLOOR * self.s_ref);
+                soft_cap(
+                    ((1.0 / sd - self.inv_s_ref) * self.s_coef).max(0.0),
+                    S_KNEE,
+                    S_CEILING,
+                )
+            }
+        }
     }
 
     /// Unnormalised, unclamped DOP |w|·[θE + (π/2 − θ)S]·M_DOP (θ in radians).
@@ -297,11 +412,59 @@ impl WangDop {
         abs_w * (theta * e + (FRAC_PI_2 - theta) * s) * self.m
     }
 
-    /// The DOP: seed × (1 or 2/π), clamped to [0, 1]. A non-finite seed (possible only where
-    /// Preetham's luminance crosses zero for T < 1.203) gives 0 or 1, never NaN.
+    /// The DOP: seed × (1 or 2/π), then clamped to [0, 1] (paper; a non-finite seed, possible
+    /// where Preetham's luminance crosses zero for T < 1.645, gives 0 or 1, never NaN) or
+    /// passed through [`soft_ceiling`] (bounded).
     #[inline]
     pub fn dop(&self, abs_w: f64, theta: f64, cos_theta: f64, gamma: f64, cos_gamma: f64) -> f64 {
-        clamp01(self.seed(abs_w, theta, cos_theta, gamma, cos_gamma) * self.norm)
+        let x = self.seed(abs_w, theta, cos_theta, gamma, cos_gamma) * self.norm;
+        match self.model {
+            DopModel::WangPaper => clamp01(x),
+            DopModel::WangBounded => soft_ceiling(x),
+        }
+    }
+}
+
+/// Turbidity range of a DOP model: 1..10 for the paper, 1.7..10 for the bounded model.
+pub fn check_turbidity(turbidity: f64, model: DopModel) -> Result<f64> {
+    match model {
+        DopModel::WangPaper => check_range("turbidity", turbidity, 1.0, 10.0),
+        DopModel::WangBounded => {
+            if turbidity.is_finite() && (BOUNDED_MIN_TURBIDITY..=10.0).contains(&turbidity) {
+                Ok(turbidity)
+            } else {
+                Err(crate::Error::range(
+                    "turbidity",
+                    turbidity,
+                    "1.7..10 with --dop-model wang-bounded, where Preetham's sky stays positive; \
+                     1..10 with --dop-model wang-paper",
+                ))
+            }
+        }
+    }
+}
+
+/// x up to `knee`, then knee + (c − knee)·tanh((x − knee)/(c − knee)): continuous with a
+/// continuous slope, non-decreasing, never above c.
+#[inline]
+pub fn soft_cap(x: f64, knee: f64, c: f64) -> f64 {
+    if x > knee {
+        let w = c - knee;
+        knee + w * ((x - knee) / w).tanh()
+    } else {
+        x
+    }
+}
+
+/// The bounded model's output map: 0 for x ≤ 0 (and NaN), x up to [`DOP_KNEE`], then
+/// k + (c − k)·tanh((x − k)/(c − k)) (c = [`DOP_CEILING`]): continuous with a continuous
+/// slope, non-decreasing, never above c (reached only in floating point, for x far above).
+#[inline]
+pub fn soft_ceiling(x: f64) -> f64 {
+    if x > 0.0 {
+        soft_cap(x, DOP_KNEE, DOP_CEILING)
+    } else {
+        0.0
     }
 }
 
@@ -349,6 +512,36 @@ mod tests {
         let ts = 50f64.to_radians();
         assert!(d.s_weight(ts.cos(), 0.0, 1.0).abs() < 1e-12);
         assert!((d.s_weight(40f64.to_radians().cos(), FRAC_PI_2, 0.0) - 1.0).abs() < 1e-12);
+    }
+
+    #[test]
+    fn soft_ceiling_is_identity_below_the_knee_and_below_the_ceiling_above() {
+        for i in 0..=650 {
+            let x = i as f64 * 1e-3;
+            assert_eq!(soft_ceiling(x), x.min(DOP_KNEE));
+        }
+        assert_eq!(soft_ceiling(-1.0), 0.0);
+        assert_eq!(soft_ceiling(f64::NAN), 0.0);
+        let mut prev = soft_ceiling(DOP_KNEE);
+        for i in 1..20_000 {
+            let y = soft_ceiling(DOP_KNEE + i as f64 * 1e-3);
+            assert!(y >= prev && y <= DOP_CEILING && y - prev <= 1e-3 + 1e-15);
+            prev = y;
+        }
+        assert!(soft_ceiling(1e300) <= DOP_CEILING);
+        assert!(soft_cap(1e300, S_KNEE, S_CEILING) <= S_CEILING);
+    }
+
+    #[test]
+    fn bounded_s_is_finite_and_capped_where_preetham_turns_negative() {
+        // T = 1.8, sun on the horizon, 380 nm: S_D < 0 within ~20° of the sun
+        let d = WangDop::with_model(90.0, 1.8, 380.0, 0.1, DopNorm::Clamp, DopModel::WangBounded)
+            .unwrap();
+        assert!(d.s_sun < 0.0 && d.s_ref > 0.0);
+        let s = d.s_weight(0.01745, 0.01745, 0.01745f64.cos());
+        assert!(s > 2.0 && s <= S_CEILING, "{s}");
+        let p = WangDop::new(90.0, 1.8, 380.0, 0.1, DopNorm::Clamp).unwrap();
+        assert!(p.s_weight(0.01745, 0.01745, 0.01745f64.cos()) < 0.0);
     }
 
     #[test]

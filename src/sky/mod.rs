@@ -26,6 +26,7 @@ pub mod clouds;
 pub mod dop;
 pub mod hosek;
 pub mod rayleigh;
+pub mod stability;
 
 use crate::error::{check_range, Result};
 pub use crate::sun::SunPosition;
@@ -54,13 +55,28 @@ pub enum DopNorm {
     Wilkie,
 }
 
+/// Form of the PSNS eq. (5) DOP (`sky.md` §5, `docs/sky.md`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum DopModel {
+    /// Eq. (5) with a sign-aware, bounded brightness weight S (bright reference the brightest
+    /// Preetham sky, contrast floored at [`dop::R_MIN`], S ≥ 0) and a soft ceiling of 0.94;
+    /// identical to the paper at the default scene. Turbidity 1.7..10. Default.
+    #[default]
+    WangBounded,
+    /// Eq. (5) exactly as published (clamped to [0, 1]); pins to 0 or 1 in parts of the
+    /// domain (low sun, T = 10 at θ_s = 70°, T < 2.5 with a high sun, 1.2 < T < 1.645).
+    WangPaper,
+}
+
 /// Sky parameters other than the sun position.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct SkyParams {
     /// `wang` (default) or `rayleigh`.
     pub model: PolarizationModel,
-    /// Atmospheric turbidity T, 1..10 (default 4).
+    /// Atmospheric turbidity T, 1.7..10 for the default `wang-bounded` DOP, 1..10 for
+    /// `wang-paper` and the Rayleigh model (default 4).
     pub turbidity: f64,
     /// Wavelength in nm, 320..720 (default 450).
     pub wavelength_nm: f64,
@@ -74,6 +90,8 @@ pub struct SkyParams {
     pub dop_max: f64,
     /// DOP normalisation of the Wang model.
     pub dop_norm: DopNorm,
+    /// Form of the Wang model's DOP: `wang-bounded` (default) or `wang-paper`.
+    pub dop_model: DopModel,
     /// Uniform unpolarized radiance of ground pixels (rays at or below the horizon), W m⁻² sr⁻¹
     /// nm⁻¹; `None` = 0 (default). Ground pixels stay marked invalid either way.
     pub ground_radiance: Option<f64>,
@@ -90,15 +108,19 @@ impl Default for SkyParams {
             brewster_deg: 25.0,
             dop_max: 1.0,
             dop_norm: DopNorm::Clamp,
+            dop_model: DopModel::WangBounded,
             ground_radiance: None,
         }
     }
 }
 
 impl SkyParams {
-    /// Checks every range of `sky.md` §8.
+    /// Checks every range of `sky.md` §8 (turbidity from 1.7 for the `wang-bounded` DOP).
     pub fn validate(&self) -> Result<()> {
-        check_range("turbidity", self.turbidity, 1.0, 10.0)?;
+        match self.model {
+            PolarizationModel::Wang => dop::check_turbidity(self.turbidity, self.dop_model)?,
+            PolarizationModel::Rayleigh => check_range("turbidity", self.turbidity, 1.0, 10.0)?,
+        };
         check_range("wavelength", self.wavelength_nm, 320.0, 720.0)?;
         check_range("albedo", self.albedo, 0.0, 1.0)?;
         check_range("babinet", self.babinet_deg, 0.0, 60.0)?;
@@ -167,12 +189,18 @@ impl PolarizationField {
                 params.babinet_deg,
                 params.brewster_deg,
             ),
-            wang: dop::WangDop::new(
+            wang: dop::WangDop::with_model(
                 sun.zenith_deg,
                 params.turbidity,
                 params.wavelength_nm,
                 params.albedo,
                 params.dop_norm,
+                match params.model {
+                    // the Rayleigh model never evaluates eq. (5): cook the paper's form, which
+                    // accepts every turbidity the radiance does
+                    PolarizationModel::Wang => params.dop_model,
+                    PolarizationModel::Rayleigh => DopModel::WangPaper,
+                },
             )?,
             dop_max: params.dop_max,
         })
