@@ -93,14 +93,13 @@ impl SunConfig {
         s
     }
 
-    /// Prefixes a sun-below-the-horizon error with the `--time` that put the sun there.
-    pub fn name_time(&self, e: Error) -> Error {
-        match (&self.time, e) {
-            (Some(t), Error::Invalid(m)) if m.starts_with("sun altitude") => {
-                Error::Invalid(format!("--time {t}: {m}"))
-            }
+    /// Checks that the resolved `sun` is up, as a sky render needs; the error names the `--time`
+    /// that put it below the horizon, if one did.
+    pub fn check_up(&self, sun: SunPosition) -> Result<()> {
+        sun.check_up().map_err(|e| match (&self.time, e) {
+            (Some(t), Error::Invalid(m)) => Error::Invalid(format!("--time {t}: {m}")),
             (_, e) => e,
-        }
+        })
     }
 }
 
@@ -291,7 +290,8 @@ impl SceneConfig {
     /// Resolves the sun, validates everything and builds the sky and the posed camera.
     pub fn build(&self) -> Result<(Sky, Camera)> {
         let sun = self.sun.resolve()?;
-        let sky = Sky::new(sun, &self.sky).map_err(|e| self.sun.name_time(e))?;
+        self.sun.check_up(sun)?;
+        let sky = Sky::new(sun, &self.sky)?;
         let cam = Camera::new(
             self.camera.intrinsics,
             &self.camera.attitude,

@@ -242,14 +242,17 @@ pub const MAX_INPUT_PIXELS: u64 = 100_000_000;
 /// [`Error::Format`].
 pub fn read_gray(path: &Path) -> Result<GrayImage> {
     let fmt = |m: String| Error::Format(format!("{}: {m}", path.display()));
-    let open = || {
-        image::ImageReader::open(path)
-            .and_then(|r| r.with_guessed_format())
-            .map_err(|e| Error::input(path, e))
-    };
-    let (w, h) = open()?
-        .into_dimensions()
+    let mut reader = image::ImageReader::open(path)
+        .and_then(|r| r.with_guessed_format())
+        .map_err(|e| Error::input(path, e))?;
+    // the largest accepted image at 16 bit, plus the decoder's own buffers
+    let mut limits = image::Limits::default();
+    limits.max_alloc = Some(MAX_INPUT_PIXELS * 2 + (64 << 20));
+    reader.limits(limits);
+    let decoder = reader
+        .into_decoder()
         .map_err(|e| fmt(format!("not a readable PNG or TIFF image ({e})")))?;
+    let (w, h) = image::ImageDecoder::dimensions(&decoder);
     let pixels = w as u64 * h as u64;
     if pixels > MAX_INPUT_PIXELS || w > 65_536 || h > 65_536 {
         return Err(Error::Invalid(format!(
@@ -257,14 +260,7 @@ pub fn read_gray(path: &Path) -> Result<GrayImage> {
             path.display()
         )));
     }
-    let mut reader = open()?;
-    let mut limits = image::Limits::default();
-    limits.max_image_width = Some(65_536);
-    limits.max_image_height = Some(65_536);
-    limits.max_alloc = Some(pixels * 2 + (64 << 20));
-    reader.limits(limits);
-    let img = reader
-        .decode()
+    let img = image::DynamicImage::from_decoder(decoder)
         .map_err(|e| fmt(format!("cannot decode ({e})")))?;
     let (data, bits) = match img {
         image::DynamicImage::ImageLuma8(g) => {
@@ -284,11 +280,6 @@ pub fn read_gray(path: &Path) -> Result<GrayImage> {
     })
 }
 
-/// Reads an 8- or 16-bit greyscale PNG (see [`read_gray`]).
-pub fn read_png_gray(path: &Path) -> Result<GrayImage> {
-    read_gray(path)
-}
-
 /// Writes a 16-bit greyscale TIFF.
 pub fn write_tiff_u16(path: &Path, img: &Image<u16>) -> Result<()> {
     let terr = |e: tiff::TiffError| Error::Format(format!("writing {}: {e}", path.display()));
@@ -301,11 +292,6 @@ pub fn write_tiff_u16(path: &Path, img: &Image<u16>) -> Result<()> {
         )
         .map_err(terr)
     })
-}
-
-/// Reads a 16- or 8-bit greyscale TIFF (see [`read_gray`]).
-pub fn read_tiff_gray(path: &Path) -> Result<GrayImage> {
-    read_gray(path)
 }
 
 #[cfg(test)]
@@ -322,11 +308,11 @@ mod tests {
         let g = Image::from_vec(2, 2, vec![0u16, 1, 4095, 65535]);
         let p = dir.path().join("a.png");
         write_png_gray16(&p, &g).unwrap();
-        let r = read_png_gray(&p).unwrap();
+        let r = read_gray(&p).unwrap();
         assert_eq!((r.image, r.bits), (g.clone(), 16));
         let p = dir.path().join("a.tiff");
         write_tiff_u16(&p, &g).unwrap();
-        assert_eq!(read_tiff_gray(&p).unwrap().image, g);
+        assert_eq!(read_gray(&p).unwrap().image, g);
         // no temporary files left behind
         let names: Vec<_> = std::fs::read_dir(dir.path())
             .unwrap()

@@ -156,7 +156,7 @@ impl RawPipeline {
         let scene_s = t0.elapsed().as_secs_f64();
         if self.cfg.raw.scene == SceneKind::Sky && !info.sky_valid {
             // a static render needs the sun up (sky.md §8)
-            sun.check_up().map_err(|e| self.cfg.sun.name_time(e))?;
+            self.cfg.sun.check_up(sun)?;
         }
         Ok((self.frame(&st, self.cfg.raw.frame_index)?, info, scene_s))
     }

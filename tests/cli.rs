@@ -53,7 +53,7 @@ fn render_writes_every_file_and_reproduces_from_scene_json() {
     ]
     .iter()
     .map(|f| {
-        psns::io::read_png_gray(&out.join(f))
+        psns::io::read_gray(&out.join(f))
             .unwrap()
             .image
             .data

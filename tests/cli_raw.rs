@@ -18,7 +18,7 @@ const SMALL: [&str; 6] = [
 ];
 
 fn read_u16_png(p: &Path) -> psns::image::Image<u16> {
-    psns::io::read_png_gray(p).unwrap().image
+    psns::io::read_gray(p).unwrap().image
 }
 
 #[test]
@@ -112,7 +112,7 @@ fn presets_bit_depths_and_flat_field() {
             bytes as u64,
             "{preset}"
         );
-        let g = psns::io::read_png_gray(&out.join("raw.png")).unwrap();
+        let g = psns::io::read_gray(&out.join("raw.png")).unwrap();
         let max = *g.image.data.iter().max().unwrap() as u32;
         assert!(
             max < 1 << bits.parse::<u32>().unwrap(),
@@ -439,17 +439,12 @@ fn killed_rerender_leaves_the_previous_output_whole() {
     let m = dir.path().join("M");
     let ms = m.to_str().unwrap();
     let full = ["--width", "2448", "--height", "2048"];
-    let render = |t: &str, out: &str| {
-        let mut a = vec!["render", "--raw", "--turbidity", t, "--out", out];
+    let render = |t: &'static str| {
+        let mut a = vec!["render", "--raw", "--turbidity", t, "--out", ms];
         a.extend(full);
-        a.iter().map(|s| s.to_string()).collect::<Vec<_>>()
+        a
     };
-    let o = psns(
-        &render("2", ms)
-            .iter()
-            .map(|s| s.as_str())
-            .collect::<Vec<_>>(),
-    );
+    let o = psns(&render("2"));
     assert!(o.status.success(), "{}", err(&o));
     let snapshot = |d: &Path| -> Vec<(String, Vec<u8>)> {
         let mut v: Vec<_> = std::fs::read_dir(d)
@@ -470,7 +465,7 @@ fn killed_rerender_leaves_the_previous_output_whole() {
     let mut replaced = false;
     for delay_ms in [300u64, 1200, 2200, 2800, 3400] {
         let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_psns"))
-            .args(render("8", ms))
+            .args(render("8"))
             .stderr(std::process::Stdio::null())
             .spawn()
             .unwrap();
@@ -499,12 +494,7 @@ fn killed_rerender_leaves_the_previous_output_whole() {
         break;
     }
     // the next run cleans the killed runs' hidden directories
-    let o = psns(
-        &render("2", ms)
-            .iter()
-            .map(|s| s.as_str())
-            .collect::<Vec<_>>(),
-    );
+    let o = psns(&render("2"));
     assert!(o.status.success(), "{}", err(&o));
     let names: Vec<String> = std::fs::read_dir(dir.path())
         .unwrap()

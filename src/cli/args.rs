@@ -37,6 +37,11 @@ pub(crate) fn whole(s: &str) -> Result<u64, String> {
     })
 }
 
+/// The first option of `options` (name, given) that was given.
+pub(crate) fn first_given(options: &[(&'static str, bool)]) -> Option<&'static str> {
+    options.iter().find_map(|&(n, g)| g.then_some(n))
+}
+
 /// Parses a repetition count, 1..1000.
 pub(crate) fn runs(s: &str) -> Result<usize, String> {
     match whole(s)? {
@@ -183,15 +188,13 @@ pub(crate) fn size(name: &str, v: i64) -> psns::Result<usize> {
 impl SceneArgs {
     /// The first option given that places the observer (used only with a time).
     pub(crate) fn place_given(&self) -> Option<&'static str> {
-        [
+        first_given(&[
             ("lat", self.lat.is_some()),
             ("lon", self.lon.is_some()),
             ("observer-height", self.observer_height.is_some()),
             ("delta-t", self.spa.delta_t.is_some()),
             ("refraction", self.spa.refraction),
-        ]
-        .into_iter()
-        .find_map(|(n, g)| g.then_some(n))
+        ])
     }
 
     /// Scene from --config (or defaults) with every given option applied.
@@ -447,9 +450,9 @@ pub(crate) fn parse_pixel_format(s: &str) -> Result<PixelFormat, String> {
 }
 
 impl RawArgs {
-    /// The raw-frame options given on the command line (they do nothing for ideal images).
-    pub(crate) fn given(&self) -> Vec<&'static str> {
-        [
+    /// The first raw-frame option given on the command line (they do nothing for ideal images).
+    pub(crate) fn first_given(&self) -> Option<&'static str> {
+        first_given(&[
             ("preset", self.preset.is_some()),
             ("flat-radiance", self.flat_radiance.is_some()),
             ("flat-dolp", self.flat_dolp.is_some()),
@@ -473,10 +476,7 @@ impl RawArgs {
             ("filter-width", self.filter_width.is_some()),
             ("off", !self.off.is_empty()),
             ("sensor-set", !self.sensor_set.is_empty()),
-        ]
-        .into_iter()
-        .filter_map(|(n, g)| g.then_some(n))
-        .collect()
+        ])
     }
 
     /// Applies the raw options to a scene.

@@ -48,7 +48,7 @@ fn heading_row(a: &HeadingArgs) -> Result<String> {
     }
     let cfg = a.scene.scene()?;
     let sun = cfg.sun.resolve()?;
-    sun.check_up().map_err(|e| cfg.sun.name_time(e))?;
+    cfg.sun.check_up(sun)?;
     let (pitch, roll) = match cfg.camera.attitude {
         Attitude::Euler {
             pitch_deg,

@@ -34,7 +34,7 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
     let mut cfg = a.scene.scene()?;
     a.raw.apply(&mut cfg)?;
     let raw = a.raw_frame || cfg.raw.scene == SceneKind::Flat;
-    if let (false, Some(opt)) = (raw, a.raw.given().first()) {
+    if let (false, Some(opt)) = (raw, a.raw.first_given()) {
         return Err(Error::Invalid(format!(
             "--{opt} applies to the raw frame: add --raw (without it psns render writes the ideal images only)"
         ))

@@ -31,7 +31,7 @@ pub fn run(a: SkyArgs) -> anyhow::Result<()> {
     let cfg = a.scene.scene()?;
     if a.stability {
         let sc = &a.scene;
-        let swept = [
+        let swept = super::args::first_given(&[
             ("sun-zenith", sc.sun_zenith.is_some()),
             ("sun-altitude", sc.sun_altitude.is_some()),
             ("sun-azimuth", sc.sun_azimuth.is_some()),
@@ -40,8 +40,8 @@ pub fn run(a: SkyArgs) -> anyhow::Result<()> {
             ("wavelength", sc.wavelength.is_some()),
             ("model", sc.model.is_some()),
             ("dop-model", sc.dop_model.is_some()),
-        ];
-        if let Some((n, _)) = swept.iter().find(|(_, g)| *g) {
+        ]);
+        if let Some(n) = swept {
             return Err(Error::Invalid(format!(
                 "--{n} would be ignored: --stability sweeps the sun, turbidity and wavelength for both DOP models"
             ))

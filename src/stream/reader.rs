@@ -577,9 +577,9 @@ fn infer_header(
 }
 
 impl<R: Read> StreamReader<R> {
-    /// Reads and checks the file header; fails (reading nothing more) if it is wrong.
-    pub fn new(src: R) -> Result<Self> {
-        let mut r = StreamReader {
+    /// A reader that has read nothing yet.
+    fn unread(src: R) -> Self {
+        StreamReader {
             src,
             buf: Vec::new(),
             start: 0,
@@ -590,7 +590,12 @@ impl<R: Read> StreamReader<R> {
             pending: VecDeque::new(),
             done: false,
             restart_at: Vec::new(),
-        };
+        }
+    }
+
+    /// Reads and checks the file header; fails (reading nothing more) if it is wrong.
+    pub fn new(src: R) -> Result<Self> {
+        let mut r = Self::unread(src);
         r.fill(FILE_HEADER_SIZE + 8)?;
         r.header = decode_first_header(r.avail())?;
         r.consume(FILE_HEADER_SIZE);
@@ -605,18 +610,7 @@ impl<R: Read> StreamReader<R> {
     /// (0). Returns how the header was replaced, `None` if it was intact. A file that is not a
     /// stream at all, or a truncated header, still fails.
     pub fn new_recovering(src: R, hint: &RecoverHint) -> Result<(Self, Option<Recovery>)> {
-        let mut r = StreamReader {
-            src,
-            buf: Vec::new(),
-            start: 0,
-            offset: 0,
-            eof: false,
-            header: FileHeader::default(),
-            expected: Some(0),
-            pending: VecDeque::new(),
-            done: false,
-            restart_at: Vec::new(),
-        };
+        let mut r = Self::unread(src);
         r.fill(FILE_HEADER_SIZE + 8)?;
         let damage = match decode_first_header(r.avail()) {
             Ok(h) => {
