@@ -190,8 +190,11 @@ pub struct RawConfig {
     /// Soft unpolarized clouds added to the scene (off by default).
     pub soft_clouds: Option<SoftClouds>,
     /// Sky evaluated exactly every `sky_grid` pixels and interpolated between (1 = exact;
-    /// default 4, see docs/sky.md for the accuracy cost).
+    /// default 16, see docs/performance.md for the accuracy cost).
     pub sky_grid: usize,
+    /// Reference run: the sky at every pixel (implies `sky_grid = 1`) and the exact sensor path
+    /// (per-row ChaCha8 streams, exact Poisson); default false = the fast path where it applies.
+    pub exact: bool,
 }
 
 impl Default for RawConfig {
@@ -206,7 +209,8 @@ impl Default for RawConfig {
             pixel_format: PixelFormat::Mono16,
             sun_disc: None,
             soft_clouds: None,
-            sky_grid: 4,
+            sky_grid: 16,
+            exact: false,
         }
     }
 }

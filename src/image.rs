@@ -89,6 +89,35 @@ impl StokesImage {
     }
 }
 
+/// A source of sensor-frame Stokes radiance one row at a time: a whole [`StokesImage`], or a
+/// coarse grid interpolated on the fly (`render::SkyGrid`), so a frame never needs the three
+/// full planes in memory.
+pub trait StokesRows: Sync {
+    /// Columns.
+    fn width(&self) -> usize;
+    /// Rows.
+    fn height(&self) -> usize;
+    /// Writes row `r` of S0, S1, S2 into the three slices (each `width()` long), finite values
+    /// (non-finite input counts as no light: 0).
+    fn fill_row(&self, r: usize, s0: &mut [f32], s1: &mut [f32], s2: &mut [f32]);
+}
+
+impl StokesRows for StokesImage {
+    fn width(&self) -> usize {
+        self.s0.width
+    }
+    fn height(&self) -> usize {
+        self.s0.height
+    }
+    fn fill_row(&self, r: usize, s0: &mut [f32], s1: &mut [f32], s2: &mut [f32]) {
+        for (o, i) in [(s0, &self.s0), (s1, &self.s1), (s2, &self.s2)] {
+            for (o, &v) in o.iter_mut().zip(i.row(r)) {
+                *o = if v.is_finite() { v } else { 0.0 };
+            }
+        }
+    }
+}
+
 /// A raw mosaic sample type. Bit depth does not matter: values are used as they are.
 pub trait RawPixel: Copy + Send + Sync + 'static {
     /// The sample as f32 (exact for u8 and u16).

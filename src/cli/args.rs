@@ -411,9 +411,14 @@ pub(crate) struct RawArgs {
     /// Add soft unpolarized clouds to the scene.
     #[arg(long)]
     pub(crate) clouds: bool,
-    /// Evaluate the sky every N pixels and interpolate (1 = exact; default 4).
+    /// Sky nodes every N pixels of the fast path, refined where interpolation would be off by
+    /// more than a fortieth of the shot noise (1 = every pixel; default 16).
     #[arg(long, value_name = "N", allow_negative_numbers = true)]
     pub(crate) sky_grid: Option<i64>,
+    /// Reference run: the sky model at every pixel, no caches, and the exact sensor path (exact
+    /// Poisson sampling, per-row ChaCha8 streams), bit-identical to psns before the fast path.
+    #[arg(long)]
+    pub(crate) exact: bool,
     /// Lens f-number.
     #[arg(long, value_parser = finite, allow_negative_numbers = true)]
     pub(crate) f_number: Option<f64>,
@@ -468,6 +473,7 @@ impl RawArgs {
             ("sun-disc", self.sun_disc.is_some()),
             ("clouds", self.clouds),
             ("sky-grid", self.sky_grid.is_some()),
+            ("exact", self.exact),
             ("f-number", self.f_number.is_some()),
             ("read-noise", self.read_noise.is_some()),
             ("full-well", self.full_well.is_some()),
@@ -511,6 +517,15 @@ impl RawArgs {
                 return Err(psns::Error::range("sky-grid", g as f64, "1..64"));
             }
             r.sky_grid = g as usize;
+        }
+        if self.exact {
+            if self.sky_grid.is_some_and(|g| g != 1) {
+                return Err(psns::Error::Invalid(
+                    "--sky-grid chooses the fast path's grid; --exact evaluates every pixel: give one of them".into(),
+                ));
+            }
+            r.exact = true;
+            r.sky_grid = 1;
         }
         let mut s = r
             .sensor

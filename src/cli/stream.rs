@@ -39,7 +39,7 @@ use psns::sun::{self, Place, SunPosition};
 use psns::trajectory::{turning, CsvTrajectory, Pose};
 use std::io::{BufReader, BufWriter, Write};
 use std::path::{Path, PathBuf};
-use std::sync::mpsc::{sync_channel, Receiver};
+use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::time::{Duration, Instant};
 
 /// Options of `psns stream`.
@@ -214,6 +214,10 @@ struct FrameMaker {
     bits_valid: u8,
     turbidity: f32,
     albedo: f32,
+    /// The last frame's code buffer, reused.
+    codes: Vec<u16>,
+    /// Payload buffers handed back by the writer, reused (no page faults on fresh memory).
+    spare: Option<Receiver<Vec<u8>>>,
 }
 
 fn seconds_to_ns(t_s: f64) -> Result<i64> {
@@ -244,7 +248,7 @@ impl FrameMaker {
         sun::spa(&t, &place, self.delta_t_s, self.refraction)
     }
 
-    fn render(&self, index: u64, pose: &Pose, last: bool) -> Result<Rendered> {
+    fn render(&mut self, index: u64, pose: &Pose, last: bool) -> Result<Rendered> {
         let t_ns = self
             .start_ns
             .checked_add(seconds_to_ns(pose.t_s)?)
@@ -255,9 +259,14 @@ impl FrameMaker {
                 ))
             })?;
         let sun = self.sun_at(pose, t_ns.saturating_add(self.half_exposure_ns))?;
-        let (stokes, info) = self.pipe.stokes(sun, &pose.attitude)?;
-        let frame = self.pipe.frame_codes(&stokes, index)?;
-        let mut payload = Vec::new();
+        let codes = std::mem::take(&mut self.codes);
+        let (frame, info) = self.pipe.frame_at(sun, &pose.attitude, index, codes)?;
+        // a buffer the writer has finished with, or a new one
+        let mut payload = self
+            .spare
+            .as_ref()
+            .and_then(|r| r.try_recv().ok())
+            .unwrap_or_default();
         packing::pack(
             &frame.codes.data,
             frame.bit_depth,
@@ -315,6 +324,7 @@ impl FrameMaker {
             turbidity: self.turbidity,
             albedo: self.albedo,
         };
+        self.codes = frame.codes.data;
         Ok(Rendered { meta, payload })
     }
 }
@@ -574,7 +584,7 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
         "attitude_frame": "enu",
     });
     let header = stream_header(cfg, &pipe, extra)?;
-    let maker = FrameMaker {
+    let mut maker = FrameMaker {
         sun: sun_src,
         place: cfg.sun.place,
         start_ns,
@@ -589,10 +599,14 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
         bits_valid: header.bits_valid,
         turbidity: cfg.sky.turbidity as f32,
         albedo: cfg.sky.albedo as f32,
+        codes: Vec::new(),
+        spare: None,
         pipe,
     };
-    // render thread: pose k+1 while frame k is written
+    // render thread: pose k+1 while frame k is written; written payloads come back for reuse
     let (tx, rx) = sync_channel::<Result<Rendered>>(1);
+    let (spare_tx, spare_rx) = sync_channel::<Vec<u8>>(2);
+    maker.spare = Some(spare_rx);
     let limit = opts.frames;
     let producer = std::thread::Builder::new()
         .name("psns-render".into())
@@ -648,7 +662,7 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
     let t_open = Instant::now();
     // frames/s and ETA on stderr: a bar on a terminal, plain lines for long jobs otherwise
     let mut progress = Progress::new("psns stream", Unit::Frames, opts.frames, false);
-    let res = write_loop(&mut out, &rx, opts, &mut progress);
+    let res = write_loop(&mut out, &rx, &spare_tx, opts, &mut progress);
     drop(progress);
     drop(rx); // a producer blocked on send ends now
     let mut summary = StreamSummary::default();
@@ -691,6 +705,7 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
 fn write_loop(
     out: &mut Output,
     rx: &Receiver<Result<Rendered>>,
+    spare: &SyncSender<Vec<u8>>,
     opts: &StreamOptions,
     progress: &mut Progress,
 ) -> std::result::Result<(u64, u64), (u64, u64, Error)> {
@@ -717,6 +732,7 @@ fn write_loop(
         if let Err(e) = out.write(&r) {
             return Err((n, late, e));
         }
+        let _ = spare.try_send(r.payload);
         n += 1;
         progress.inc(1);
     }

@@ -25,6 +25,7 @@
 
 pub mod adc;
 pub mod emva;
+pub mod fast;
 pub mod mosaic;
 pub mod noise;
 pub mod optics;
@@ -34,7 +35,7 @@ pub mod presets;
 
 use crate::camera::Intrinsics;
 use crate::error::{check_range, Error, Result};
-use crate::image::{Image, StokesImage};
+use crate::image::{Image, StokesImage, StokesRows};
 use mosaic::MosaicLayout;
 use optics::RelativeIllumination;
 use polarizer::ErTable;
@@ -424,6 +425,8 @@ pub struct Sensor {
     dsnu: Option<Vec<f32>>,
     /// Photons/s per unit radiance on an on-axis pixel before the polarizer.
     photon_rate: f64,
+    /// The fast path's per-pixel coefficients, built on first use.
+    fast: std::sync::OnceLock<fast::FastStatics>,
 }
 
 impl Sensor {
@@ -479,6 +482,7 @@ impl Sensor {
             prnu,
             dsnu,
             photon_rate,
+            fast: std::sync::OnceLock::new(),
         })
     }
 
@@ -594,18 +598,25 @@ impl Sensor {
     /// Exposure for this scene: the fixed value, or auto-exposure (`sensor.md` §5).
     /// Returns (µs, auto, clipped).
     pub fn exposure_for(&self, stokes: &StokesImage, rate: &[f64]) -> (f64, bool, bool) {
+        self.exposure_from_sky_rates(|| {
+            rate.iter()
+                .zip(&stokes.s0.data)
+                .filter(|(_, &s0)| s0 > 0.0 && s0.is_finite())
+                .map(|(&r, _)| r)
+                .collect()
+        })
+    }
+
+    /// [`Self::exposure_for`] given the electron rates of the sky pixels (S0 > 0), made only
+    /// when auto-exposure needs them.
+    fn exposure_from_sky_rates(&self, sky_rates: impl FnOnce() -> Vec<f64>) -> (f64, bool, bool) {
         match self.cfg.exposure {
             Exposure::Fixed { us } => (us, false, false),
             Exposure::Auto {
                 percentile,
                 fraction,
             } => {
-                let mut sky: Vec<f64> = rate
-                    .iter()
-                    .zip(&stokes.s0.data)
-                    .filter(|(_, &s0)| s0 > 0.0 && s0.is_finite())
-                    .map(|(&r, _)| r)
-                    .collect();
+                let mut sky = sky_rates();
                 let p = if sky.is_empty() {
                     0.0
                 } else {
@@ -626,6 +637,121 @@ impl Sensor {
                 (n.clamp(lo, hi) * line, true, clipped)
             }
         }
+    }
+
+    /// True when [`Self::frame_fast`] models this configuration: the camera model (not a PSNS
+    /// preset) without crosstalk, with the ADC on, all gain analog, under 2³² pixels.
+    pub fn fast_capable(&self) -> bool {
+        let c = &self.cfg;
+        c.psns.is_none()
+            && !(c.stages.crosstalk && c.crosstalk > 0.0)
+            && c.stages.quantize
+            && c.digital_gain_above_db.is_none_or(|th| c.gain_db <= th)
+            && ((self.intrinsics.width * self.intrinsics.height) as u64) < (1u64 << 32)
+    }
+
+    /// The fast path's per-pixel coefficients (built on first call, ~16 bytes per pixel).
+    pub fn fast_statics(&self) -> &fast::FastStatics {
+        self.fast.get_or_init(|| fast::FastStatics::new(self))
+    }
+
+    /// Frame `frame_index` by the fast path ([`fast`]: counter-based noise, Cornish–Fisher shot
+    /// noise above 16 e⁻, read noise folded in, f32 kernel) from a row source of sensor-frame
+    /// Stokes radiance. `codes` is a buffer to reuse. The frame has no ground truth (`truth` is
+    /// 0 × 0). Errors when [`Self::fast_capable`] is false.
+    pub fn frame_fast(
+        &self,
+        src: &dyn StokesRows,
+        frame_index: u64,
+        codes: Vec<u16>,
+    ) -> Result<RawFrame> {
+        let (w, h) = (self.intrinsics.width, self.intrinsics.height);
+        if src.width() != w || src.height() != h {
+            return Err(Error::Invalid(format!(
+                "the scene is {}x{}, the sensor is {w}x{h}",
+                src.width(),
+                src.height()
+            )));
+        }
+        if !self.fast_capable() {
+            return Err(Error::Invalid(
+                "this sensor configuration needs the exact path (--exact)".into(),
+            ));
+        }
+        let cfg = &self.cfg;
+        let st = &cfg.stages;
+        let statics = self.fast_statics();
+        let (t_us, auto, clipped) = self.exposure_from_sky_rates(|| {
+            let (rate, sky) = fast::rates(self, statics, src);
+            rate.into_iter()
+                .zip(sky)
+                .filter(|(_, s)| *s)
+                .map(|(r, _)| r)
+                .collect()
+        });
+        let t = t_us * 1e-6;
+        let kg = adc::system_gain(cfg.k0, cfg.gain_db);
+        let scale = adc::output_scale(cfg.bit_depth);
+        let fc = fast::FrameConsts {
+            t,
+            dark_e: if st.dark {
+                cfg.dark_current_at_temperature() * t
+            } else {
+                0.0
+            },
+            fwc: cfg.full_well_e,
+            fwc_clip: st.fwc_clip,
+            shot: st.shot,
+            sigma_read: if st.read { cfg.read_noise_e } else { 0.0 },
+            kg: kg * scale,
+            black: cfg.black_level_dn * scale,
+            max: adc::max_code(cfg.bit_depth),
+            shot_key: fast::NoiseKey::new(self.seed, frame_index, noise::STAGE_SHOT),
+            read_key: fast::NoiseKey::new(self.seed, frame_index, noise::STAGE_READ),
+        };
+        let out = fast::render_codes(self, statics, src, &fc, codes);
+        Ok(RawFrame {
+            codes: Image::from_vec(w, h, out.codes),
+            bit_depth: cfg.bit_depth,
+            black_level_dn: cfg.black_level_dn * scale,
+            exposure_us: t_us,
+            gain_db: cfg.gain_db,
+            dn_per_electron: kg * scale,
+            truth: StokesImage::zeros(0, 0),
+            saturated: out.saturated,
+            auto_exposed: auto,
+            exposure_clipped: clipped,
+            analog: None,
+        })
+    }
+
+    /// Noise-free electron rate (e⁻/s) of every pixel as the fast path computes it (the
+    /// counterpart of [`Self::electron_rate`], for comparing the two paths).
+    pub fn electron_rate_fast(&self, src: &dyn StokesRows) -> Result<Vec<f64>> {
+        let (w, h) = (self.intrinsics.width, self.intrinsics.height);
+        if src.width() != w || src.height() != h {
+            return Err(Error::Invalid(format!(
+                "the scene is {}x{}, the sensor is {w}x{h}",
+                src.width(),
+                src.height()
+            )));
+        }
+        Ok(fast::rates(self, self.fast_statics(), src).0)
+    }
+
+    /// Ground truth of a frame made by [`Self::frame_fast`] (or [`Self::frame`]) with exposure
+    /// `exposure_us`: the Stokes vector in output DN above the black level of an ideal pixel.
+    pub fn truth_for(&self, stokes: &StokesImage, exposure_us: f64) -> StokesImage {
+        let cfg = &self.cfg;
+        let (scale, kg) = (
+            adc::output_scale(cfg.bit_depth),
+            adc::system_gain(cfg.k0, cfg.gain_db),
+        );
+        let t = exposure_us * 1e-6;
+        self.truth(
+            stokes,
+            scale * kg * t * cfg.qe * self.photon_rate * cfg.pass_transmission,
+        )
     }
 
     /// Renders frame `frame_index` of this camera.
@@ -749,9 +875,8 @@ impl Sensor {
                 saturated[i] += s[i];
             }
         }
-        let truth_gain = scale * kg * t * cfg.qe * self.photon_rate * cfg.pass_transmission;
         let truth = if want_truth {
-            self.truth(stokes, truth_gain)
+            self.truth_for(stokes, t_us)
         } else {
             StokesImage::zeros(0, 0)
         };

@@ -26,6 +26,7 @@
 //! ```
 
 use crate::error::{Error, Result};
+use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 use std::str::FromStr;
@@ -185,56 +186,77 @@ pub fn pack(
         )));
     }
     let limit = 1u32 << bit_depth;
-    if let Some(i) = codes.iter().position(|&c| c as u32 >= limit) {
+    const CHUNK: usize = 1 << 16;
+    // per chunk: a vectorised maximum, and the position only in a chunk that fails
+    let bad = codes
+        .par_chunks(CHUNK)
+        .enumerate()
+        .find_map_first(|(k, ch)| {
+            let max = ch.iter().copied().max().unwrap_or(0) as u32;
+            (max >= limit)
+                .then(|| k * CHUNK + ch.iter().position(|&c| c as u32 >= limit).unwrap_or(0))
+        });
+    if let Some(i) = bad {
         return Err(Error::OutOfRange {
             name: format!("code of pixel {i}"),
             value: codes[i].to_string(),
             allowed: format!("0..{}", limit - 1),
         });
     }
-    out.clear();
-    out.reserve(payload_size(fmt, codes.len(), 1));
+    // every byte is written below: reuse the buffer without clearing it
+    out.resize(payload_size(fmt, codes.len(), 1), 0);
+    // chunks of an even number of pixels, so Mono12 pairs never straddle two chunks
+    let bytes_per_chunk = payload_size(fmt, CHUNK, 1);
+    out.par_chunks_mut(bytes_per_chunk)
+        .zip(codes.par_chunks(CHUNK))
+        .for_each(|(o, c)| pack_chunk(c, bit_depth, fmt, msb_aligned, o));
+    Ok(())
+}
+
+/// Packs `codes` into exactly `payload_size(fmt, codes.len(), 1)` bytes of `out`.
+fn pack_chunk(codes: &[u16], bit_depth: u8, fmt: PixelFormat, msb_aligned: bool, out: &mut [u8]) {
     match fmt {
         PixelFormat::Mono8 => {
             let s = bit_depth - 8;
-            out.extend(codes.iter().map(|&c| (c >> s) as u8));
+            for (o, &c) in out.iter_mut().zip(codes) {
+                *o = (c >> s) as u8;
+            }
         }
         PixelFormat::Mono12p => {
-            let mut it = codes.chunks_exact(2);
-            for p in &mut it {
+            for (o, p) in out.chunks_exact_mut(3).zip(codes.chunks_exact(2)) {
                 let (a, b) = (p[0], p[1]);
-                out.extend_from_slice(&[
-                    a as u8,
-                    ((a >> 8) as u8 & 0x0F) | ((b as u8) << 4),
-                    (b >> 4) as u8,
-                ]);
+                o[0] = a as u8;
+                o[1] = ((a >> 8) as u8 & 0x0F) | ((b as u8) << 4);
+                o[2] = (b >> 4) as u8;
             }
-            if let [a] = it.remainder() {
-                out.extend_from_slice(&[*a as u8, (*a >> 8) as u8 & 0x0F]);
+            if codes.len() % 2 == 1 {
+                let a = codes[codes.len() - 1];
+                let n = out.len();
+                out[n - 2] = a as u8;
+                out[n - 1] = (a >> 8) as u8 & 0x0F;
             }
         }
         PixelFormat::Mono12Packed => {
-            let mut it = codes.chunks_exact(2);
-            for p in &mut it {
+            for (o, p) in out.chunks_exact_mut(3).zip(codes.chunks_exact(2)) {
                 let (a, b) = (p[0], p[1]);
-                out.extend_from_slice(&[
-                    (a >> 4) as u8,
-                    (a as u8 & 0x0F) | ((b as u8) << 4),
-                    (b >> 4) as u8,
-                ]);
+                o[0] = (a >> 4) as u8;
+                o[1] = (a as u8 & 0x0F) | ((b as u8) << 4);
+                o[2] = (b >> 4) as u8;
             }
-            if let [a] = it.remainder() {
-                out.extend_from_slice(&[(*a >> 4) as u8, *a as u8 & 0x0F]);
+            if codes.len() % 2 == 1 {
+                let a = codes[codes.len() - 1];
+                let n = out.len();
+                out[n - 2] = (a >> 4) as u8;
+                out[n - 1] = a as u8 & 0x0F;
             }
         }
         PixelFormat::Mono16 => {
             let s = if msb_aligned { 16 - bit_depth } else { 0 };
-            for &c in codes {
-                out.extend_from_slice(&(c << s).to_le_bytes());
+            for (o, &c) in out.chunks_exact_mut(2).zip(codes) {
+                o.copy_from_slice(&(c << s).to_le_bytes());
             }
         }
     }
-    Ok(())
 }
 
 /// Unpacks a payload of `width` x `height` pixels into values with `bits_valid` valid bits

@@ -516,7 +516,7 @@ pub fn noise_sweep(
 }
 
 type PlotErr<E> = plotters::drawing::DrawingAreaErrorKind<E>;
-fn perr<E: std::error::Error + Send + Sync>(e: PlotErr<E>) -> Error {
+pub(crate) fn perr<E: std::error::Error + Send + Sync>(e: PlotErr<E>) -> Error {
     Error::Invalid(format!("plotting: {e}"))
 }
 

@@ -4,6 +4,7 @@
 pub mod demosaic;
 pub mod scenes;
 pub mod sky;
+pub mod stream;
 #[cfg(test)]
 mod tests;
 
@@ -38,6 +39,27 @@ pub enum BenchCmd {
         #[arg(long, default_value_t = 5, value_parser = crate::cli::args::runs)]
         runs: usize,
     },
+    /// Stream frames/s per stage (sky, sensor, packing) and end to end, fast path against
+    /// --exact (writes stream_stages.csv, stream_e2e.csv).
+    Stream {
+        #[command(flatten)]
+        scene: SceneArgs,
+        /// Output directory (regenerate the docs' numbers with `--out docs/bench`).
+        #[arg(long, default_value = "out-bench")]
+        out: PathBuf,
+        /// Frames per stage measurement (median reported).
+        #[arg(long, default_value_t = 20, value_parser = crate::cli::args::runs)]
+        frames: usize,
+        /// Frames per end-to-end run of `psns stream` (a tenth of them with --exact).
+        #[arg(long, default_value_t = 300, value_parser = crate::cli::args::runs)]
+        e2e_frames: usize,
+        /// End-to-end runs per command (median reported).
+        #[arg(long, default_value_t = 3, value_parser = crate::cli::args::runs)]
+        runs: usize,
+        /// Sky grid steps of the fast path to time.
+        #[arg(long, value_delimiter = ',', default_values_t = vec![8usize, 16, 32])]
+        steps: Vec<usize>,
+    },
 }
 
 /// Runs a `psns bench` subcommand.
@@ -46,6 +68,26 @@ pub fn run(what: BenchCmd) -> anyhow::Result<()> {
         BenchCmd::Demosaic { out, runs, quick } => {
             let opts = demosaic::BenchOptions { out, runs, quick };
             for f in demosaic::bench_demosaic(&opts)? {
+                eprintln!("wrote {f}");
+            }
+        }
+        BenchCmd::Stream {
+            scene,
+            out,
+            frames,
+            e2e_frames,
+            runs,
+            steps,
+        } => {
+            let cfg = scene.scene()?;
+            let opts = stream::StreamBenchOptions {
+                out,
+                frames,
+                e2e_frames,
+                runs,
+                steps,
+            };
+            for f in stream::bench_stream(&cfg, &opts)? {
                 eprintln!("wrote {f}");
             }
         }

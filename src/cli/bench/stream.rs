@@ -1,0 +1,552 @@
+//! `psns bench stream`: frames/s of the stream per stage (sky, sensor, packing) and end to end,
+//! fast path against `--exact`, and the fast path's error for several sky grids.
+
+use crate::cli::create_dir;
+use psns::camera::{Attitude, Camera};
+use psns::config::SceneConfig;
+use psns::pipeline::RawPipeline;
+use psns::render::{self, SkyGrid, StokesOptions};
+use psns::sensor::packing;
+use psns::sky::Sky;
+use psns::{Error, Result};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::Instant;
+
+fn median(mut v: Vec<f64>) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    if v.is_empty() {
+        return f64::NAN;
+    }
+    v[v.len() / 2]
+}
+
+/// Median milliseconds per stage of one mode.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct StageTimes {
+    /// "fast" or "exact" (with the grid step for fast).
+    pub mode: String,
+    /// Sky: node grid (fast) or every pixel (exact), ms.
+    pub sky_ms: f64,
+    /// Sensor, ms (fast: reading the sky rows from the grid included).
+    pub sensor_ms: f64,
+    /// Packing into the stream's pixel format, ms.
+    pub pack_ms: f64,
+    /// Sum of the stage medians, ms.
+    pub total_ms: f64,
+    /// Fast path: mean sky nodes, refined cells and pixels evaluated exactly per frame.
+    pub nodes: f64,
+    /// See `nodes`.
+    pub refined_cells: f64,
+    /// See `nodes`.
+    pub exact_pixels: f64,
+}
+
+/// The attitude of frame `k` of a turning camera like `psns stream`'s built-in trajectory
+/// (level, ENU yaw in steps of 3.6°).
+fn attitude(k: usize) -> Attitude {
+    Attitude::enu((3.6 * k as f64).rem_euclid(360.0), 0.0, 0.0)
+}
+
+/// Per-stage medians over `frames` frames of a turning camera, for the fast path with grid
+/// `step` (None = `--exact`).
+pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Result<StageTimes> {
+    let mut c = cfg.clone();
+    match step {
+        Some(s) => c.raw.sky_grid = s,
+        None => c.raw.exact = true,
+    }
+    let pipe = RawPipeline::new(&c)?;
+    let sun = c.sun.resolve()?;
+    let sky = Sky::new(sun, &c.sky)?;
+    let opts = StokesOptions {
+        sun_disc: c.raw.sun_disc_on(),
+    };
+    let tol = pipe.grid_tolerance();
+    let fmt = c.raw.pixel_format;
+    let bits = pipe.sensor_config().bit_depth;
+    let (mut sky_t, mut sen_t, mut pack_t) = (vec![], vec![], vec![]);
+    let mut refine = [0f64; 3];
+    let mut codes = Vec::new();
+    let mut payload = Vec::new();
+    // one warm-up frame builds the fast path's per-pixel coefficients
+    for k in 0..frames + 1 {
+        let att = attitude(k);
+        let cam = Camera::new(c.camera.intrinsics, &att, sun.azimuth_deg)?;
+        let t0 = Instant::now();
+        let frame = match step {
+            Some(s) => {
+                let grid = SkyGrid::new(&sky, &cam, opts, s, tol);
+                let t1 = Instant::now();
+                if k > 0 {
+                    let (cells, _, px) = grid.refinement();
+                    refine[0] += grid.node_count() as f64 / frames as f64;
+                    refine[1] += cells as f64 / frames as f64;
+                    refine[2] += px as f64 / frames as f64;
+                }
+                let f = pipe
+                    .sensor()
+                    .frame_fast(&grid, k as u64, std::mem::take(&mut codes))?;
+                let t2 = Instant::now();
+                sky_t.push((t1 - t0).as_secs_f64());
+                sen_t.push((t2 - t1).as_secs_f64());
+                f
+            }
+            None => {
+                let (st, _) = render::render_stokes(&sky, &cam, opts);
+                let t1 = Instant::now();
+                let f = pipe.frame_codes(&st, k as u64)?;
+                let t2 = Instant::now();
+                sky_t.push((t1 - t0).as_secs_f64());
+                sen_t.push((t2 - t1).as_secs_f64());
+                f
+            }
+        };
+        let t3 = Instant::now();
+        packing::pack(&frame.codes.data, bits, fmt, false, &mut payload)?;
+        pack_t.push(t3.elapsed().as_secs_f64());
+        codes = frame.codes.data;
+        if k == 0 {
+            sky_t.clear();
+            sen_t.clear();
+            pack_t.clear();
+        }
+    }
+    let (a, b, p) = (
+        1e3 * median(sky_t),
+        1e3 * median(sen_t),
+        1e3 * median(pack_t),
+    );
+    Ok(StageTimes {
+        mode: match step {
+            Some(s) => format!("fast, sky grid {s}"),
+            None => "exact".into(),
+        },
+        sky_ms: a,
+        sensor_ms: b,
+        pack_ms: p,
+        total_ms: a + b + p,
+        nodes: refine[0],
+        refined_cells: refine[1],
+        exact_pixels: refine[2],
+    })
+}
+
+/// One end-to-end run: `psns stream` as a child process, process start included.
+#[derive(Clone, Debug, serde::Serialize)]
+pub struct EndToEnd {
+    /// What was run (shell form).
+    pub command: String,
+    /// Frames streamed.
+    pub frames: usize,
+    /// Median wall seconds of the runs.
+    pub seconds: f64,
+    /// frames / seconds.
+    pub fps: f64,
+}
+
+/// Runs `sh -c command` `runs` times and reports the median.
+fn time_shell(command: &str, frames: usize, runs: usize) -> Result<EndToEnd> {
+    let mut t = Vec::new();
+    for _ in 0..runs {
+        let t0 = Instant::now();
+        let st = Command::new("sh")
+            .arg("-c")
+            .arg(command)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .status()
+            .map_err(|e| Error::io("running sh", e))?;
+        if !st.success() {
+            return Err(Error::Invalid(format!("`{command}` failed: {st}")));
+        }
+        t.push(t0.elapsed().as_secs_f64());
+    }
+    let s = median(t);
+    Ok(EndToEnd {
+        command: command.to_string(),
+        frames,
+        seconds: s,
+        fps: frames as f64 / s,
+    })
+}
+
+/// Options of `psns bench stream`.
+pub struct StreamBenchOptions {
+    /// Output directory.
+    pub out: PathBuf,
+    /// Frames per stage measurement.
+    pub frames: usize,
+    /// Frames per end-to-end run (fast path; exact runs a third of them).
+    pub e2e_frames: usize,
+    /// End-to-end runs per command (median).
+    pub runs: usize,
+    /// Sky grids of the fast path to measure.
+    pub steps: Vec<usize>,
+}
+
+/// `psns bench stream`: prints and writes `stream_stages.csv` and `stream_e2e.csv`.
+pub fn bench_stream(cfg: &SceneConfig, o: &StreamBenchOptions) -> Result<Vec<String>> {
+    create_dir(&o.out)?;
+    let mut stages = Vec::new();
+    eprintln!("mode,sky_ms,sensor_ms,pack_ms,total_ms,fps,nodes,refined_cells,exact_pixels");
+    for s in o
+        .steps
+        .iter()
+        .map(|&s| Some(s))
+        .chain(std::iter::once(None))
+    {
+        let n = if s.is_none() {
+            o.frames.div_ceil(3).max(2)
+        } else {
+            o.frames
+        };
+        let t = stage_times(cfg, s, n)?;
+        eprintln!(
+            "{},{:.2},{:.2},{:.2},{:.2},{:.1},{:.0},{:.0},{:.0}",
+            t.mode,
+            t.sky_ms,
+            t.sensor_ms,
+            t.pack_ms,
+            t.total_ms,
+            1e3 / t.total_ms,
+            t.nodes,
+            t.refined_cells,
+            t.exact_pixels
+        );
+        stages.push(t);
+    }
+    let exe = std::env::current_exe().map_err(|e| Error::io("finding the psns binary", e))?;
+    let exe = exe.display();
+    let n = o.e2e_frames;
+    let ne = (n / 10).max(10);
+    let commands = [
+        (format!("{exe} stream --frames {n} --out /dev/null"), n),
+        (
+            format!("{exe} stream --frames {n} --out - | cat > /dev/null"),
+            n,
+        ),
+        (
+            format!("{exe} stream --frames {n} --pixel-format mono8 --out - | cat > /dev/null"),
+            n,
+        ),
+        (
+            format!("{exe} stream --frames {n} --pixel-format mono12p --out - | cat > /dev/null"),
+            n,
+        ),
+        (
+            format!("{exe} stream --exact --frames {ne} --out /dev/null"),
+            ne,
+        ),
+    ];
+    let mut e2e = Vec::new();
+    for (c, frames) in commands {
+        let r = time_shell(&c, frames, o.runs)?;
+        eprintln!("{:.1} frames/s  {}", r.fps, r.command);
+        e2e.push(r);
+    }
+    let acc = accuracy(cfg, &o.steps)?;
+    eprintln!("step,max_sigma,p99_sigma,max_s0,p99_s0,max_dolp,p99_dolp,max_aolp_deg,p99_aolp_deg");
+    let acc_rows: Vec<String> = acc
+        .iter()
+        .map(|a| {
+            format!(
+                "{},{:.4},{:.4},{:.2e},{:.2e},{:.2e},{:.2e},{:.2e},{:.2e}",
+                a.step,
+                a.max_sigma,
+                a.p99_sigma,
+                a.max_s0,
+                a.p99_s0,
+                a.max_dolp,
+                a.p99_dolp,
+                a.max_aolp_deg,
+                a.p99_aolp_deg
+            )
+        })
+        .collect();
+    for r in &acc_rows {
+        eprintln!("{r}");
+    }
+    let mut files = Vec::new();
+    let p = o.out.join("stream_accuracy.csv");
+    write_csv(
+        &p,
+        "step,max_sigma,p99_sigma,max_s0,p99_s0,max_dolp,p99_dolp,max_aolp_deg,p99_aolp_deg",
+        acc_rows.into_iter(),
+    )?;
+    files.push(p.display().to_string());
+    let p = o.out.join("stream_speed_accuracy.svg");
+    let svg = chart_svg(&stages, &acc)?;
+    std::fs::write(&p, svg).map_err(|e| Error::io(p.display().to_string(), e))?;
+    files.push(p.display().to_string());
+    let p = o.out.join("stream_stages.csv");
+    write_csv(
+        &p,
+        "mode,sky_ms,sensor_ms,pack_ms,total_ms,fps,nodes,refined_cells,exact_pixels",
+        stages.iter().map(|t| {
+            format!(
+                "\"{}\",{:.3},{:.3},{:.3},{:.3},{:.2},{:.0},{:.0},{:.0}",
+                t.mode,
+                t.sky_ms,
+                t.sensor_ms,
+                t.pack_ms,
+                t.total_ms,
+                1e3 / t.total_ms,
+                t.nodes,
+                t.refined_cells,
+                t.exact_pixels
+            )
+        }),
+    )?;
+    files.push(p.display().to_string());
+    let p = o.out.join("stream_e2e.csv");
+    write_csv(
+        &p,
+        "command,frames,seconds,fps",
+        e2e.iter().map(|r| {
+            format!(
+                "\"{}\",{},{:.3},{:.2}",
+                r.command.replace(&exe.to_string(), "psns"),
+                r.frames,
+                r.seconds,
+                r.fps
+            )
+        }),
+    )?;
+    files.push(p.display().to_string());
+    Ok(files)
+}
+
+fn write_csv(path: &Path, header: &str, rows: impl Iterator<Item = String>) -> Result<()> {
+    let mut s = String::from(header);
+    s.push('\n');
+    for r in rows {
+        s.push_str(&r);
+        s.push('\n');
+    }
+    let mut f =
+        std::fs::File::create(path).map_err(|e| Error::io(path.display().to_string(), e))?;
+    f.write_all(s.as_bytes())
+        .map_err(|e| Error::io(path.display().to_string(), e))
+}
+
+/// Accuracy of the fast path's sky grid against the exact per-pixel sky, pixels outside the
+/// solar disc and its 2 IFOV spread: max and 99th percentile.
+#[derive(Clone, Debug, Default, serde::Serialize)]
+pub struct Accuracy {
+    /// Grid step, pixels.
+    pub step: usize,
+    /// |Δμ| / σ_shot of the mean electrons at the configured exposure.
+    pub max_sigma: f64,
+    /// See `max_sigma`.
+    pub p99_sigma: f64,
+    /// |ΔS0| / S0.
+    pub max_s0: f64,
+    /// See `max_s0`.
+    pub p99_s0: f64,
+    /// |ΔDoLP|.
+    pub max_dolp: f64,
+    /// See `max_dolp`.
+    pub p99_dolp: f64,
+    /// |ΔAoLP|, degrees, where the exact DoLP > 0.02.
+    pub max_aolp_deg: f64,
+    /// See `max_aolp_deg`.
+    pub p99_aolp_deg: f64,
+}
+
+fn max_p99(v: &mut [f64]) -> (f64, f64) {
+    if v.is_empty() {
+        return (0.0, 0.0);
+    }
+    let i = ((v.len() - 1) as f64 * 0.99) as usize;
+    let p = *v.select_nth_unstable_by(i, |a, b| a.total_cmp(b)).1;
+    (v.iter().copied().fold(0.0, f64::max), p)
+}
+
+/// The sweep's views: (sun zenith, yaw offset from the sun, pitch offset below it).
+const VIEWS: [(f64, f64, f64); 6] = [
+    (20.0, 0.0, 0.0),
+    (20.0, 150.0, 20.0),
+    (60.0, 0.0, 0.0),
+    (60.0, 10.0, 8.0),
+    (86.0, 0.0, 0.0),
+    (86.0, 90.0, -30.0),
+];
+
+/// Fast-path accuracy for each grid step over [`VIEWS`] (the scene's sky, sensor and size).
+pub fn accuracy(cfg: &SceneConfig, steps: &[usize]) -> Result<Vec<Accuracy>> {
+    let pipe = RawPipeline::new(cfg)?;
+    let sensor = pipe.sensor();
+    let t = match pipe.sensor_config().exposure {
+        psns::sensor::Exposure::Fixed { us } => us * 1e-6,
+        psns::sensor::Exposure::Auto { .. } => 1e-3,
+    };
+    let tol = pipe.grid_tolerance();
+    let intr = cfg.camera.intrinsics;
+    let mut acc: Vec<[Vec<f64>; 4]> = steps.iter().map(|_| Default::default()).collect();
+    for &(zenith, dyaw, dpitch) in &VIEWS {
+        let sun = psns::sun::SunPosition::new(zenith, 120.0);
+        let sky = Sky::new(sun, &cfg.sky)?;
+        let att = Attitude::enu(
+            120.0 + dyaw,
+            (90.0 - zenith - dpitch).clamp(-90.0, 90.0),
+            0.0,
+        );
+        let cam = Camera::new(intr, &att, sun.azimuth_deg)?;
+        let opts = StokesOptions { sun_disc: true };
+        let (exact, _) = render::render_stokes(&sky, &cam, opts);
+        let re = sensor.electron_rate(&exact)?;
+        let sun_c = cam.enu_to_camera * sun.vector();
+        let ifov = (intr.pixel_pitch_um * 1e-3 / intr.focal_length_mm).to_degrees();
+        let keep: Vec<bool> = (0..intr.width * intr.height)
+            .map(|i| {
+                let d = intr
+                    .ray((i % intr.width) as f64, (i / intr.width) as f64)
+                    .normalize();
+                d.dot(sun_c).clamp(-1.0, 1.0).acos().to_degrees() > 0.27 + 2.0 * ifov
+                    && exact.s0.data[i] > 0.0
+            })
+            .collect();
+        for (k, &step) in steps.iter().enumerate() {
+            let grid = SkyGrid::new(&sky, &cam, opts, step, tol);
+            let rf = sensor.electron_rate_fast(&grid)?;
+            let approx = grid.to_image();
+            for i in 0..keep.len() {
+                if !keep[i] {
+                    continue;
+                }
+                let (me, mf) = (re[i] * t, rf[i] * t);
+                acc[k][0].push((mf - me).abs() / me.sqrt().max(1e-9));
+                let (a0, a1, a2) = (
+                    exact.s0.data[i] as f64,
+                    exact.s1.data[i] as f64,
+                    exact.s2.data[i] as f64,
+                );
+                let (b0, b1, b2) = (
+                    approx.s0.data[i] as f64,
+                    approx.s1.data[i] as f64,
+                    approx.s2.data[i] as f64,
+                );
+                acc[k][1].push((b0 - a0).abs() / a0);
+                let (pa, pb) = (a1.hypot(a2) / a0, b1.hypot(b2) / b0.max(1e-30));
+                acc[k][2].push((pa - pb).abs());
+                if pa > 0.02 {
+                    acc[k][3].push(
+                        psns::angle::SensorAngle::from_stokes(a1, a2)
+                            .diff(psns::angle::SensorAngle::from_stokes(b1, b2)),
+                    );
+                }
+            }
+        }
+    }
+    Ok(steps
+        .iter()
+        .zip(acc.iter_mut())
+        .map(|(&step, a)| {
+            let (max_sigma, p99_sigma) = max_p99(&mut a[0]);
+            let (max_s0, p99_s0) = max_p99(&mut a[1]);
+            let (max_dolp, p99_dolp) = max_p99(&mut a[2]);
+            let (max_aolp_deg, p99_aolp_deg) = max_p99(&mut a[3]);
+            Accuracy {
+                step,
+                max_sigma,
+                p99_sigma,
+                max_s0,
+                p99_s0,
+                max_dolp,
+                p99_dolp,
+                max_aolp_deg,
+                p99_aolp_deg,
+            }
+        })
+        .collect())
+}
+
+/// Frames/s of the render path (sum of the stage medians) against the fast path's largest
+/// error in shot-noise σ, one point per grid step, with the camera's 75 frames/s.
+pub fn chart_svg(stages: &[StageTimes], acc: &[Accuracy]) -> Result<String> {
+    use super::demosaic::perr;
+    use plotters::prelude::*;
+    let pts: Vec<(f64, f64, usize)> = acc
+        .iter()
+        .filter_map(|a| {
+            let s = stages
+                .iter()
+                .find(|s| s.mode == format!("fast, sky grid {}", a.step))?;
+            Some((a.max_sigma.max(1e-4), 1e3 / s.total_ms, a.step))
+        })
+        .collect();
+    let exact_fps = stages
+        .iter()
+        .find(|s| s.mode == "exact")
+        .map(|s| 1e3 / s.total_ms);
+    let mut svg = String::new();
+    {
+        let root = SVGBackend::with_string(&mut svg, (760, 460)).into_drawing_area();
+        root.fill(&WHITE).map_err(perr)?;
+        let ymax = pts.iter().map(|p| p.1).fold(120.0, f64::max) * 1.15;
+        let mut chart = ChartBuilder::on(&root)
+            .caption(
+                "psns stream, full frame: speed against the fast path's error",
+                ("sans-serif", 17),
+            )
+            .margin(12)
+            .x_label_area_size(45)
+            .y_label_area_size(55)
+            .build_cartesian_2d((1e-4f64..1.0f64).log_scale(), 0f64..ymax)
+            .map_err(perr)?;
+        chart
+            .configure_mesh()
+            .x_desc("largest |fast − exact| mean outside the solar disc, in shot-noise σ")
+            .y_desc("frames/s (render path, stage medians)")
+            .light_line_style(RGBColor(238, 238, 238))
+            .label_style(("sans-serif", 13))
+            .draw()
+            .map_err(perr)?;
+        for (y, label, col) in [
+            (75.0, "camera 75 frames/s", RED),
+            (100.0, "target 100", BLUE),
+        ] {
+            chart
+                .draw_series(LineSeries::new([(1e-4, y), (1.0, y)], col.stroke_width(1)))
+                .map_err(perr)?
+                .label(label)
+                .legend(move |(x, y)| PathElement::new([(x, y), (x + 18, y)], col));
+        }
+        chart
+            .draw_series(
+                pts.iter()
+                    .map(|&(x, y, _)| Circle::new((x, y), 5, BLACK.filled())),
+            )
+            .map_err(perr)?;
+        chart
+            .draw_series(pts.iter().map(|&(x, y, s)| {
+                Text::new(
+                    format!("grid {s}"),
+                    (x * 1.15, y + 2.0),
+                    ("sans-serif", 13).into_font(),
+                )
+            }))
+            .map_err(perr)?;
+        if let Some(f) = exact_fps {
+            chart
+                .draw_series([Text::new(
+                    format!("--exact: {f:.1} frames/s, error 0"),
+                    (1.2e-4, f + 3.0),
+                    ("sans-serif", 13).into_font(),
+                )])
+                .map_err(perr)?;
+        }
+        chart
+            .configure_series_labels()
+            .position(SeriesLabelPosition::LowerRight)
+            .border_style(BLACK)
+            .background_style(WHITE.mix(0.85))
+            .label_font(("sans-serif", 13))
+            .draw()
+            .map_err(perr)?;
+        root.present().map_err(perr)?;
+    }
+    Ok(svg)
+}

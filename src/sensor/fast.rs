@@ -1,0 +1,943 @@
+//! The fast sensor path (`docs/sensor.md` "Fast and exact"): the same camera model as
+//! [`super::Sensor::frame`], restructured for speed.
+//!
+//! What changes against the exact path, and what it costs:
+//! - **Random numbers** come from a counter-based hash of (camera seed, frame, stage, pixel index)
+//!   instead of per-row ChaCha8 streams: any pixel's noise is computed independently, so frames do
+//!   not depend on threads or on row order, and the kernel vectorises.
+//! - **Normal deviates** by inversion: z = √2 erfinv(2u − 1) with Giles' single-precision erfinv
+//!   (M. Giles, "Approximating the erfinv function", GPU Computing Gems Jade, 2011; relative error
+//!   below 4e-7), u on a 2⁻²³ lattice in (0, 1): tails reach |z| = 5.3.
+//! - **Shot noise** stays Poisson in distribution: below [`EXACT_POISSON_BELOW`] e⁻ exact
+//!   inversion of the Poisson CDF; above it a normal with a Cornish–Fisher skew correction,
+//!   μ + √μ z + (z² − 1)/6, rounded to whole electrons: mean, variance (+1/12 + 1/36) and third
+//!   cumulant of Poisson(μ).
+//! - **Read noise folded in** when σ_read ≥ 1 e⁻: Poisson(μ) + N(0, σ²) is drawn as one
+//!   Cornish–Fisher normal with mean μ, variance μ + σ² and third cumulant μ. The whole-electron
+//!   lattice of the Poisson part is then invisible: its characteristic function at frequency 1 is
+//!   damped by exp(−2π²σ²) ≤ 3e-9. Pixels where the full well or the low-mean rule matter take the
+//!   unfolded per-pixel path.
+//! - f32 arithmetic in the kernel (f64 in the unfolded path).
+//!
+//! Everything else (optics, polarizer with its orientation error, PRNU, RI, dark current, DSNU,
+//! full well, gain, black level, ADC) is the exact path's model with the exact path's fixed-pattern
+//! maps, folded into three per-pixel coefficients.
+
+use super::Sensor;
+use crate::image::StokesRows;
+use rayon::prelude::*;
+
+/// Below this mean (e⁻) shot noise is sampled exactly by inversion of the Poisson CDF.
+pub const EXACT_POISSON_BELOW: f64 = 16.0;
+
+/// Read noise at or above this σ (e⁻) is folded into the shot-noise draw.
+pub const FOLD_READ_NOISE_FROM: f64 = 1.0;
+
+/// Keys of one counter-based stream (camera seed, frame, stage).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct NoiseKey {
+    k1: u32,
+    k2: u32,
+}
+
+#[inline(always)]
+fn splitmix64(mut x: u64) -> u64 {
+    x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    x ^ (x >> 31)
+}
+
+/// A bijective 32-bit mixer (xor-shift-multiply, constants of C. Wellons' "lowbias32").
+#[inline(always)]
+fn mix32(mut x: u32) -> u32 {
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^ (x >> 16)
+}
+
+impl NoiseKey {
+    /// The stream of `stage` (see [`noise`]'s stage ids) in frame `frame` of camera `seed`.
+    pub fn new(seed: u64, frame: u64, stage: u32) -> Self {
+        let h =
+            splitmix64(seed ^ splitmix64(frame ^ splitmix64(0x7073_6e73_0000_0000 | stage as u64)));
+        NoiseKey {
+            k1: h as u32,
+            k2: (h >> 32) as u32,
+        }
+    }
+    /// 32 random bits for counter `i` (the pixel index): two keyed rounds of a bijective mixer,
+    /// so each frame and stage is a different permutation, not a shifted copy.
+    #[inline(always)]
+    pub fn bits(&self, i: u32) -> u32 {
+        mix32(mix32(i ^ self.k1) ^ self.k2)
+    }
+}
+
+/// ln x for finite x > 0 (normal numbers), f32, branch-free: x = 2^e m with m in [√½, √2),
+/// ln m = 2 atanh(s), s = (m − 1)/(m + 1), |s| ≤ 0.172, series to s⁹ (error < 3e-9 relative).
+#[inline(always)]
+pub fn ln_f32(x: f32) -> f32 {
+    let bits = x.to_bits();
+    let mut e = ((bits >> 23) & 0xff) as i32 - 127;
+    let mut m = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000);
+    let big = m > std::f32::consts::SQRT_2;
+    m = if big { 0.5 * m } else { m };
+    e += big as i32;
+    let s = (m - 1.0) / (m + 1.0);
+    let s2 = s * s;
+    let series = s2
+        .mul_add(1.0 / 9.0, 1.0 / 7.0)
+        .mul_add(s2, 0.2)
+        .mul_add(s2, 1.0 / 3.0)
+        .mul_add(s2, 1.0);
+    (e as f32).mul_add(std::f32::consts::LN_2, 2.0 * s * series)
+}
+
+/// The uniform (0, 1) value of 32 random bits used by [`normal_from_bits`]: (2k + 1)/2²⁴ with k
+/// the top 23 bits, so u and 1 − u are both exact in f32.
+#[inline(always)]
+pub fn uniform_from_bits(bits: u32) -> f32 {
+    (2.0 * (bits >> 9) as f32 + 1.0) * (1.0 / 16_777_216.0)
+}
+
+/// Giles' central branch of erfinv(x)/x for w = −ln(1 − x²) < 5.
+#[inline(always)]
+fn erfinv_central(w: f32) -> f32 {
+    let wc = w - 2.5;
+    let mut p = 2.810_226_4e-8f32;
+    p = p.mul_add(wc, 3.432_739_4e-7);
+    p = p.mul_add(wc, -3.523_387_7e-6);
+    p = p.mul_add(wc, -4.391_506_5e-6);
+    p = p.mul_add(wc, 0.000_218_580_87);
+    p = p.mul_add(wc, -0.001_253_725);
+    p = p.mul_add(wc, -0.004_177_681_6);
+    p = p.mul_add(wc, 0.246_640_73);
+    p.mul_add(wc, 1.501_409_4)
+}
+
+/// Giles' tail branch of erfinv(x)/x for w ≥ 5.
+#[inline(always)]
+fn erfinv_tail(w: f32) -> f32 {
+    let wt = w.sqrt() - 3.0;
+    let mut p = -0.000_200_214_26f32;
+    p = p.mul_add(wt, 0.000_100_950_56);
+    p = p.mul_add(wt, 0.001_349_343_2);
+    p = p.mul_add(wt, -0.003_673_428_4);
+    p = p.mul_add(wt, 0.005_739_507_7);
+    p = p.mul_add(wt, -0.007_622_461);
+    p = p.mul_add(wt, 0.009_438_870_5);
+    p = p.mul_add(wt, 1.001_674);
+    p.mul_add(wt, 2.832_976_8)
+}
+
+/// (x = 2u − 1, w = −ln(1 − x²)) of 32 random bits.
+#[inline(always)]
+fn erfinv_args(bits: u32) -> (f32, f32) {
+    let a = uniform_from_bits(bits);
+    let b = 1.0 - a;
+    (a - b, -ln_f32(4.0 * a * b)) // a − b exact
+}
+
+/// A standard normal deviate from 32 random bits by inversion (see the module docs).
+#[inline(always)]
+pub fn normal_from_bits(bits: u32) -> f32 {
+    let (x, w) = erfinv_args(bits);
+    let p = if w < 5.0 {
+        erfinv_central(w)
+    } else {
+        erfinv_tail(w)
+    };
+    std::f32::consts::SQRT_2 * p * x
+}
+
+/// Pixels per block of the row kernels: each stage runs over a whole block, so its vector
+/// iterations are independent and the long dependency chains (hash, logarithm, polynomial)
+/// overlap.
+const BLOCK: usize = 64;
+
+/// [`normal_from_bits`] of `key.bits(idx0 + i)` for every i of `z` (at most [`BLOCK`] long),
+/// bit-identical, in stages: the tail branch (0.34 % of draws) only where it is needed.
+#[inline(always)]
+fn normals(key: &NoiseKey, idx0: u32, z: &mut [f32]) {
+    let n = z.len().min(BLOCK);
+    let mut x = [0f32; BLOCK];
+    let mut w = [0f32; BLOCK];
+    for i in 0..n {
+        (x[i], w[i]) = erfinv_args(key.bits(idx0.wrapping_add(i as u32)));
+    }
+    let mut tail = false;
+    for i in 0..n {
+        z[i] = std::f32::consts::SQRT_2 * erfinv_central(w[i]) * x[i];
+        tail |= w[i] >= 5.0;
+    }
+    if tail {
+        for i in 0..n {
+            if w[i] >= 5.0 {
+                z[i] = std::f32::consts::SQRT_2 * erfinv_tail(w[i]) * x[i];
+            }
+        }
+    }
+}
+
+/// Quantum of the per-pixel gain RI · g (range 0..2).
+const GAIN_UNIT: f32 = 1.0 / 32_768.0;
+/// Quantum of the orientation error δ, radians (range ±0.25 rad = ±14°; σ is at most 2°).
+const DELTA_UNIT: f32 = 1.0 / 131_072.0;
+/// Quantum of the DSNU, e⁻ (range ±32 e⁻; σ is at most 2 e⁻).
+const DSNU_UNIT: f32 = 1.0 / 1024.0;
+
+/// Per-camera static data of the fast path, 6 bytes per pixel (memory traffic, not arithmetic,
+/// limits the kernel): the gain RI·g (PRNU and relative illumination), the polarizer's
+/// orientation error δ and the DSNU, each as a 16-bit fixed-point number with quanta far below
+/// their effect on a frame (3e-5 relative, 8e-6 rad, 1e-3 e⁻). The electron rate is
+/// max(c·gain·(S0 + b(S1 cos 2θ + S2 sin 2θ)), 0) with θ = θ_nominal + δ.
+#[derive(Clone, Debug)]
+pub struct FastStatics {
+    gain: Vec<u16>,
+    delta: Vec<i16>,
+    dsnu: Vec<i16>,
+    /// (cos 2θ, sin 2θ) of the nominal pass axis per column, for even and odd rows.
+    axis: [[Vec<f32>; 2]; 2],
+    /// η · photon rate · a (e⁻/s per unit radiance of an ideal pixel behind the polarizer).
+    scale: f32,
+    /// Polarizer diattenuation b.
+    b: f32,
+}
+
+fn fixed<T>(v: f64, unit: f32, lo: f64, hi: f64, conv: impl Fn(f64) -> T) -> T {
+    conv((v / unit as f64).round().clamp(lo, hi))
+}
+
+impl FastStatics {
+    /// Folds the sensor's maps (the exact path's, same seed) into the fixed-point maps.
+    pub fn new(s: &Sensor) -> Self {
+        let (w, h) = (s.intrinsics.width, s.intrinsics.height);
+        let (a, b, base) = s.rate_coefficients();
+        let cfg = &s.cfg;
+        let delta_deg = s.axis.as_ref().map(|_| {
+            super::noise::gaussian_map(
+                w,
+                h,
+                s.seed,
+                super::noise::MAP_ORIENTATION,
+                0.0,
+                cfg.orientation_sigma_deg,
+            )
+        });
+        let mut gain = vec![0u16; w * h];
+        let mut delta = vec![0i16; w * h];
+        let mut dsnu = vec![0i16; w * h];
+        gain.par_chunks_mut(w)
+            .zip(delta.par_chunks_mut(w))
+            .zip(dsnu.par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(r, ((g, d), n))| {
+                for c in 0..w {
+                    let k = r * w + c;
+                    let gk = s.ri_at(k) * s.prnu.as_ref().map_or(1.0, |m| m[k] as f64);
+                    g[c] = fixed(gk, GAIN_UNIT, 0.0, 65_535.0, |x| x as u16);
+                    if let Some(dd) = &delta_deg {
+                        let rad = (dd[k] as f64).to_radians();
+                        d[c] = fixed(rad, DELTA_UNIT, -32_768.0, 32_767.0, |x| x as i16);
+                    }
+                    if let Some(ds) = &s.dsnu {
+                        n[c] = fixed(ds[k] as f64, DSNU_UNIT, -32_768.0, 32_767.0, |x| x as i16);
+                    }
+                }
+            });
+        let axis = std::array::from_fn(|r| {
+            let row = |k: usize| -> Vec<f32> {
+                (0..w)
+                    .map(|c| {
+                        let (co, si) = super::nominal_axis(&cfg.layout, r, c);
+                        [co, si][k] as f32
+                    })
+                    .collect()
+            };
+            [row(0), row(1)]
+        });
+        FastStatics {
+            gain,
+            delta,
+            dsnu,
+            axis,
+            scale: (base * a) as f32,
+            b: b as f32,
+        }
+    }
+
+    /// Bytes held.
+    pub fn bytes(&self) -> usize {
+        2 * (self.gain.len() + self.delta.len() + self.dsnu.len())
+    }
+
+    /// The static data of row `r` (columns k0..k0 + w of the maps).
+    fn row(&self, r: usize, w: usize) -> StaticRow<'_> {
+        let k0 = r * w;
+        StaticRow {
+            gain: &self.gain[k0..k0 + w],
+            delta: &self.delta[k0..k0 + w],
+            dsnu: &self.dsnu[k0..k0 + w],
+            cos0: &self.axis[r & 1][0],
+            sin0: &self.axis[r & 1][1],
+            scale: self.scale,
+            b: self.b,
+        }
+    }
+}
+
+/// One row of [`FastStatics`].
+#[derive(Clone, Copy)]
+struct StaticRow<'a> {
+    gain: &'a [u16],
+    delta: &'a [i16],
+    dsnu: &'a [i16],
+    cos0: &'a [f32],
+    sin0: &'a [f32],
+    scale: f32,
+    b: f32,
+}
+
+impl StaticRow<'_> {
+    /// Electron rate (e⁻/s) of column c for Stokes (s0, s1, s2), and the DSNU in e⁻.
+    #[inline(always)]
+    fn rate(&self, c: usize, s0: f32, s1: f32, s2: f32) -> f32 {
+        let g = self.gain[c] as f32 * (GAIN_UNIT * self.scale);
+        // rotate the nominal axis by 2δ (series to 4th order: error < 5e-7 for |2δ| < 0.15)
+        let d = self.delta[c] as f32 * (2.0 * DELTA_UNIT);
+        let d2 = d * d;
+        let sn = d * d2.mul_add(-1.0 / 6.0, 1.0);
+        let cs = d2.mul_add(d2.mul_add(1.0 / 24.0, -0.5), 1.0);
+        let (c0, si0) = (self.cos0[c], self.sin0[c]);
+        let cos2 = c0.mul_add(cs, -(si0 * sn));
+        let sin2 = si0.mul_add(cs, c0 * sn);
+        (g * self.b.mul_add(s1.mul_add(cos2, s2 * sin2), s0)).max(0.0)
+    }
+    #[inline(always)]
+    fn dsnu(&self, c: usize) -> f32 {
+        self.dsnu[c] as f32 * DSNU_UNIT
+    }
+}
+
+/// Per-frame constants of the kernel.
+#[derive(Clone, Copy, Debug)]
+pub(crate) struct FrameConsts {
+    /// Exposure, s.
+    pub t: f64,
+    /// Dark electrons (mean), e⁻.
+    pub dark_e: f64,
+    pub fwc: f64,
+    pub fwc_clip: bool,
+    pub shot: bool,
+    pub sigma_read: f64,
+    /// Output DN per e⁻.
+    pub kg: f64,
+    /// Black level, output DN.
+    pub black: f64,
+    pub max: u16,
+    pub shot_key: NoiseKey,
+    pub read_key: NoiseKey,
+}
+
+impl FrameConsts {
+    /// Read noise folded into the shot draw in the vector loop.
+    fn folded(&self) -> bool {
+        self.shot && self.fwc_clip && self.sigma_read >= FOLD_READ_NOISE_FROM
+    }
+    /// Means above this can reach the full well within 6 σ: the unfolded path clips them.
+    fn mu_high(&self) -> f64 {
+        // μ + 6 √(μ + σ²) = FWC, solved for μ (√ of a quadratic), conservative by one e⁻
+        let s2 = self.sigma_read * self.sigma_read;
+        let x = (-6.0 + (36.0 + 4.0 * (self.fwc + s2)).sqrt()) / 2.0; // x = √(μ + σ²)
+        (x * x - s2 - 1.0).max(0.0)
+    }
+}
+
+/// e^x for f32, x in [−87, 0], branch-free: 2^n e^r with |r| ≤ ln2/2 and a degree-6 Taylor
+/// polynomial (relative error < 3e-7).
+#[inline(always)]
+pub fn exp_f32(x: f32) -> f32 {
+    let x = x.max(-87.0);
+    let n = (x * std::f32::consts::LOG2_E).round_ties_even();
+    // ln 2 in two parts so r keeps its precision
+    let r = x - n * 0.693_145_75 - n * 1.428_606_8e-6;
+    let p = 1.0
+        + r * (1.0
+            + r * (0.5
+                + r * (1.0 / 6.0 + r * (1.0 / 24.0 + r * (1.0 / 120.0 + r * (1.0 / 720.0))))));
+    p * f32::from_bits((((n as i32) + 127) as u32) << 23)
+}
+
+/// Rounds to the nearest integer, ties to even, for |x| < 2²² (larger f32 values pass
+/// unchanged; from 2²³ on they are integers): the add of 1.5 · 2²³ does the rounding in the
+/// FPU's default mode, so the loop vectorises without a rounding call.
+#[inline(always)]
+fn round_even(x: f32) -> f32 {
+    const M: f32 = 12_582_912.0;
+    if x.abs() < 4_194_304.0 {
+        (x + M) - M
+    } else {
+        x
+    }
+}
+
+/// ADC: clamps to [0, max] and rounds to the nearest code (ties to even). Adding 2²³ leaves the
+/// rounded integer in the low mantissa bits, read without a float-to-int conversion.
+#[inline(always)]
+fn adc_code(v: f32, maxf: f32) -> u16 {
+    ((v.max(0.0).min(maxf) + 8_388_608.0).to_bits() & 0xffff) as u16
+}
+
+/// Lanes per chunk of the unfolded kernel.
+const LANES: usize = 8;
+
+/// The unfolded kernel for one chunk of up to [`LANES`] pixels: whole-electron shot noise (exact
+/// inversion below [`EXACT_POISSON_BELOW`], Cornish–Fisher above), full-well clip, DSNU, read
+/// noise, ADC. Writes every lane whose `redo` flag is set; returns a bit mask of lanes at full
+/// well.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn chunk_unfolded(
+    fc: &FrameConsts,
+    mu: &[f32],
+    ds: &[f32],
+    idx0: u32,
+    redo: &[bool],
+    out: &mut [u16],
+) -> u32 {
+    let n = mu.len();
+    let mut m = [0f32; LANES];
+    let mut u = [0f32; LANES];
+    let mut z = [0f32; LANES];
+    let mut zr = [0f32; LANES];
+    for l in 0..n {
+        m[l] = if mu[l].is_finite() {
+            mu[l].max(0.0)
+        } else {
+            0.0
+        };
+        let b = fc.shot_key.bits(idx0.wrapping_add(l as u32));
+        u[l] = uniform_from_bits(b);
+        z[l] = normal_from_bits(b);
+        zr[l] = normal_from_bits(fc.read_key.bits(idx0.wrapping_add(l as u32)));
+    }
+    let low = EXACT_POISSON_BELOW as f32;
+    let mut e = [0f32; LANES];
+    if fc.shot {
+        // Cornish–Fisher for the lanes at or above the exact range
+        for l in 0..LANES {
+            let s = m[l].sqrt();
+            e[l] = round_even(m[l] + s * z[l] + (z[l] * z[l] - 1.0) * (1.0 / 6.0)).max(0.0);
+        }
+        // exact inversion of the Poisson CDF for the lanes below it, all lanes in step
+        let mut kmax = 0f32;
+        let mut p = [0f32; LANES];
+        let mut cdf = [1f32; LANES];
+        let mut k = [0f32; LANES];
+        for l in 0..LANES {
+            if m[l] < low {
+                p[l] = exp_f32(-m[l]);
+                cdf[l] = p[l];
+                kmax = kmax.max(m[l] + 10.0 * m[l].sqrt() + 10.0);
+            }
+        }
+        let mut j = 1f32;
+        while j <= kmax {
+            let mut any = false;
+            for l in 0..LANES {
+                let more = u[l] > cdf[l];
+                any |= more;
+                k[l] += more as u32 as f32;
+                p[l] *= m[l] / j;
+                cdf[l] += p[l];
+            }
+            if !any {
+                break;
+            }
+            j += 1.0;
+        }
+        for l in 0..LANES {
+            if m[l] < low {
+                e[l] = k[l];
+            }
+        }
+    } else {
+        e = m;
+    }
+    let maxf = fc.max as f32;
+    let (fwc, kg, black, sr) = (
+        fc.fwc as f32,
+        fc.kg as f32,
+        fc.black as f32,
+        fc.sigma_read as f32,
+    );
+    let mut full = 0u32;
+    for l in 0..n {
+        if !redo[l] {
+            continue;
+        }
+        let mut x = e[l];
+        if fc.fwc_clip {
+            if x >= fwc {
+                full |= 1 << l;
+            }
+            x = x.min(fwc);
+        }
+        x += ds[l] + sr * zr[l];
+        out[l] = adc_code(kg * x + black, maxf);
+    }
+    full
+}
+
+/// The vectorisable loop of one row: mean electrons into `mu`, folded Cornish–Fisher draw, ADC.
+/// `ds` is the DSNU row (zeros when off).
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn row_folded_body(
+    fc: &FrameConsts,
+    s0: &[f32],
+    s1: &[f32],
+    s2: &[f32],
+    st: &StaticRow,
+    idx0: u32,
+    mu: &mut [f32],
+    out: &mut [u16],
+) -> (f32, u16) {
+    let n = out.len();
+    let t = fc.t as f32;
+    let dark = fc.dark_e as f32;
+    let var_r = (fc.sigma_read * fc.sigma_read) as f32;
+    let kg = fc.kg as f32;
+    let black = fc.black as f32;
+    let maxf = fc.max as f32;
+    let mut z = [0f32; BLOCK];
+    // maxima of the row: the mean (as bits; means are ≥ 0, so they order like integers) and the code
+    let (mut mu_max, mut code_max) = (0u32, 0u16);
+    for b0 in (0..n).step_by(BLOCK) {
+        let len = BLOCK.min(n - b0);
+        let b1 = b0 + len;
+        normals(&fc.shot_key, idx0.wrapping_add(b0 as u32), &mut z[..len]);
+        // every slice exactly `len` long, so the loop runs without bounds checks and vectorises
+        let blk = StaticRow {
+            gain: &st.gain[b0..b1],
+            delta: &st.delta[b0..b1],
+            dsnu: &st.dsnu[b0..b1],
+            cos0: &st.cos0[b0..b1],
+            sin0: &st.sin0[b0..b1],
+            ..*st
+        };
+        let (s0, s1, s2) = (&s0[b0..b1], &s1[b0..b1], &s2[b0..b1]);
+        let (mu, out, z) = (&mut mu[b0..b1], &mut out[b0..b1], &z[..len]);
+        for i in 0..len {
+            let m = blk.rate(i, s0[i], s1[i], s2[i]).mul_add(t, dark);
+            mu[i] = m;
+            let z = z[i];
+            let var = m + var_r;
+            let sd = var.sqrt();
+            // Cornish–Fisher with skewness γ = m / var^1.5: sd (z + γ (z² − 1)/6)
+            let g6 = m / (6.0 * var);
+            let e = sd.mul_add(z, g6.mul_add(z.mul_add(z, -1.0), m));
+            let v = kg.mul_add(e + blk.dsnu(i), black);
+            out[i] = adc_code(v, maxf);
+            mu_max = mu_max.max(m.to_bits());
+            code_max = code_max.max(out[i]);
+        }
+    }
+    (f32::from_bits(mu_max), code_max)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn row_folded_avx2(
+    fc: &FrameConsts,
+    s0: &[f32],
+    s1: &[f32],
+    s2: &[f32],
+    st: &StaticRow,
+    idx0: u32,
+    mu: &mut [f32],
+    out: &mut [u16],
+) -> (f32, u16) {
+    row_folded_body(fc, s0, s1, s2, st, idx0, mu, out)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn row_folded(
+    fc: &FrameConsts,
+    s0: &[f32],
+    s1: &[f32],
+    s2: &[f32],
+    st: &StaticRow,
+    idx0: u32,
+    mu: &mut [f32],
+    out: &mut [u16],
+) -> (f32, u16) {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2_fma() {
+        // SAFETY: the CPU has AVX2 and FMA (checked above). `mul_add` is exactly rounded with or
+        // without the instruction, so both builds give the same bits.
+        return unsafe { row_folded_avx2(fc, s0, s1, s2, st, idx0, mu, out) };
+    }
+    row_folded_body(fc, s0, s1, s2, st, idx0, mu, out)
+}
+
+/// The unfolded kernel for the chunks of a row holding pixels that need it (all of them when
+/// the configuration is not folded; else those that may reach the full well); counts the
+/// full-well pixels that read below the top code in `sat`.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn row_fixup_body(
+    fc: &FrameConsts,
+    folded: bool,
+    mu_hi: f32,
+    mu: &[f32],
+    st: &StaticRow,
+    k0: usize,
+    r: usize,
+    row: &mut [u16],
+    sat: &mut [u32; 4],
+) {
+    let w = row.len();
+    let mut redo = [true; LANES];
+    for c0 in (0..w).step_by(LANES) {
+        let c1 = (c0 + LANES).min(w);
+        let mut any = !folded;
+        for c in c0..c1 {
+            redo[c - c0] = !folded || mu[c] > mu_hi;
+            any |= redo[c - c0];
+        }
+        if !any {
+            continue;
+        }
+        let mut ds = [0f32; LANES];
+        for c in c0..c1 {
+            ds[c - c0] = st.dsnu(c);
+        }
+        let full = chunk_unfolded(
+            fc,
+            &mu[c0..c1],
+            &ds[..c1 - c0],
+            (k0 + c0) as u32,
+            &redo[..c1 - c0],
+            &mut row[c0..c1],
+        );
+        for c in c0..c1 {
+            if full & (1 << (c - c0)) != 0 && row[c] != fc.max {
+                sat[((r & 1) << 1) | (c & 1)] += 1;
+            }
+        }
+    }
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[allow(clippy::too_many_arguments)]
+unsafe fn row_fixup_avx2(
+    fc: &FrameConsts,
+    folded: bool,
+    mu_hi: f32,
+    mu: &[f32],
+    st: &StaticRow,
+    k0: usize,
+    r: usize,
+    row: &mut [u16],
+    sat: &mut [u32; 4],
+) {
+    row_fixup_body(fc, folded, mu_hi, mu, st, k0, r, row, sat)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn row_fixup(
+    fc: &FrameConsts,
+    folded: bool,
+    mu_hi: f32,
+    mu: &[f32],
+    st: &StaticRow,
+    k0: usize,
+    r: usize,
+    row: &mut [u16],
+    sat: &mut [u32; 4],
+) {
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2_fma() {
+        // SAFETY: see row_folded
+        unsafe { row_fixup_avx2(fc, folded, mu_hi, mu, st, k0, r, row, sat) };
+        return;
+    }
+    row_fixup_body(fc, folded, mu_hi, mu, st, k0, r, row, sat)
+}
+
+#[cfg(target_arch = "x86_64")]
+fn has_avx2_fma() -> bool {
+    std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
+}
+
+/// Output of [`render_codes`].
+pub(crate) struct FastCodes {
+    pub codes: Vec<u16>,
+    pub saturated: [u32; 4],
+}
+
+/// Rows per parallel task (several rows so the per-task scratch is reused).
+const BAND: usize = 16;
+
+/// Raw codes of one frame from a row source of sensor-frame Stokes radiance.
+pub(crate) fn render_codes(
+    sensor: &Sensor,
+    st: &FastStatics,
+    src: &dyn StokesRows,
+    fc: &FrameConsts,
+    mut codes: Vec<u16>,
+) -> FastCodes {
+    let (w, h) = (sensor.intrinsics.width, sensor.intrinsics.height);
+    codes.clear();
+    codes.resize(w * h, 0);
+    let folded = fc.folded();
+    let mu_hi = fc.mu_high() as f32;
+    let sats: Vec<[u32; 4]> = codes
+        .par_chunks_mut(w * BAND)
+        .enumerate()
+        .map(|(band, out)| {
+            let mut s0 = vec![0f32; w];
+            let mut s1 = vec![0f32; w];
+            let mut s2 = vec![0f32; w];
+            let mut mu = vec![0f32; w];
+            let mut sat = [0u32; 4];
+            for (i, row) in out.chunks_mut(w).enumerate() {
+                let r = band * BAND + i;
+                src.fill_row(r, &mut s0, &mut s1, &mut s2);
+                let k0 = r * w;
+                let sr = st.row(r, w);
+                // the folded kernel everywhere (it also fills `mu`), then the unfolded one for the
+                // chunks holding pixels where the low-mean rule or the full well matter
+                let (mu_max, code_max) =
+                    row_folded(fc, &s0, &s1, &s2, &sr, k0 as u32, &mut mu, row);
+                let fixup = !folded || mu_max > mu_hi;
+                if fixup {
+                    row_fixup(fc, folded, mu_hi, &mu, &sr, k0, r, row, &mut sat);
+                }
+                if fixup || code_max == fc.max {
+                    for (c, &v) in row.iter().enumerate() {
+                        if v == fc.max {
+                            sat[((r & 1) << 1) | (c & 1)] += 1;
+                        }
+                    }
+                }
+            }
+            sat
+        })
+        .collect();
+    let mut saturated = [0u32; 4];
+    for s in &sats {
+        for i in 0..4 {
+            saturated[i] += s[i];
+        }
+    }
+    FastCodes { codes, saturated }
+}
+
+/// Electron rate (e⁻/s) of every pixel from a row source (for auto-exposure).
+pub(crate) fn rates(
+    sensor: &Sensor,
+    st: &FastStatics,
+    src: &dyn StokesRows,
+) -> (Vec<f64>, Vec<bool>) {
+    let (w, h) = (sensor.intrinsics.width, sensor.intrinsics.height);
+    let mut rate = vec![0f64; w * h];
+    let mut sky = vec![false; w * h];
+    rate.par_chunks_mut(w)
+        .zip(sky.par_chunks_mut(w))
+        .enumerate()
+        .for_each(|(r, (rr, sk))| {
+            let mut s0 = vec![0f32; w];
+            let mut s1 = vec![0f32; w];
+            let mut s2 = vec![0f32; w];
+            src.fill_row(r, &mut s0, &mut s1, &mut s2);
+            let sr = st.row(r, w);
+            for c in 0..w {
+                rr[c] = sr.rate(c, s0[c], s1[c], s2[c]) as f64;
+                sk[c] = s0[c] > 0.0;
+            }
+        });
+    (rate, sky)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn ln_matches_std() {
+        let mut x = 1e-30f32;
+        while x < 1e30 {
+            let (a, b) = (ln_f32(x), x.ln());
+            assert!((a - b).abs() <= 2e-7 * b.abs().max(1.0), "{x}: {a} {b}");
+            x *= 1.37;
+        }
+        assert_eq!(ln_f32(1.0), 0.0);
+    }
+
+    #[test]
+    fn normal_inverse_is_accurate() {
+        // known quantiles of the standard normal
+        let q = |u: f64| {
+            let k = ((u * 16_777_216.0 - 1.0) / 2.0).round() as u32;
+            normal_from_bits(k << 9) as f64
+        };
+        // tolerance: Giles' error plus half a lattice step of u (2⁻²⁴) divided by the density
+        for (u, z, tol) in [
+            (0.841_344_746, 1.0, 2e-5),
+            (0.977_249_868, 2.0, 2e-5),
+            (0.998_650_102, 3.0, 1e-4),
+            (0.999_968_329, 4.0, 5e-4),
+            (0.158_655_254, -1.0, 2e-5),
+        ] {
+            assert!((q(u) - z).abs() < tol, "u {u}: {} vs {z}", q(u));
+        }
+        assert!(normal_from_bits(0) < -5.2 && normal_from_bits(u32::MAX) > 5.2);
+        assert_eq!(normal_from_bits(0), -normal_from_bits(u32::MAX));
+    }
+
+    #[test]
+    fn normal_moments() {
+        let key = NoiseKey::new(7, 3, 1);
+        let n = 2_000_000u32;
+        let (mut s1, mut s2, mut s3, mut s4) = (0f64, 0f64, 0f64, 0f64);
+        for i in 0..n {
+            let z = normal_from_bits(key.bits(i)) as f64;
+            s1 += z;
+            s2 += z * z;
+            s3 += z * z * z;
+            s4 += z * z * z * z;
+        }
+        let nf = n as f64;
+        let (m, v) = (s1 / nf, s2 / nf);
+        assert!(m.abs() < 0.004, "mean {m}");
+        assert!((v - 1.0).abs() < 0.005, "var {v}");
+        assert!((s3 / nf).abs() < 0.02, "skew {}", s3 / nf);
+        assert!((s4 / nf - 3.0).abs() < 0.05, "kurtosis {}", s4 / nf);
+    }
+
+    #[test]
+    fn streams_differ_and_neighbours_are_uncorrelated() {
+        let a = NoiseKey::new(1, 0, 1);
+        let b = NoiseKey::new(1, 1, 1);
+        let c = NoiseKey::new(1, 0, 2);
+        assert_ne!(a, b);
+        assert_ne!(a, c);
+        let n = 1_000_000u32;
+        let (mut ab, mut ac, mut nb) = (0f64, 0f64, 0f64);
+        for i in 0..n {
+            let za = normal_from_bits(a.bits(i)) as f64;
+            ab += za * normal_from_bits(b.bits(i)) as f64;
+            ac += za * normal_from_bits(c.bits(i)) as f64;
+            nb += za * normal_from_bits(a.bits(i + 1)) as f64;
+        }
+        for (name, s) in [("frames", ab), ("stages", ac), ("neighbours", nb)] {
+            // 5 σ of a correlation estimate over n pairs
+            assert!(
+                (s / n as f64).abs() < 5.0 / (n as f64).sqrt(),
+                "{name}: {}",
+                s / n as f64
+            );
+        }
+        // a frame is not a shifted copy of another
+        let first: Vec<u32> = (0..64).map(|i| a.bits(i)).collect();
+        let shifted = (0..1_000_000u32).any(|s| b.bits(s) == first[0] && b.bits(s + 1) == first[1]);
+        assert!(!shifted);
+    }
+}
+
+#[cfg(test)]
+mod speed {
+    use super::*;
+
+    /// Single-thread ns per pixel of the kernels (a look, not a check):
+    /// `cargo test --release --lib sensor::fast::speed -- --ignored --nocapture`.
+    #[test]
+    #[ignore]
+    fn kernel_ns_per_pixel() {
+        let w = 2448usize;
+        let fc = FrameConsts {
+            t: 1e-3,
+            dark_e: 0.005,
+            fwc: 10500.0,
+            fwc_clip: true,
+            shot: true,
+            sigma_read: 2.5,
+            kg: 0.39,
+            black: 0.0,
+            max: 4095,
+            shot_key: NoiseKey::new(1, 2, 1),
+            read_key: NoiseKey::new(1, 2, 2),
+        };
+        let s0 = vec![1.0f32; w];
+        let s1 = vec![0.1f32; w];
+        let s2 = vec![0.05f32; w];
+        let gain = vec![32_000u16; w];
+        let delta = vec![100i16; w];
+        let dsnu = vec![100i16; w];
+        let cos0 = vec![1f32; w];
+        let sin0 = vec![0f32; w];
+        let sr = StaticRow {
+            gain: &gain,
+            delta: &delta,
+            dsnu: &dsnu,
+            cos0: &cos0,
+            sin0: &sin0,
+            scale: 3.0e6,
+            b: 0.99,
+        };
+        let mut mu = vec![0f32; w];
+        let mut out = vec![0u16; w];
+        let rows = 2000;
+        let t0 = std::time::Instant::now();
+        for r in 0..rows {
+            let _ = row_folded(&fc, &s0, &s1, &s2, &sr, (r * w) as u32, &mut mu, &mut out);
+        }
+        let ns = t0.elapsed().as_secs_f64() * 1e9 / (rows * w) as f64;
+        println!("folded: {ns:.2} ns/pixel (mu {})", mu[0]);
+        let mut sat = [0u32; 4];
+        let t0 = std::time::Instant::now();
+        for r in 0..rows / 10 {
+            row_fixup(&fc, false, 0.0, &mu, &sr, r * w, r, &mut out, &mut sat);
+        }
+        let ns = t0.elapsed().as_secs_f64() * 1e9 / (rows / 10 * w) as f64;
+        println!("unfolded: {ns:.2} ns/pixel");
+        #[target_feature(enable = "avx2,fma")]
+        unsafe fn normals_avx2(key: &NoiseKey, n: usize) -> f32 {
+            let mut z = [0f32; BLOCK];
+            let mut acc = 0f32;
+            for b in (0..n).step_by(BLOCK) {
+                normals(key, b as u32, &mut z);
+                acc += z[7];
+            }
+            acc
+        }
+        #[target_feature(enable = "avx2,fma")]
+        unsafe fn hash_avx2(key: &NoiseKey, n: usize) -> u32 {
+            let mut z = [0u32; BLOCK];
+            let mut acc = 0u32;
+            for b in (0..n).step_by(BLOCK) {
+                for i in 0..BLOCK {
+                    z[i] = key.bits((b + i) as u32);
+                }
+                acc ^= z[7];
+            }
+            acc
+        }
+        let n = rows * w;
+        let t0 = std::time::Instant::now();
+        let a = unsafe { normals_avx2(&fc.shot_key, n) };
+        let ns = t0.elapsed().as_secs_f64() * 1e9 / n as f64;
+        println!("normals: {ns:.2} ns/pixel ({a})");
+        let t0 = std::time::Instant::now();
+        let a = unsafe { hash_avx2(&fc.shot_key, n) };
+        let ns = t0.elapsed().as_secs_f64() * 1e9 / n as f64;
+        println!("hash: {ns:.2} ns/pixel ({a})");
+    }
+}
