@@ -108,3 +108,27 @@ fn golden_frame_hash() {
     assert_eq!(hex, GOLDEN);
 }
 const GOLDEN: &str = "876bf6db25c474c39e8ba4f9a1ab88871abcea0d618c6a2c75e8e081df721f4f";
+
+/// The fast path's golden hash, recorded when it was introduced (issue 9; its noise differs from
+/// the exact path's by design). A change means every fast-path camera changed.
+#[test]
+fn golden_fast_frame_hash() {
+    let intr = Intrinsics {
+        width: 32,
+        height: 16,
+        ..Default::default()
+    };
+    let mut cfg = SensorConfig::default();
+    cfg.black_level_dn = 16.0;
+    let f = Sensor::new(&cfg, &intr, 12345)
+        .unwrap()
+        .frame_fast(&sky(32, 16), 7, Vec::new())
+        .unwrap();
+    let bytes: Vec<u8> = f.codes.data.iter().flat_map(|v| v.to_le_bytes()).collect();
+    let hex: String = Sha256::digest(&bytes)
+        .iter()
+        .map(|b| format!("{b:02x}"))
+        .collect();
+    assert_eq!(hex, GOLDEN_FAST);
+}
+const GOLDEN_FAST: &str = "07b2489a7ad34b6d4568cf8fadf71ac26cfc75f7cc47b2ba3d0ab2ff81bbe6fc";

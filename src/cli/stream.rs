@@ -185,7 +185,22 @@ pub struct StreamSummary {
 /// One rendered frame, ready to write.
 struct Rendered {
     meta: FrameMeta,
-    payload: Vec<u8>,
+    payload: Payload,
+}
+
+/// A frame's payload: packed bytes, or (little-endian Mono16) the codes themselves.
+enum Payload {
+    Bytes(Vec<u8>),
+    Codes(Vec<u16>),
+}
+
+impl Payload {
+    fn as_bytes(&self) -> &[u8] {
+        match self {
+            Payload::Bytes(b) => b,
+            Payload::Codes(c) => bytemuck::cast_slice(c),
+        }
+    }
 }
 
 type Poses = Box<dyn Iterator<Item = Result<Pose>> + Send>;
@@ -217,7 +232,7 @@ struct FrameMaker {
     /// The last frame's code buffer, reused.
     codes: Vec<u16>,
     /// Payload buffers handed back by the writer, reused (no page faults on fresh memory).
-    spare: Option<Receiver<Vec<u8>>>,
+    spare: Option<Receiver<Payload>>,
 }
 
 fn seconds_to_ns(t_s: f64) -> Result<i64> {
@@ -259,21 +274,30 @@ impl FrameMaker {
                 ))
             })?;
         let sun = self.sun_at(pose, t_ns.saturating_add(self.half_exposure_ns))?;
+        // buffers the writer has finished with come back: codes (Mono16) or packed bytes
+        let mut bytes = Vec::new();
+        if let Some(p) = self.spare.as_ref().and_then(|r| r.try_recv().ok()) {
+            match p {
+                Payload::Codes(c) => self.codes = c,
+                Payload::Bytes(b) => bytes = b,
+            }
+        }
         let codes = std::mem::take(&mut self.codes);
-        let (frame, info) = self.pipe.frame_at(sun, &pose.attitude, index, codes)?;
-        // a buffer the writer has finished with, or a new one
-        let mut payload = self
-            .spare
-            .as_ref()
-            .and_then(|r| r.try_recv().ok())
-            .unwrap_or_default();
-        packing::pack(
-            &frame.codes.data,
-            frame.bit_depth,
-            self.fmt,
-            false,
-            &mut payload,
-        )?;
+        let (mut frame, info) = self.pipe.frame_at(sun, &pose.attitude, index, codes)?;
+        // little-endian Mono16 is the code buffer itself: no packing pass
+        let zero_copy = self.fmt == PixelFormat::Mono16 && cfg!(target_endian = "little");
+        let payload = if zero_copy {
+            Payload::Codes(std::mem::take(&mut frame.codes.data))
+        } else {
+            packing::pack(
+                &frame.codes.data,
+                frame.bit_depth,
+                self.fmt,
+                false,
+                &mut bytes,
+            )?;
+            Payload::Bytes(bytes)
+        };
         let m = pose.attitude.enu_to_camera(sun.azimuth_deg);
         let sun_c = m * sun.vector();
         let intr = self.pipe.config().camera.intrinsics;
@@ -474,8 +498,8 @@ impl Output {
     }
     fn write(&mut self, r: &Rendered) -> Result<()> {
         match self {
-            Output::Stdout(w) => w.write_payload(&r.meta, &r.payload),
-            Output::Path(w) => w.write_payload(&r.meta, &r.payload),
+            Output::Stdout(w) => w.write_payload(&r.meta, r.payload.as_bytes()),
+            Output::Path(w) => w.write_payload(&r.meta, r.payload.as_bytes()),
         }
     }
     fn finish(self) -> Result<()> {
@@ -605,7 +629,7 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
     };
     // render thread: pose k+1 while frame k is written; written payloads come back for reuse
     let (tx, rx) = sync_channel::<Result<Rendered>>(1);
-    let (spare_tx, spare_rx) = sync_channel::<Vec<u8>>(2);
+    let (spare_tx, spare_rx) = sync_channel::<Payload>(2);
     maker.spare = Some(spare_rx);
     let limit = opts.frames;
     let producer = std::thread::Builder::new()
@@ -705,7 +729,7 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
 fn write_loop(
     out: &mut Output,
     rx: &Receiver<Result<Rendered>>,
-    spare: &SyncSender<Vec<u8>>,
+    spare: &SyncSender<Payload>,
     opts: &StreamOptions,
     progress: &mut Progress,
 ) -> std::result::Result<(u64, u64), (u64, u64, Error)> {

@@ -694,7 +694,7 @@ pub(crate) fn render_codes(
     mut codes: Vec<u16>,
 ) -> FastCodes {
     let (w, h) = (sensor.intrinsics.width, sensor.intrinsics.height);
-    codes.clear();
+    // every code is written below: a reused buffer of the right size is not cleared
     codes.resize(w * h, 0);
     let folded = fc.folded();
     let mu_hi = fc.mu_high() as f32;
