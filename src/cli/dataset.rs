@@ -610,6 +610,13 @@ fn verify(dir: &Path) -> anyhow::Result<()> {
     if !dir.is_dir() {
         return Err(Error::Invalid(format!("{} is not a directory", dir.display())).into());
     }
+    if !dir.join(MANIFEST).exists() && !dir.join(DESCRIPTION).exists() {
+        return Err(Error::Invalid(format!(
+            "{} is not a psns dataset (no {DESCRIPTION}, no {MANIFEST})",
+            dir.display()
+        ))
+        .into());
+    }
     let mut problems: Vec<String> = Vec::new();
     let manifest = std::fs::read_to_string(dir.join(MANIFEST));
     let mut entries: Vec<(String, u64, u32)> = Vec::new();

@@ -1,0 +1,655 @@
+//! `psns dataset` (issue 11): shards equal the whole build, a killed build resumes to the
+//! uninterrupted result, verify catches damage, labels reproduce the images through `psns render`,
+//! bad descriptions write nothing, and the Slurm / GNU parallel recipes of docs/dataset.md work.
+
+mod common;
+use common::{psns, stderr};
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::process::{Command, Stdio};
+use std::time::{Duration, Instant};
+
+fn bin() -> &'static str {
+    env!("CARGO_BIN_EXE_psns")
+}
+
+/// Six samples over three folders and all three presets, 64 x 48.
+const TINY: &str =
+    "seed = 7\nwidth = 64\nheight = 48\n[splits]\nNFPI = 2\nGNIICPI = 2\nTGNIIPI = 2\n";
+
+fn write_config(dir: &Path, text: &str) -> PathBuf {
+    let p = dir.join("d.toml");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// Every file and directory below `dir` (hidden ones too), with the files' bytes.
+fn tree(dir: &Path) -> BTreeMap<String, Option<Vec<u8>>> {
+    fn walk(root: &Path, d: &Path, out: &mut BTreeMap<String, Option<Vec<u8>>>) {
+        for e in std::fs::read_dir(d).unwrap() {
+            let p = e.unwrap().path();
+            let rel = p.strip_prefix(root).unwrap().to_string_lossy().into_owned();
+            if p.is_dir() {
+                out.insert(rel + "/", None);
+                walk(root, &p, out);
+            } else {
+                out.insert(rel, Some(std::fs::read(&p).unwrap()));
+            }
+        }
+    }
+    let mut out = BTreeMap::new();
+    walk(dir, dir, &mut out);
+    out
+}
+
+fn assert_same_tree(a: &Path, b: &Path) {
+    let (ta, tb) = (tree(a), tree(b));
+    let names = |t: &BTreeMap<String, Option<Vec<u8>>>| t.keys().cloned().collect::<Vec<_>>();
+    assert_eq!(names(&ta), names(&tb), "different files");
+    for (k, v) in &ta {
+        assert!(v == &tb[k], "{k} differs");
+    }
+}
+
+fn build(out: &Path, config: &Path, extra: &[&str]) -> std::process::Output {
+    let mut args = vec![
+        "dataset",
+        "build",
+        "--out",
+        out.to_str().unwrap(),
+        "--config",
+        config.to_str().unwrap(),
+    ];
+    args.extend_from_slice(extra);
+    psns(&args)
+}
+
+fn ok(o: &std::process::Output) {
+    assert!(o.status.success(), "{:?}: {}", o.status, stderr(o));
+}
+
+#[test]
+fn shards_one_after_another_and_at_once_equal_the_whole_build() {
+    let t = tempfile::tempdir().unwrap();
+    let cfg = write_config(t.path(), TINY);
+    let whole = t.path().join("whole");
+    let o = build(&whole, &cfg, &["--jobs", "2"]);
+    ok(&o);
+    // progress in a log: plain lines with the rate; the summary with images/s
+    let e = stderr(&o);
+    assert!(e.contains("psns dataset: 6/6 images"), "{e}");
+    assert!(e.contains("images/s"), "{e}");
+    assert!(whole.join("manifest.csv").is_file());
+    assert!(!whole.join(".parts").exists());
+    let n_png = |d: &Path| std::fs::read_dir(d).unwrap().count();
+    assert_eq!(n_png(&whole.join("NFPI")), 2);
+    assert_eq!(n_png(&whole.join("TGNIIPI")), 2);
+
+    // three shards one after another; the dataset is incomplete until the last one
+    let sharded = t.path().join("sharded");
+    ok(&build(&sharded, &cfg, &["--shard", "1/3", "--jobs", "1"]));
+    ok(&build(&sharded, &cfg, &["--shard", "3/3", "--jobs", "1"]));
+    assert!(!sharded.join("manifest.csv").exists());
+    let v = psns(&["dataset", "verify", sharded.to_str().unwrap()]);
+    assert_eq!(v.status.code(), Some(1), "{}", stderr(&v));
+    assert!(String::from_utf8_lossy(&v.stdout).contains("manifest.csv: missing"));
+    let m = psns(&["dataset", "merge", sharded.to_str().unwrap()]);
+    assert_eq!(m.status.code(), Some(1));
+    assert!(
+        stderr(&m).contains("2 of 6 samples are not built yet"),
+        "{}",
+        stderr(&m)
+    );
+    ok(&build(&sharded, &cfg, &["--shard", "2/3", "--jobs", "1"]));
+    assert_same_tree(&whole, &sharded);
+
+    // three shards at the same time into one directory
+    let at_once = t.path().join("at_once");
+    let kids: Vec<_> = (1..=3)
+        .map(|k| {
+            Command::new(bin())
+                .args(["dataset", "build", "--out"])
+                .arg(&at_once)
+                .arg("--config")
+                .arg(&cfg)
+                .args(["--jobs", "1", "--shard", &format!("{k}/3")])
+                .stderr(Stdio::piped())
+                .spawn()
+                .unwrap()
+        })
+        .collect();
+    for k in kids {
+        ok(&k.wait_with_output().unwrap());
+    }
+    // whichever finished last merged; merging again is harmless
+    if !at_once.join("manifest.csv").exists() {
+        ok(&psns(&["dataset", "merge", at_once.to_str().unwrap()]));
+    }
+    assert_same_tree(&whole, &at_once);
+    ok(&psns(&["dataset", "verify", at_once.to_str().unwrap()]));
+}
+
+/// Kills a build part-way (SIGKILL, no chance to tidy up), checks that every image it left is
+/// whole, resumes it and compares with an uninterrupted build.
+#[test]
+fn killed_build_resumes_to_the_uninterrupted_result() {
+    let t = tempfile::tempdir().unwrap();
+    let text = "seed = 3\nwidth = 128\nheight = 96\n[splits]\nNFPI = 150\nGNIIPI = 150\n[outputs]\ntruth = true\n";
+    let cfg = write_config(t.path(), text);
+    let reference = t.path().join("reference");
+    ok(&build(&reference, &cfg, &["--jobs", "2"]));
+
+    let out = t.path().join("killed");
+    let mut child = Command::new(bin())
+        .args(["dataset", "build", "--out"])
+        .arg(&out)
+        .arg("--config")
+        .arg(&cfg)
+        .args(["--jobs", "1"])
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let part = out.join(".parts/manifest-1-of-1.csv");
+    let t0 = Instant::now();
+    loop {
+        let lines = std::fs::read_to_string(&part).map_or(0, |s| s.lines().count());
+        if lines >= 30 {
+            break;
+        }
+        assert!(
+            t0.elapsed() < Duration::from_secs(20),
+            "build made no progress"
+        );
+        std::thread::sleep(Duration::from_millis(1));
+    }
+    child.kill().unwrap();
+    child.wait().unwrap();
+    assert!(
+        !out.join("manifest.csv").exists(),
+        "the build finished before it was killed: make it longer"
+    );
+    // whatever the kill left in the folders is whole (equal to the reference's file)
+    let mut left = 0;
+    for split in ["NFPI", "GNIIPI"] {
+        for e in std::fs::read_dir(out.join(split)).unwrap() {
+            let p = e.unwrap().path();
+            let name = p.file_name().unwrap();
+            let want = std::fs::read(reference.join(split).join(name)).unwrap();
+            assert!(
+                std::fs::read(&p).unwrap() == want,
+                "{} is not whole",
+                p.display()
+            );
+            left += 1;
+        }
+    }
+    assert!(
+        left >= 10 && left < 300,
+        "{left} images left by the killed build"
+    );
+
+    let o = build(&out, &cfg, &["--jobs", "2", "--resume"]);
+    ok(&o);
+    let e = stderr(&o);
+    let skipped: usize = e
+        .split("--resume: ")
+        .nth(1)
+        .and_then(|s| s.split_whitespace().next())
+        .and_then(|s| s.parse().ok())
+        .unwrap_or_else(|| panic!("no resume count in: {e}"));
+    assert!(skipped >= 10 && skipped < 300, "{e}");
+    assert_same_tree(&reference, &out);
+}
+
+#[test]
+fn resume_redoes_exactly_the_missing_and_damaged_samples() {
+    let t = tempfile::tempdir().unwrap();
+    let cfg = write_config(t.path(), TINY);
+    let a = t.path().join("a");
+    ok(&build(&a, &cfg, &["--jobs", "1"]));
+    let before = tree(&a);
+    let imgs: Vec<PathBuf> = std::fs::read_dir(a.join("GNIICPI"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    std::fs::remove_file(&imgs[0]).unwrap();
+    let mut b = std::fs::read(&imgs[1]).unwrap();
+    let k = b.len() / 2;
+    b[k] ^= 0x10;
+    std::fs::write(&imgs[1], b).unwrap();
+    let o = build(&a, &cfg, &["--jobs", "1", "--resume"]);
+    ok(&o);
+    let e = stderr(&o);
+    assert!(e.contains("--resume: 4 samples already complete"), "{e}");
+    assert!(e.contains("built 2 samples"), "{e}");
+    assert_eq!(before, tree(&a));
+    // without --resume every sample of the shard is rendered again
+    let o = build(&a, &cfg, &["--jobs", "1"]);
+    assert!(stderr(&o).contains("built 6 samples"), "{}", stderr(&o));
+    assert_eq!(before, tree(&a));
+}
+
+#[test]
+fn verify_names_deleted_truncated_and_bit_flipped_files() {
+    let t = tempfile::tempdir().unwrap();
+    let cfg = write_config(
+        t.path(),
+        &format!("{TINY}[outputs]\npolarizer_images = true\n"),
+    );
+    let d = t.path().join("d");
+    ok(&build(&d, &cfg, &["--jobs", "1"]));
+    let v = psns(&["dataset", "verify", d.to_str().unwrap()]);
+    ok(&v);
+    assert!(
+        stderr(&v).contains("32 files present and intact"),
+        "{}",
+        stderr(&v)
+    );
+    let labels = std::fs::read_to_string(d.join("labels.csv")).unwrap();
+    let files: Vec<&str> = labels
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(1).unwrap())
+        .collect();
+    let (deleted, truncated, flipped) = (files[0], files[3], files[5]);
+    std::fs::remove_file(d.join(deleted)).unwrap();
+    let b = std::fs::read(d.join(truncated)).unwrap();
+    std::fs::write(d.join(truncated), &b[..b.len() - 7]).unwrap();
+    let mut b = std::fs::read(d.join(flipped)).unwrap();
+    b[100] ^= 1;
+    std::fs::write(d.join(flipped), b).unwrap();
+    // one extra: a polarizer image
+    let pol = format!("extras/{}_i45.png", files[2].trim_end_matches(".png"));
+    std::fs::remove_file(d.join(&pol)).unwrap();
+    let v = psns(&["dataset", "verify", d.to_str().unwrap()]);
+    assert_eq!(v.status.code(), Some(1), "{}", stderr(&v));
+    let out = String::from_utf8_lossy(&v.stdout);
+    assert!(out.contains(&format!("{deleted}: missing")), "{out}");
+    assert!(
+        out.contains(&format!("{truncated}: damaged (size")),
+        "{out}"
+    );
+    assert!(out.contains(&format!("{flipped}: damaged (CRC32")), "{out}");
+    assert!(out.contains(&format!("{pol}: missing")), "{out}");
+    assert_eq!(out.lines().count(), 4, "{out}");
+    assert!(stderr(&v).contains("4 problems"), "{}", stderr(&v));
+    // a damaged labels.csv is caught too
+    let mut l = std::fs::read(d.join("labels.csv")).unwrap();
+    l[200] ^= 4;
+    std::fs::write(d.join("labels.csv"), l).unwrap();
+    let v = psns(&["dataset", "verify", d.to_str().unwrap()]);
+    assert!(String::from_utf8_lossy(&v.stdout).contains("labels.csv: damaged (CRC32"));
+}
+
+fn num(s: &str) -> f64 {
+    s.parse()
+        .unwrap_or_else(|_| panic!("'{s}' is not a number"))
+}
+
+#[test]
+fn labels_match_file_names_and_rerendering_from_them_gives_the_image() {
+    let t = tempfile::tempdir().unwrap();
+    let cfg = write_config(
+        t.path(),
+        "seed = 11\nwidth = 64\nheight = 48\nframe = \"enu\"\n[splits]\nGNIIPI = 2\nGNIICPI = 2\nTNFPI = 2\n[pitch_deg]\nmin = -5\nmax = 5\n[roll_deg]\nvalues = [-2, 3]\n[focal_length_mm]\nvalues = [3.5, 4]\n[outputs]\nraw12 = true\n",
+    );
+    let d = t.path().join("d");
+    ok(&build(&d, &cfg, &["--jobs", "2"]));
+    let labels = std::fs::read_to_string(d.join("labels.csv")).unwrap();
+    let mut lines = labels.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    for want in [
+        "split",
+        "file",
+        "yaw_deg",
+        "pitch_deg",
+        "roll_deg",
+        "frame",
+        "focal_length_mm",
+        "pixel_pitch_um",
+        "sun_altitude_deg",
+        "sun_azimuth_deg",
+        "turbidity",
+        "wavelength_nm",
+        "albedo",
+        "seed",
+        "frame_index",
+        "sun_cam_x",
+        "sun_cam_y",
+        "sun_cam_z",
+    ] {
+        assert!(header.contains(&want), "no column {want}");
+    }
+    let rows: Vec<BTreeMap<&str, &str>> = lines
+        .map(|l| header.iter().copied().zip(l.split(',')).collect())
+        .collect();
+    assert_eq!(rows.len(), 6);
+    let mut rendered = std::collections::BTreeSet::new();
+    for r in &rows {
+        // the name carries the label values
+        let file = r["file"];
+        let (folder, name) = file.split_once('/').unwrap();
+        assert_eq!(folder, r["split"]);
+        let stem = name.strip_suffix(".png").unwrap();
+        let parts: Vec<&str> = stem.split('_').collect();
+        let prefix = match r["split"] {
+            "GNIIPI" => "G",
+            "GNIICPI" => "C",
+            "TNFPI" => "TN",
+            s => panic!("{s}"),
+        };
+        assert_eq!(parts[0], format!("{prefix}{}", r["number"]));
+        let keys = [
+            "yaw_deg",
+            "pitch_deg",
+            "roll_deg",
+            "focal_length_mm",
+            "sun_altitude_deg",
+            "turbidity",
+            "wavelength_nm",
+            "albedo",
+        ];
+        for (k, v) in keys.iter().zip(&parts[1..]) {
+            assert_eq!(num(v), num(r[k]), "{k} in {name}");
+            assert!(
+                !v.contains('e') && !(v.contains('.') && v.ends_with('0')),
+                "{v}"
+            );
+        }
+        assert!(d.join(file).is_file());
+        assert_eq!(r["frame"], "enu");
+        // the sun vector: its z component is the sine of the sun's angle above the image plane
+        let z = num(r["sun_cam_z"]);
+        let (x, y) = (num(r["sun_cam_x"]), num(r["sun_cam_y"]));
+        assert!(((x * x + y * y + z * z).sqrt() - 1.0).abs() < 1e-9);
+        if num(r["pitch_deg"]) == 0.0 && num(r["roll_deg"]) == 0.0 {
+            let alt = num(r["sun_altitude_deg"]).to_radians();
+            assert!((z - alt.sin()).abs() < 1e-9);
+        }
+        // re-render one sample per folder through the CLI with the label values
+        if !rendered.insert(r["split"]) {
+            continue;
+        }
+        let out = t.path().join(format!("again_{}", r["split"]));
+        let mut args: Vec<String> = ["render", "--raw", "--bit-depth", "8"]
+            .iter()
+            .map(|s| s.to_string())
+            .collect();
+        for (opt, col) in [
+            ("--preset", "preset"),
+            ("--width", "width"),
+            ("--height", "height"),
+            ("--yaw", "yaw_deg"),
+            ("--pitch", "pitch_deg"),
+            ("--roll", "roll_deg"),
+            ("--frame", "frame"),
+            ("--focal-length", "focal_length_mm"),
+            ("--pixel-pitch", "pixel_pitch_um"),
+            ("--sun-altitude", "sun_altitude_deg"),
+            ("--sun-azimuth", "sun_azimuth_deg"),
+            ("--turbidity", "turbidity"),
+            ("--wavelength", "wavelength_nm"),
+            ("--albedo", "albedo"),
+            ("--seed", "seed"),
+            ("--frame-index", "frame_index"),
+            ("--sky-grid", "sky_grid"),
+        ] {
+            args.push(opt.into());
+            args.push(r[col].into());
+        }
+        args.push("--out".into());
+        args.push(out.to_str().unwrap().into());
+        let a: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
+        ok(&psns(&a));
+        let again = std::fs::read(out.join("raw.png")).unwrap();
+        assert!(
+            again == std::fs::read(d.join(file)).unwrap(),
+            "{file} differs from psns render"
+        );
+        // the 12-bit camera frame likewise, with --preset camera
+        let i = args.iter().position(|s| s == "--preset").unwrap();
+        args[i + 1] = "camera".into();
+        let b = args.iter().position(|s| s == "--bit-depth").unwrap();
+        args.drain(b..b + 2);
+        let o = args.iter().position(|s| s == "--out").unwrap();
+        args[o + 1] = format!("{}12", args[o + 1]);
+        let a: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
+        ok(&psns(&a));
+        let again = std::fs::read(Path::new(&args[o + 1]).join("raw.png")).unwrap();
+        let raw12 = d.join(format!(
+            "extras/{}_raw12.png",
+            file.trim_end_matches(".png")
+        ));
+        assert!(
+            again == std::fs::read(&raw12).unwrap(),
+            "{} differs",
+            raw12.display()
+        );
+    }
+    assert_eq!(rendered.len(), 3);
+}
+
+#[test]
+fn bad_input_exits_2_names_the_key_and_writes_nothing() {
+    let t = tempfile::tempdir().unwrap();
+    let out = t.path().join("never");
+    let cases: &[(&str, &[&str], &str)] = &[
+        ("turbidty = 3\n", &[], "turbidty"),
+        (
+            "[turbidity]\nmin = 0.5\nmax = 4\n",
+            &[],
+            "turbidity.min = 0.5 is out of range (allowed 1.7..10)",
+        ),
+        (
+            "[splits]\nNFPI = 2\nXFPI = 1\n",
+            &[],
+            "splits = XFPI is out of range (allowed NFPI, GNIIPI",
+        ),
+        (
+            "width = 63\n",
+            &[],
+            "width = 63 is out of range (allowed a non-zero multiple of 4)",
+        ),
+        (
+            "[albedo]\nvalues = [0.2, 1.5]\n",
+            &[],
+            "albedo.values = 1.5 is out of range (allowed 0..1)",
+        ),
+        ("[outputs]\ntruht = true\n", &[], "truht"),
+        (
+            TINY,
+            &["--shard", "0/3"],
+            "shard = 0/3 is out of range (allowed K/N with 1 <= K <= N",
+        ),
+        (TINY, &["--shard", "4/3"], "shard = 4/3 is out of range"),
+        (TINY, &["--shard", "three"], "shard = three"),
+        (
+            TINY,
+            &["--jobs", "0"],
+            "jobs = 0 is out of range (allowed 1..1024)",
+        ),
+    ];
+    for (text, extra, want) in cases {
+        let cfg = write_config(t.path(), text);
+        let o = build(&out, &cfg, extra);
+        assert_eq!(o.status.code(), Some(2), "{text} {extra:?}: {}", stderr(&o));
+        assert!(
+            stderr(&o).contains(want),
+            "{text} {extra:?}: {}",
+            stderr(&o)
+        );
+        assert!(!out.exists(), "{text} {extra:?} wrote {}", out.display());
+    }
+    let o = psns(&[
+        "dataset",
+        "build",
+        "--out",
+        out.to_str().unwrap(),
+        "--config",
+        t.path().join("nope.toml").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("nope.toml does not exist"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!out.exists());
+    // a directory with the user's files, or another dataset, is refused and left as it was
+    let cfg = write_config(t.path(), TINY);
+    let mine = t.path().join("mine");
+    std::fs::create_dir(&mine).unwrap();
+    std::fs::write(mine.join("notes.txt"), "keep").unwrap();
+    let o = build(&mine, &cfg, &[]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("holds 'notes.txt'"), "{}", stderr(&o));
+    assert_eq!(tree(&mine).len(), 1);
+    let d = t.path().join("d");
+    ok(&build(&d, &cfg, &["--jobs", "1"]));
+    let before = tree(&d);
+    let other = write_config(t.path(), &TINY.replace("seed = 7", "seed = 8"));
+    let o = build(&d, &other, &["--resume"]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(
+        stderr(&o).contains("holds another dataset"),
+        "{}",
+        stderr(&o)
+    );
+    assert_eq!(before, tree(&d));
+    // verify and merge of something that is not a dataset: bad input
+    let o = psns(&["dataset", "verify", mine.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("is not a psns dataset"),
+        "{}",
+        stderr(&o)
+    );
+    let o = psns(&["dataset", "merge", mine.to_str().unwrap()]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let o = psns(&[
+        "dataset",
+        "verify",
+        t.path().join("nothing").to_str().unwrap(),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+}
+
+/// The fenced ```bash block of docs/dataset.md that contains `marker`.
+fn doc_block(marker: &str) -> String {
+    let doc =
+        std::fs::read_to_string(Path::new(env!("CARGO_MANIFEST_DIR")).join("docs/dataset.md"))
+            .unwrap();
+    doc.split("```bash\n")
+        .skip(1)
+        .map(|b| b.split("```").next().unwrap())
+        .find(|b| b.contains(marker))
+        .unwrap_or_else(|| panic!("docs/dataset.md has no bash block with {marker}"))
+        .to_string()
+}
+
+/// PATH with the directory of the freshly built `psns` first.
+fn path_with_psns() -> String {
+    let dir = Path::new(bin()).parent().unwrap();
+    format!(
+        "{}:{}",
+        dir.display(),
+        std::env::var("PATH").unwrap_or_default()
+    )
+}
+
+#[test]
+fn slurm_script_parses_and_maps_the_array_index_to_the_shard() {
+    let t = tempfile::tempdir().unwrap();
+    let script = t.path().join("psns-dataset.sbatch");
+    std::fs::write(&script, doc_block("#SBATCH")).unwrap();
+    let n = Command::new("bash")
+        .arg("-n")
+        .arg(&script)
+        .output()
+        .unwrap();
+    assert!(
+        n.status.success(),
+        "bash -n: {}",
+        String::from_utf8_lossy(&n.stderr)
+    );
+    let cfg = write_config(t.path(), TINY);
+    let whole = t.path().join("whole");
+    ok(&build(&whole, &cfg, &["--jobs", "1"]));
+    // an array --array=4-6: task ids 4, 5, 6 are shards 1/3, 2/3, 3/3
+    let out = t.path().join("slurm");
+    for id in [6, 4, 5] {
+        let o = Command::new("bash")
+            .arg(&script)
+            .env("PATH", path_with_psns())
+            .env("OUT", &out)
+            .env("CONFIG", &cfg)
+            .env("SLURM_ARRAY_TASK_ID", id.to_string())
+            .env("SLURM_ARRAY_TASK_MIN", "4")
+            .env("SLURM_ARRAY_TASK_COUNT", "3")
+            .env("SLURM_CPUS_PER_TASK", "1")
+            .output()
+            .unwrap();
+        ok(&o);
+        assert!(
+            stderr(&o).contains(&format!("shard {}/3", id - 3)),
+            "task {id}: {}",
+            stderr(&o)
+        );
+    }
+    assert_same_tree(&whole, &out);
+    // outside an array the script refuses to run
+    let o = Command::new("bash")
+        .arg(&script)
+        .env("PATH", path_with_psns())
+        .env_remove("SLURM_ARRAY_TASK_COUNT")
+        .output()
+        .unwrap();
+    assert!(!o.status.success());
+    assert!(stderr(&o).contains("job array"), "{}", stderr(&o));
+}
+
+#[test]
+fn gnu_parallel_recipe_builds_the_same_dataset() {
+    let have = Command::new("parallel")
+        .arg("--version")
+        .stdout(Stdio::null())
+        .stderr(Stdio::null())
+        .status()
+        .is_ok_and(|s| s.success());
+    if !have {
+        // written past the test harness's capture so the skip is seen, never silent
+        use std::io::Write;
+        let _ = writeln!(
+            std::io::stderr().lock(),
+            "SKIPPED gnu_parallel_recipe_builds_the_same_dataset: GNU parallel is not installed (apt-get install parallel)"
+        );
+        return;
+    }
+    let t = tempfile::tempdir().unwrap();
+    let cfg = write_config(t.path(), TINY);
+    let whole = t.path().join("whole");
+    ok(&build(&whole, &cfg, &["--jobs", "1"]));
+    let script = t.path().join("recipe.sh");
+    std::fs::write(
+        &script,
+        format!("set -euo pipefail\n{}", doc_block("parallel ")),
+    )
+    .unwrap();
+    let out = t.path().join("par");
+    let o = Command::new("bash")
+        .arg(&script)
+        .env("PATH", path_with_psns())
+        .env("OUT", &out)
+        .env("CONFIG", &cfg)
+        .env("N", "3")
+        .env("HOME", t.path()) // parallel writes ~/.parallel
+        .output()
+        .unwrap();
+    ok(&o);
+    assert!(
+        stderr(&o).contains("files present and intact"),
+        "{}",
+        stderr(&o)
+    );
+    assert_same_tree(&whole, &out);
+}
