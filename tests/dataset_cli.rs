@@ -653,3 +653,94 @@ fn gnu_parallel_recipe_builds_the_same_dataset() {
     );
     assert_same_tree(&whole, &out);
 }
+
+#[test]
+fn preview_shows_the_first_samples_of_each_folder() {
+    let t = tempfile::tempdir().unwrap();
+    let cfg = write_config(t.path(), TINY);
+    let d = t.path().join("d");
+    ok(&build(&d, &cfg, &["--jobs", "2"]));
+    let sheet = t.path().join("sheet.png");
+    let o = psns(&[
+        "dataset",
+        "preview",
+        d.to_str().unwrap(),
+        "--out",
+        sheet.to_str().unwrap(),
+        "--per-split",
+        "2",
+    ]);
+    ok(&o);
+    let s = psns::io::read_gray(&sheet).unwrap().image;
+    // three folders of two 64 x 48 tiles (64 px is below the 160 px tile: scale 1), 4 px gaps
+    assert_eq!((s.width, s.height), (2 * 64 + 4, 3 * 48 + 2 * 4));
+    // row 2, tile 2 is TGNIIPI sample 2
+    let labels = std::fs::read_to_string(d.join("labels.csv")).unwrap();
+    let file = labels
+        .lines()
+        .nth(6)
+        .unwrap()
+        .split(',')
+        .nth(1)
+        .unwrap()
+        .to_string();
+    assert!(file.starts_with("TGNIIPI/TG2_"), "{file}");
+    let img = psns::io::read_gray(&d.join(&file)).unwrap().image;
+    for r in 0..48 {
+        for c in 0..64 {
+            assert_eq!(s.get(2 * 52 + r, 68 + c), img.get(r, c), "({r}, {c})");
+        }
+    }
+    let o = psns(&[
+        "dataset",
+        "preview",
+        d.to_str().unwrap(),
+        "--out",
+        sheet.to_str().unwrap(),
+        "--per-split",
+        "0",
+    ]);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(stderr(&o).contains("per-split = 0 is out of range (allowed 1..20)"));
+}
+
+/// Without --config: PSNS at full size. One shard of 138000 builds exactly one full-size image
+/// and the whole layout and label table.
+#[test]
+fn default_description_is_psns_at_full_size() {
+    let t = tempfile::tempdir().unwrap();
+    let d = t.path().join("psns");
+    let o = psns(&[
+        "dataset",
+        "build",
+        "--out",
+        d.to_str().unwrap(),
+        "--shard",
+        "138000/138000",
+        "--jobs",
+        "2",
+    ]);
+    ok(&o);
+    for s in ["NFPI", "GNIIPI", "GNIICPI", "TNFPI", "TGNIIPI", "TGNIICPI"] {
+        assert!(d.join(s).is_dir(), "{s}");
+    }
+    let labels = std::fs::read_to_string(d.join("labels.csv")).unwrap();
+    assert_eq!(labels.lines().count(), 138_001);
+    let counts = |p: &str| labels.lines().filter(|l| l.starts_with(p)).count();
+    assert_eq!(counts("NFPI,"), 40_000);
+    assert_eq!(counts("TGNIICPI,"), 6_000);
+    // the last sample of the dataset: TGNIICPI number 6000
+    let last = labels.lines().last().unwrap();
+    let file = last.split(',').nth(1).unwrap();
+    assert!(file.starts_with("TGNIICPI/TC6000_"), "{file}");
+    let img = psns::io::read_gray(&d.join(file)).unwrap();
+    assert_eq!(
+        (img.image.width, img.image.height, img.bits),
+        (2448, 2048, 8)
+    );
+    assert!(
+        stderr(&o).contains("137999 of 138000 samples are not built yet"),
+        "{}",
+        stderr(&o)
+    );
+}

@@ -40,6 +40,22 @@ pub enum DatasetCmd {
     /// Write manifest.csv from the shards' manifest parts once every sample is present (a build
     /// does this itself when it finishes the last missing samples).
     Merge(DirArgs),
+    /// A contact sheet of a built dataset: one row per folder (canonical order), its first
+    /// samples side by side, decimated by an even factor (so one polarizer channel shows).
+    Preview(PreviewArgs),
+}
+
+/// Options of `psns dataset preview`.
+#[derive(Args)]
+pub struct PreviewArgs {
+    /// Dataset directory.
+    dir: PathBuf,
+    /// Output PNG.
+    #[arg(long, value_name = "FILE")]
+    out: PathBuf,
+    /// Samples per folder, 1..20.
+    #[arg(long, default_value_t = 3, value_name = "N")]
+    per_split: u64,
 }
 
 /// Options of `psns dataset build`.
@@ -89,6 +105,7 @@ pub fn run(cmd: DatasetCmd) -> anyhow::Result<()> {
         DatasetCmd::Build(a) => build(a),
         DatasetCmd::Verify(a) => verify(&a.dir),
         DatasetCmd::Merge(a) => merge_cmd(&a.dir),
+        DatasetCmd::Preview(a) => preview(&a),
     }
 }
 
@@ -685,4 +702,47 @@ fn verify(dir: &Path) -> anyhow::Result<()> {
         problems.len()
     ))
     .into())
+}
+
+fn preview(a: &PreviewArgs) -> anyhow::Result<()> {
+    let cfg = open_dataset(&a.dir)?;
+    if !(1..=20).contains(&a.per_split) {
+        return Err(Error::range("per-split", a.per_split as f64, "1..20").into());
+    }
+    // tiles about 160 pixels wide; an even factor keeps one polarizer channel
+    let mut factor = (cfg.width / 160).max(1);
+    if factor > 1 && factor % 2 == 1 {
+        factor += 1;
+    }
+    let mut rows = Vec::new();
+    for (split, n) in cfg.split_counts() {
+        let mut tiles = Vec::new();
+        for k in 1..=n.min(a.per_split) {
+            let p = a.dir.join(cfg.sample(split, k).file());
+            let g = io::read_gray(&p)?;
+            let img = g.image;
+            let g8 = Image::from_vec(
+                img.width,
+                img.height,
+                img.data.iter().map(|&v| v.min(255) as u8).collect(),
+            );
+            tiles.push(super::vis::gray_rgb(&super::vis::decimate(&g8, factor)));
+        }
+        let refs: Vec<&Image<[u8; 3]>> = tiles.iter().collect();
+        rows.push(super::vis::hstack(&refs, 4));
+    }
+    let refs: Vec<&Image<[u8; 3]>> = rows.iter().collect();
+    let sheet = super::vis::vstack(&refs, 4);
+    let grey = Image::from_vec(
+        sheet.width,
+        sheet.height,
+        sheet.data.iter().map(|p| p[0]).collect(),
+    );
+    io::write_png_gray8(&a.out, &grey)?;
+    eprintln!(
+        "psns dataset preview: wrote {} ({} folders, 1/{factor} scale)",
+        a.out.display(),
+        rows.len()
+    );
+    Ok(())
 }
