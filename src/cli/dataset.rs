@@ -375,21 +375,49 @@ fn pipeline<'p>(
 }
 
 /// The raw frame of `scene` as `psns render --raw` renders it (same sun, attitude, frame).
+///
+/// The camera preset keys its pipeline on the whole scene but the sun, attitude and frame index.
+/// For the PSNS presets the sensor's costly part (the relative-illumination map of gniipi and
+/// gniicpi) depends on the frame size, optics, preset and seed but not on the sky, which changes
+/// from sample to sample: that sensor is kept in `slot` keyed also without the sky, and the
+/// Stokes image comes from a pipeline of the same scene with the nfpi preset, which builds no
+/// maps and draws the same scene (no PSNS preset draws the sun disc). The test that renders
+/// every sample again through `psns render` holds this to the same bytes.
 fn render(
     slot: &mut Option<(SceneConfig, RawPipeline)>,
     scene: &SceneConfig,
     truth: bool,
 ) -> Result<(psns::sensor::RawFrame, psns::sensor::mosaic::MosaicLayout)> {
-    let pipe = pipeline(slot, scene)?;
+    use psns::sensor::Preset;
     let sun = scene.sun.resolve()?;
     scene.sun.check_up(sun)?;
-    let (st, _) = pipe.stokes(sun, &scene.camera.attitude)?;
-    let f = if truth {
-        pipe.frame(&st, scene.raw.frame_index)?
-    } else {
-        pipe.frame_codes(&st, scene.raw.frame_index)?
+    let frame = |pipe: &RawPipeline, st: &psns::image::StokesImage| {
+        let f = if truth {
+            pipe.frame(st, scene.raw.frame_index)?
+        } else {
+            pipe.frame_codes(st, scene.raw.frame_index)?
+        };
+        Ok::<_, Error>((f, pipe.sensor_config().layout))
     };
-    Ok((f, pipe.sensor_config().layout))
+    match scene.raw.preset {
+        Preset::Camera => {
+            let pipe = pipeline(slot, scene)?;
+            let (st, _) = pipe.stokes(sun, &scene.camera.attitude)?;
+            frame(pipe, &st)
+        }
+        preset => {
+            let mut sky_scene = scene.clone();
+            sky_scene.raw.preset = Preset::Nfpi;
+            let sky_pipe = RawPipeline::new(&sky_scene)?;
+            let (st, _) = sky_pipe.stokes(sun, &scene.camera.attitude)?;
+            if preset == Preset::Nfpi {
+                return frame(&sky_pipe, &st);
+            }
+            let mut key = scene.clone();
+            key.sky = Default::default();
+            frame(pipeline(slot, &key)?, &st)
+        }
+    }
 }
 
 impl Worker<'_> {
