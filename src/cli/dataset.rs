@@ -207,6 +207,15 @@ fn remove_stale_staging(dir: &Path) {
     }
 }
 
+/// Writes a file every shard writes with the same content (atomically), unless it is already
+/// there with that content: shards starting or finishing together then rarely write at once.
+fn write_shared(path: &Path, text: &str) -> Result<()> {
+    if std::fs::read(path).is_ok_and(|b| b == text.as_bytes()) {
+        return Ok(());
+    }
+    super::write_text(path, text)
+}
+
 /// Size and CRC32 of a file.
 fn size_crc(path: &Path) -> std::io::Result<(u64, u32)> {
     let mut f = std::fs::File::open(path)?;
@@ -329,7 +338,7 @@ fn merge(dir: &Path, cfg: &DatasetConfig) -> Result<Merged> {
             first,
         });
     }
-    super::write_text(&dir.join(MANIFEST), &text)?;
+    write_shared(&dir.join(MANIFEST), &text)?;
     for p in parts {
         let _ = std::fs::remove_file(p);
     }
@@ -509,7 +518,7 @@ fn build(a: BuildArgs) -> anyhow::Result<()> {
         super::create_dir(d)?;
     }
     remove_stale_staging(&dir);
-    super::write_text(&dir.join(DESCRIPTION), &cfg_toml)?;
+    write_shared(&dir.join(DESCRIPTION), &cfg_toml)?;
     let mut labels = String::with_capacity(cfg.total() as usize * 200);
     labels.push_str(LABEL_HEADER);
     labels.push('\n');
@@ -521,7 +530,7 @@ fn build(a: BuildArgs) -> anyhow::Result<()> {
             mine.push(s);
         }
     }
-    super::write_text(&dir.join(LABELS), &labels)?;
+    write_shared(&dir.join(LABELS), &labels)?;
     drop(labels);
     let part_path = dir
         .join(PARTS)
