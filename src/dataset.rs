@@ -293,6 +293,40 @@ pub struct Outputs {
     pub truth: bool,
 }
 
+/// The sun from a UTC time and a place (SPA, geometric position) instead of `sun_altitude_deg`
+/// and `sun_azimuth_deg`: each sample draws a whole second uniformly in `start..=end`, a latitude
+/// and a longitude, and draws again (up to [`MAX_SUN_DRAWS`] times) until the sun is at least
+/// `min_altitude_deg` high. The sun's altitude and azimuth are rounded to 0.001 degree and
+/// rendered as such (they are in the labels and the file name; the time and place are in the
+/// labels too).
+#[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SunTime {
+    /// First instant, ISO 8601 UTC (e.g. `2024-01-01T00:00:00Z`).
+    pub start: String,
+    /// Last instant, ISO 8601 UTC.
+    pub end: String,
+    /// Latitude, degrees north (-90..90).
+    #[serde(default = "default_lat")]
+    pub lat_deg: Dist,
+    /// Longitude, degrees east (-180..180).
+    #[serde(default = "default_lon")]
+    pub lon_deg: Dist,
+    /// Lowest sun altitude accepted, degrees (0..89; default 0).
+    #[serde(default)]
+    pub min_altitude_deg: f64,
+}
+
+fn default_lat() -> Dist {
+    uniform(-60.0, 60.0, 0.01)
+}
+fn default_lon() -> Dist {
+    uniform(-180.0, 180.0, 0.01)
+}
+
+/// Most draws of a time and place for one sample before the description is refused.
+pub const MAX_SUN_DRAWS: u32 = 1000;
+
 /// A dataset description (`docs/dataset.md`): every key has a default, and the defaults are PSNS
 /// at full size.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -324,6 +358,9 @@ pub struct DatasetConfig {
     pub sun_altitude_deg: Dist,
     /// Sun compass azimuth, degrees.
     pub sun_azimuth_deg: Dist,
+    /// The sun from times and places instead (`None`: from the two keys above).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sun_time: Option<SunTime>,
     /// Turbidity.
     pub turbidity: Dist,
     /// Wavelength, nm.
@@ -361,6 +398,7 @@ impl Default for DatasetConfig {
             focal_length_mm: Dist::Fixed(4.0),
             sun_altitude_deg: uniform(0.0, 90.0, 0.1),
             sun_azimuth_deg: uniform(0.0, 359.9, 0.1),
+            sun_time: None,
             turbidity: uniform(1.7, 10.0, 0.1),
             wavelength_nm: uniform(380.0, 720.0, 1.0),
             albedo: uniform(0.0, 1.0, 0.01),
@@ -461,6 +499,17 @@ impl DatasetConfig {
 
     /// Parses a TOML description (`what` names it in messages) and validates it.
     pub fn from_toml(text: &str, what: &str) -> Result<Self> {
+        if let Ok(t) = text.parse::<toml::Table>() {
+            if t.contains_key("sun_time") {
+                for k in ["sun_altitude_deg", "sun_azimuth_deg"] {
+                    if t.contains_key(k) {
+                        return Err(Error::Invalid(format!(
+                            "{what}: give the sun either by sun_time or by {k}, not both"
+                        )));
+                    }
+                }
+            }
+        }
         let cfg: DatasetConfig = toml::from_str(text).map_err(|e| {
             Error::Invalid(format!(
                 "{what} is not a valid dataset description: {}",
@@ -473,7 +522,12 @@ impl DatasetConfig {
 
     /// The description as TOML (what `DIR/dataset.toml` holds); [`Self::from_toml`] reads it back.
     pub fn to_toml(&self) -> String {
-        toml::to_string(self).expect("dataset description serializes")
+        let mut t = toml::Table::try_from(self).expect("dataset description serializes");
+        if self.sun_time.is_some() {
+            t.remove("sun_altitude_deg");
+            t.remove("sun_azimuth_deg");
+        }
+        toml::to_string(&t).expect("dataset description serializes")
     }
 
     /// Checks every key's range; the message names the key, its value and the allowed range.
@@ -502,6 +556,24 @@ impl DatasetConfig {
         for (p, d) in PARAMS.iter().zip(self.dists()) {
             d.validate(p.key, p.lo, p.hi)?;
         }
+        if let Some(st) = &self.sun_time {
+            let start = crate::sun::parse_time(&st.start)
+                .map_err(|e| Error::Invalid(format!("sun_time.start: {e}")))?;
+            let end = crate::sun::parse_time(&st.end)
+                .map_err(|e| Error::Invalid(format!("sun_time.end: {e}")))?;
+            if end < start {
+                return Err(Error::OutOfRange {
+                    name: "sun_time.end".into(),
+                    value: st.end.clone(),
+                    allowed: format!("{} or later (sun_time.start)", st.start),
+                });
+            }
+            crate::sun::delta_t_estimate(&start)?;
+            crate::sun::delta_t_estimate(&end)?;
+            st.lat_deg.validate("sun_time.lat_deg", -90.0, 90.0)?;
+            st.lon_deg.validate("sun_time.lon_deg", -180.0, 180.0)?;
+            check_range("sun_time.min_altitude_deg", st.min_altitude_deg, 0.0, 89.0)?;
+        }
         Ok(())
     }
 
@@ -519,15 +591,16 @@ impl DatasetConfig {
     }
 
     /// Sample `number` (1-based) of `split`: its parameters drawn from the seed and its frame
-    /// index only.
-    pub fn sample(&self, split: Split, number: u64) -> Sample {
+    /// index only. Fails only for a `sun_time` that puts the sun too low in [`MAX_SUN_DRAWS`]
+    /// draws.
+    pub fn sample(&self, split: Split, number: u64) -> Result<Sample> {
         let frame_index = split.id() * SPLIT_STRIDE + number;
         let mut v = [0.0; 9];
         for ((p, d), out) in PARAMS.iter().zip(self.dists()).zip(v.iter_mut()) {
             let mut rng = crate::rng::dataset_rng(self.seed, frame_index, p.id);
             *out = d.draw(&mut rng, p.step);
         }
-        Sample {
+        let mut sample = Sample {
             split,
             number,
             frame_index,
@@ -546,14 +619,28 @@ impl DatasetConfig {
             turbidity: v[6],
             wavelength_nm: v[7],
             albedo: v[8],
+            when: None,
+        };
+        if let Some(st) = &self.sun_time {
+            let when = draw_sun_time(st, self.seed, frame_index)
+                .map_err(|e| Error::Invalid(format!("{} sample {number}: {e}", split.name())))?;
+            sample.sun_altitude_deg = when.1;
+            sample.sun_azimuth_deg = when.2;
+            sample.when = Some(when.0);
         }
+        Ok(sample)
     }
 
     /// Every sample in canonical order (split order, then number).
-    pub fn samples(&self) -> impl Iterator<Item = Sample> + '_ {
+    pub fn samples(&self) -> impl Iterator<Item = Result<Sample>> + '_ {
         self.split_counts()
             .into_iter()
             .flat_map(move |(s, n)| (1..=n).map(move |k| self.sample(s, k)))
+    }
+
+    /// Every sample in canonical order, or the first that cannot be drawn.
+    pub fn plan(&self) -> Result<Vec<Sample>> {
+        self.samples().collect()
     }
 
     /// The files of one sample, relative to the dataset directory: the 8-bit mosaic first, then
@@ -577,6 +664,53 @@ impl DatasetConfig {
         }
         v
     }
+}
+
+/// Draws a time and place with the sun at least `min_altitude_deg` high: the place and time,
+/// and the sun's altitude and azimuth rounded to 0.001 degree.
+fn draw_sun_time(st: &SunTime, seed: u64, frame_index: u64) -> Result<(When, f64, f64)> {
+    let start = crate::sun::parse_time(&st.start)?;
+    let end = crate::sun::parse_time(&st.end)?;
+    let span = (end - start).num_seconds().max(0) as u64;
+    let mut rt = crate::rng::dataset_rng(seed, frame_index, 10);
+    let mut rlat = crate::rng::dataset_rng(seed, frame_index, 11);
+    let mut rlon = crate::rng::dataset_rng(seed, frame_index, 12);
+    for _ in 0..MAX_SUN_DRAWS {
+        let t = start + chrono::Duration::seconds(rt.random_range(0..=span) as i64);
+        let lat = st.lat_deg.draw(&mut rlat, 0.01);
+        let lon = st.lon_deg.draw(&mut rlon, 0.01);
+        let place = crate::sun::Place {
+            lat_deg: lat,
+            lon_deg: lon,
+            height_m: 0.0,
+        };
+        let sun = crate::sun::spa(&t, &place, None, None)?;
+        let alt = round_decimal(90.0 - sun.zenith_deg, 3);
+        if alt >= st.min_altitude_deg && alt <= 90.0 {
+            let az = round_decimal(sun.azimuth_deg, 3);
+            let when = When {
+                time_utc: t.format("%Y-%m-%dT%H:%M:%SZ").to_string(),
+                lat_deg: lat,
+                lon_deg: lon,
+            };
+            return Ok((when, alt, az));
+        }
+    }
+    Err(Error::Invalid(format!(
+        "sun_time: the sun was below min_altitude_deg = {} in {MAX_SUN_DRAWS} draws of time and place; widen the times or places",
+        num(st.min_altitude_deg)
+    )))
+}
+
+/// The time and place a sample's sun comes from (with `sun_time`).
+#[derive(Clone, Debug, PartialEq)]
+pub struct When {
+    /// UTC time, `YYYY-MM-DDTHH:MM:SSZ`.
+    pub time_utc: String,
+    /// Latitude, degrees north.
+    pub lat_deg: f64,
+    /// Longitude, degrees east.
+    pub lon_deg: f64,
 }
 
 /// One sample's parameters: everything needed to render it again.
@@ -618,10 +752,12 @@ pub struct Sample {
     pub wavelength_nm: f64,
     /// Ground albedo.
     pub albedo: f64,
+    /// Time and place of the sun (descriptions with `sun_time`).
+    pub when: Option<When>,
 }
 
 /// Header of `labels.csv`.
-pub const LABEL_HEADER: &str = "split,file,yaw_deg,pitch_deg,roll_deg,frame,focal_length_mm,pixel_pitch_um,sun_altitude_deg,sun_azimuth_deg,turbidity,wavelength_nm,albedo,seed,frame_index,sun_cam_x,sun_cam_y,sun_cam_z,preset,width,height,sky_grid,number";
+pub const LABEL_HEADER: &str = "split,file,yaw_deg,pitch_deg,roll_deg,frame,focal_length_mm,pixel_pitch_um,sun_altitude_deg,sun_azimuth_deg,turbidity,wavelength_nm,albedo,seed,frame_index,sun_cam_x,sun_cam_y,sun_cam_z,preset,width,height,sky_grid,number,time_utc,lat_deg,lon_deg";
 
 impl Sample {
     /// `<prefix><Number>_<Yaw>_<Pitch>_<Roll>_<FocalLength>_<SolarAltitude>_<Turbidity>_<Wavelength>_<GroundAlbedo>`.
@@ -702,8 +838,16 @@ impl Sample {
             AttitudeFrame::Solar => "solar",
             AttitudeFrame::Enu => "enu",
         };
+        let (t, lat, lon) = match &self.when {
+            Some(w) => (
+                w.time_utc.clone(),
+                w.lat_deg.to_string(),
+                w.lon_deg.to_string(),
+            ),
+            None => Default::default(),
+        };
         format!(
-            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
+            "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{t},{lat},{lon}",
             self.split.name(),
             self.file(),
             self.yaw_deg,
@@ -807,19 +951,19 @@ mod tests {
     #[test]
     fn draws_depend_on_seed_and_index_only() {
         let c = tiny();
-        let all: Vec<Sample> = c.samples().collect();
+        let all: Vec<Sample> = c.plan().unwrap();
         assert_eq!(all.len(), 5);
         // the same sample drawn alone, in another order, equals the one in the full list
-        assert_eq!(c.sample(Split::Tgniicpi, 2), all[4]);
+        assert_eq!(c.sample(Split::Tgniicpi, 2).unwrap(), all[4]);
         assert_eq!(all[4].frame_index, 5 * SPLIT_STRIDE + 2);
         // another split's count does not move this split's samples
         let mut c2 = c.clone();
         c2.splits.insert("NFPI".into(), 100);
-        assert_eq!(c2.sample(Split::Tgniicpi, 2), all[4]);
+        assert_eq!(c2.sample(Split::Tgniicpi, 2).unwrap(), all[4]);
         // another seed does
         let mut c3 = c.clone();
         c3.seed = 8;
-        assert_ne!(c3.sample(Split::Tgniicpi, 2), all[4]);
+        assert_ne!(c3.sample(Split::Tgniicpi, 2).unwrap(), all[4]);
         // golden: the draw derivation is part of the dataset format
         assert_eq!(all[0].stem(), GOLDEN_STEM, "{}", all[0].stem());
         for s in &all {
@@ -909,7 +1053,7 @@ mod tests {
     #[test]
     fn label_row_has_every_column_and_the_scene_matches() {
         let c = tiny();
-        let s = c.sample(Split::Nfpi, 1);
+        let s = c.sample(Split::Nfpi, 1).unwrap();
         let row = s.label_row();
         assert_eq!(row.split(',').count(), LABEL_HEADER.split(',').count());
         assert!(row.starts_with(&format!("NFPI,NFPI/{}.png,", s.stem())));
@@ -918,5 +1062,67 @@ mod tests {
         let scene = s.scene(Preset::Nfpi);
         assert_eq!(scene.sun.resolve().unwrap(), s.sun());
         assert_eq!(scene.raw.frame_index, s.frame_index);
+    }
+
+    #[test]
+    fn sun_from_times_and_places() {
+        let text = "width = 64\nheight = 48\n[splits]\nNFPI = 20\n[sun_time]\nstart = \"2024-06-01T00:00:00Z\"\nend = \"2024-06-30T23:59:59Z\"\nlat_deg = 45\nlon_deg = { min = 0, max = 10 }\nmin_altitude_deg = 20\n";
+        let c = DatasetConfig::from_toml(text, "t").unwrap();
+        assert_eq!(DatasetConfig::from_toml(&c.to_toml(), "again").unwrap(), c);
+        let plan = c.plan().unwrap();
+        for s in &plan {
+            let w = s.when.as_ref().unwrap();
+            assert!(s.sun_altitude_deg >= 20.0 && s.sun_altitude_deg <= 90.0);
+            assert_eq!(s.sun_altitude_deg, round_decimal(s.sun_altitude_deg, 3));
+            // the label's sun is SPA's for the label's time and place, to 0.001 degree
+            let t = crate::sun::parse_time(&w.time_utc).unwrap();
+            let place = crate::sun::Place {
+                lat_deg: w.lat_deg,
+                lon_deg: w.lon_deg,
+                height_m: 0.0,
+            };
+            let sun = crate::sun::spa(&t, &place, None, None).unwrap();
+            assert!((90.0 - sun.zenith_deg - s.sun_altitude_deg).abs() <= 0.0005);
+            assert!((sun.azimuth_deg - s.sun_azimuth_deg).abs() <= 0.0005);
+            assert_eq!(w.lat_deg, 45.0);
+            assert!(w.time_utc.starts_with("2024-06-"), "{}", w.time_utc);
+            let row = s.label_row();
+            assert!(
+                row.ends_with(&format!(",{},45,{}", w.time_utc, w.lon_deg)),
+                "{row}"
+            );
+        }
+        // a polar night never has the sun up: refused, naming the key
+        let polar = text.replace("lat_deg = 45", "lat_deg = -85");
+        let c = DatasetConfig::from_toml(&polar, "t").unwrap();
+        let e = c.plan().unwrap_err().to_string();
+        assert!(
+            e.contains("NFPI sample 1: sun_time: the sun was below min_altitude_deg = 20"),
+            "{e}"
+        );
+        // both ways of giving the sun, a bad time, an end before the start
+        let both = format!("sun_altitude_deg = 30\n{text}");
+        let e = DatasetConfig::from_toml(&both, "t")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("either by sun_time or by sun_altitude_deg"),
+            "{e}"
+        );
+        let bad = text.replace("2024-06-01T00:00:00Z", "June 1st");
+        let e = DatasetConfig::from_toml(&bad, "t").unwrap_err().to_string();
+        assert!(e.contains("sun_time.start: time 'June 1st'"), "{e}");
+        let back = text.replace("2024-06-30T23:59:59Z", "2024-05-30T23:59:59Z");
+        let e = DatasetConfig::from_toml(&back, "t")
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("sun_time.end = 2024-05-30T23:59:59Z is out of range"),
+            "{e}"
+        );
+        let e = DatasetConfig::from_toml(&text.replace("= 45", "= 95"), "t").unwrap_err();
+        assert!(e
+            .to_string()
+            .contains("sun_time.lat_deg = 95 is out of range (allowed -90..90)"));
     }
 }

@@ -304,7 +304,7 @@ enum Merged {
 }
 
 /// Writes `manifest.csv` when every file of every sample has an entry; then removes `.parts`.
-fn merge(dir: &Path, cfg: &DatasetConfig) -> Result<Merged> {
+fn merge(dir: &Path, cfg: &DatasetConfig, plan: &[Sample]) -> Result<Merged> {
     let (known, parts) = known_entries(dir);
     let mut text = String::from("file,size,crc32\n");
     for name in [DESCRIPTION, LABELS] {
@@ -315,8 +315,8 @@ fn merge(dir: &Path, cfg: &DatasetConfig) -> Result<Merged> {
     }
     let (mut missing, mut first) = (0u64, String::new());
     let mut files = 2;
-    for s in cfg.samples() {
-        let fs = cfg.files(&s);
+    for s in plan {
+        let fs = cfg.files(s);
         let mut whole = true;
         for f in &fs {
             match known.get(f) {
@@ -506,6 +506,19 @@ fn build(a: BuildArgs) -> anyhow::Result<()> {
         super::output::memory_need(cfg.width * cfg.height * jobs, BYTES_PER_PIXEL),
         super::output::memory_available(),
     )?;
+    // every sample's parameters and name (a sun_time that keeps the sun down fails here)
+    let plan = cfg.plan()?;
+    let mut labels = String::with_capacity(plan.len() * 200);
+    labels.push_str(LABEL_HEADER);
+    labels.push('\n');
+    let mut mine = Vec::new();
+    for (j, s) in plan.iter().enumerate() {
+        labels.push_str(&s.label_row());
+        labels.push('\n');
+        if shard.contains(j as u64) {
+            mine.push(s.clone());
+        }
+    }
     // everything is checked: from here on files are written
     let mut dirs: Vec<PathBuf> = vec![dir.join(PARTS)];
     for (s, _) in cfg.split_counts() {
@@ -519,17 +532,6 @@ fn build(a: BuildArgs) -> anyhow::Result<()> {
     }
     remove_stale_staging(&dir);
     write_shared(&dir.join(DESCRIPTION), &cfg_toml)?;
-    let mut labels = String::with_capacity(cfg.total() as usize * 200);
-    labels.push_str(LABEL_HEADER);
-    labels.push('\n');
-    let mut mine = Vec::new();
-    for (j, s) in cfg.samples().enumerate() {
-        labels.push_str(&s.label_row());
-        labels.push('\n');
-        if shard.contains(j as u64) {
-            mine.push(s);
-        }
-    }
     write_shared(&dir.join(LABELS), &labels)?;
     drop(labels);
     let part_path = dir
@@ -605,10 +607,10 @@ fn build(a: BuildArgs) -> anyhow::Result<()> {
     let rate = if secs > 0.0 { built as f64 / secs } else { 0.0 };
     eprintln!(
         "psns dataset: shard {shard}: built {built} samples ({} files), {skipped} already complete, in {secs:.2} s: {rate:.2} images/s ({:.2} s with start-up)",
-        built * cfg.files(&cfg.sample(cfg.split_counts()[0].0, 1)).len(),
+        built * cfg.files(&plan[0]).len(),
         t0.elapsed().as_secs_f64()
     );
-    match merge(&dir, &cfg)? {
+    match merge(&dir, &cfg, &plan)? {
         Merged::Written { files } => eprintln!(
             "psns dataset: {} samples complete; wrote {} ({files} files)",
             cfg.total(),
@@ -643,7 +645,8 @@ fn open_dataset(dir: &Path) -> Result<DatasetConfig> {
 
 fn merge_cmd(dir: &Path) -> anyhow::Result<()> {
     let cfg = open_dataset(dir)?;
-    match merge(dir, &cfg)? {
+    let plan = cfg.plan()?;
+    match merge(dir, &cfg, &plan)? {
         Merged::Written { files } => {
             eprintln!(
                 "psns dataset merge: wrote {} ({files} files of {} samples)",
@@ -692,11 +695,14 @@ fn verify(dir: &Path) -> anyhow::Result<()> {
     let listed: std::collections::HashSet<&str> = entries.iter().map(|e| e.0.as_str()).collect();
     let mut expected = vec![DESCRIPTION.to_string(), LABELS.to_string()];
     match open_dataset(dir) {
-        Ok(cfg) => {
-            for s in cfg.samples() {
-                expected.extend(cfg.files(&s));
+        Ok(cfg) => match cfg.plan() {
+            Ok(plan) => {
+                for s in &plan {
+                    expected.extend(cfg.files(s));
+                }
             }
-        }
+            Err(e) => problems.push(format!("{DESCRIPTION}: {e}")),
+        },
         Err(e) => problems.push(format!("{DESCRIPTION}: damaged or missing ({e})")),
     }
     if manifest.is_ok() {
@@ -755,7 +761,7 @@ fn preview(a: &PreviewArgs) -> anyhow::Result<()> {
     for (split, n) in cfg.split_counts() {
         let mut tiles = Vec::new();
         for k in 1..=n.min(a.per_split) {
-            let p = a.dir.join(cfg.sample(split, k).file());
+            let p = a.dir.join(cfg.sample(split, k)?.file());
             let g = io::read_gray(&p)?;
             let img = g.image;
             let g8 = Image::from_vec(
