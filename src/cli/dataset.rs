@@ -162,12 +162,23 @@ fn check_out_dir(dir: &Path, cfg_toml: &str) -> Result<()> {
     Ok(())
 }
 
+/// This machine's name as it goes into staging directory names `tmp-HOST-PID`.
 fn hostname() -> String {
-    std::fs::read_to_string("/proc/sys/kernel/hostname")
-        .map(|s| s.trim().to_string())
-        .ok()
-        .filter(|s| !s.is_empty() && !s.contains(['/', '-']))
+    host_name(std::fs::read_to_string("/proc/sys/kernel/hostname").ok())
+}
+
+/// A host name from the kernel's text (`None`, empty or with a `/`: "host"). Hyphens stay: the
+/// PID is after the last one.
+fn host_name(raw: Option<String>) -> String {
+    raw.map(|s| s.trim().to_string())
+        .filter(|s| !s.is_empty() && !s.contains('/'))
         .unwrap_or_else(|| "host".into())
+}
+
+/// The host and PID of a staging directory name `tmp-HOST-PID`.
+fn staging_owner(name: &str) -> Option<(&str, u32)> {
+    let (h, pid) = name.strip_prefix("tmp-")?.rsplit_once('-')?;
+    Some((h, pid.parse().ok()?))
 }
 
 /// Removes the staging directories `.parts/tmp-HOST-PID` of this host's processes that no longer
@@ -179,17 +190,22 @@ fn remove_stale_staging(dir: &Path) {
     };
     for e in entries.flatten() {
         let n = e.file_name().to_string_lossy().into_owned();
-        let Some((h, pid)) = n.strip_prefix("tmp-").and_then(|r| r.rsplit_once('-')) else {
+        let Some((h, pid)) = staging_owner(&n) else {
             continue;
         };
-        let dead = pid.parse::<u32>().is_ok_and(|p| {
-            Path::new("/proc/self").exists() && !Path::new(&format!("/proc/{p}")).exists()
-        });
+        let dead = Path::new("/proc/self").exists() && !Path::new(&format!("/proc/{pid}")).exists();
         if h == host && dead {
             let _ = std::fs::remove_dir_all(e.path());
         }
     }
-    // hidden temporaries of atomic writes at the top (dataset.toml, labels.csv, manifest.csv)
+    // hidden temporaries of atomic writes at the top (dataset.toml, labels.csv, manifest.csv):
+    // their names carry no host, so only those untouched for two minutes go (another host's
+    // write in progress is younger)
+    let old = |e: &std::fs::DirEntry| {
+        e.metadata()
+            .and_then(|m| m.modified())
+            .is_ok_and(|t| t.elapsed().is_ok_and(|a| a.as_secs() >= 120))
+    };
     if let Ok(entries) = std::fs::read_dir(dir) {
         for e in entries.flatten() {
             let n = e.file_name().to_string_lossy().into_owned();
@@ -197,6 +213,7 @@ fn remove_stale_staging(dir: &Path) {
                 .rsplit_once(".tmp-")
                 .and_then(|(_, p)| p.parse::<u32>().ok());
             if n.starts_with('.')
+                && old(&e)
                 && pid.is_some_and(|p| {
                     Path::new("/proc/self").exists() && !Path::new(&format!("/proc/{p}")).exists()
                 })
@@ -788,4 +805,42 @@ fn preview(a: &PreviewArgs) -> anyhow::Result<()> {
         rows.len()
     );
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Staging directories of hosts named with hyphens (node-012) are told apart from other
+    /// hosts' (the first version mapped every such name to "host", so a build on one node
+    /// removed another node's staging).
+    #[test]
+    fn staging_names_keep_the_host() {
+        assert_eq!(host_name(Some("node-012\n".into())), "node-012");
+        assert_eq!(host_name(Some("".into())), "host");
+        assert_eq!(host_name(None), "host");
+        assert_eq!(staging_owner("tmp-node-012-4242"), Some(("node-012", 4242)));
+        assert_eq!(staging_owner("tmp-a-1"), Some(("a", 1)));
+        assert_eq!(staging_owner("manifest-1-of-3.csv"), None);
+        assert_eq!(staging_owner("tmp-node-x"), None);
+    }
+
+    #[test]
+    fn manifest_lines_round_trip_and_cut_lines_are_ignored() {
+        let l = manifest_line("NFPI/N1_1_0_0_4_5_2_400_0.1.png", 123, 0xdeadbeef);
+        assert_eq!(l, "NFPI/N1_1_0_0_4_5_2_400_0.1.png,123,deadbeef\n");
+        assert_eq!(
+            parse_line(l.trim_end()),
+            Some(("NFPI/N1_1_0_0_4_5_2_400_0.1.png".into(), 123, 0xdeadbeef))
+        );
+        // a line cut by a kill, the header
+        assert_eq!(
+            parse_line("NFPI/N1_1_0_0_4_5_2_400_0.1.png,123,deadb"),
+            None
+        );
+        assert_eq!(parse_line("file,size,crc32"), None);
+        let mut m = HashMap::new();
+        read_entries(&format!("{l}{l}NFPI/N2.png,5,0000"), &mut m);
+        assert_eq!(m.len(), 1);
+    }
 }
