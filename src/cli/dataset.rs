@@ -260,7 +260,7 @@ fn manifest_line(file: &str, size: u64, crc: u32) -> String {
 fn parse_line(line: &str) -> Option<(String, u64, u32)> {
     let mut it = line.rsplitn(3, ',');
     let (crc, size, file) = (it.next()?, it.next()?, it.next()?);
-    if crc.len() != 8 || file.is_empty() {
+    if crc.len() != 8 || file.is_empty() || file.contains(',') {
         return None;
     }
     Some((
@@ -577,6 +577,13 @@ fn build(a: BuildArgs) -> anyhow::Result<()> {
         .truncate(!a.resume)
         .open(&part_path)
         .map_err(|e| Error::io(format!("opening {}", part_path.display()), e))?;
+    // a line cut by a kill is ended, so the next entry starts a line of its own
+    let cut = std::fs::read(&part_path).is_ok_and(|b| b.last().is_some_and(|&c| c != b'\n'));
+    let mut part = part;
+    if cut {
+        part.write_all(b"\n")
+            .map_err(|e| Error::io(format!("writing {}", part_path.display()), e))?;
+    }
     let part = Mutex::new(part);
     let staging = dir
         .join(PARTS)
@@ -842,5 +849,10 @@ mod tests {
         let mut m = HashMap::new();
         read_entries(&format!("{l}{l}NFPI/N2.png,5,0000"), &mut m);
         assert_eq!(m.len(), 1);
+        // a cut line glued to the next entry is not taken for an entry
+        assert_eq!(
+            parse_line("NFPI/N2.png,32NFPI/N3.png,3257072,abcdef12"),
+            None
+        );
     }
 }
