@@ -179,6 +179,20 @@ fn killed_build_resumes_to_the_uninterrupted_result() {
     }
     child.kill().unwrap();
     child.wait().unwrap();
+    // the samples the killed build finished: all three files (image, DOP, AOP) in its manifest
+    let text = std::fs::read_to_string(&part).unwrap();
+    let mut per_sample: BTreeMap<String, usize> = BTreeMap::new();
+    for l in text.lines() {
+        let f: Vec<&str> = l.split(',').collect();
+        if f.len() == 3 && f[2].len() == 8 {
+            let stem = f[0].rsplit('/').next().unwrap();
+            let stem = stem.trim_end_matches(".png").trim_end_matches("_dop.npy");
+            *per_sample
+                .entry(stem.trim_end_matches("_aop.npy").to_string())
+                .or_default() += 1;
+        }
+    }
+    let finished = per_sample.values().filter(|&&n| n == 3).count();
     // as if the kill had cut the part's last line
     let mut f = std::fs::OpenOptions::new()
         .append(true)
@@ -214,11 +228,13 @@ fn killed_build_resumes_to_the_uninterrupted_result() {
     ok(&o);
     let e = stderr(&o);
     let skipped: usize = e
-        .split("--resume: ")
-        .nth(1)
+        .lines()
+        .find(|l| l.ends_with("samples already complete"))
+        .and_then(|l| l.split("--resume: ").nth(1))
         .and_then(|s| s.split_whitespace().next())
         .and_then(|s| s.parse().ok())
         .unwrap_or_else(|| panic!("no resume count in: {e}"));
+    assert_eq!(skipped, finished, "{e}");
     assert!((10..300).contains(&skipped), "{e}");
     assert_same_tree(&reference, &out);
 }

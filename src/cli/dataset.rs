@@ -561,9 +561,20 @@ fn build(a: BuildArgs) -> anyhow::Result<()> {
     let n_mine = mine.len();
     let todo: Vec<Sample> = if a.resume {
         let (known, _) = known_entries(&dir);
+        // reading every file back takes a while on a big dataset: show it
+        let checked = Mutex::new(Progress::new(
+            "psns dataset: --resume: checking",
+            Unit::Images,
+            Some(mine.len() as u64),
+            false,
+        ));
         pool.install(|| {
             mine.into_par_iter()
-                .filter(|s| !complete(&dir, &cfg.files(s), &known))
+                .filter(|s| {
+                    let whole = complete(&dir, &cfg.files(s), &known);
+                    checked.lock().unwrap().inc(1);
+                    !whole
+                })
                 .collect()
         })
     } else {
