@@ -288,6 +288,10 @@ pub struct Outputs {
     /// The 12-bit frame of the realistic camera preset for the same scene, as `psns render --raw
     /// --preset camera` writes it (16-bit PNG, LSB-aligned): `extras/<split>/<stem>_raw12.png`.
     pub raw12: bool,
+    /// Exposure of the 12-bit frame, µs (20..10,000,000): a distribution, or `None` for the
+    /// camera's auto-exposure (99th percentile of the sky at 70 % of full well).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub raw12_exposure_us: Option<Dist>,
     /// Truth DOP and AOP (degrees) of the PSNS frame, `.npy` f32: `extras/<split>/<stem>_dop.npy`,
     /// `_aop.npy`.
     pub truth: bool,
@@ -556,6 +560,14 @@ impl DatasetConfig {
         for (p, d) in PARAMS.iter().zip(self.dists()) {
             d.validate(p.key, p.lo, p.hi)?;
         }
+        if let Some(d) = &self.outputs.raw12_exposure_us {
+            if !self.outputs.raw12 {
+                return Err(Error::Invalid(
+                    "outputs.raw12_exposure_us applies to the 12-bit frame: add raw12 = true under [outputs] (or leave it out)".into(),
+                ));
+            }
+            d.validate("outputs.raw12_exposure_us", 20.0, 1e7)?;
+        }
         if let Some(st) = &self.sun_time {
             let start = crate::sun::parse_time(&st.start)
                 .map_err(|e| Error::Invalid(format!("sun_time.start: {e}")))?;
@@ -620,7 +632,12 @@ impl DatasetConfig {
             wavelength_nm: v[7],
             albedo: v[8],
             when: None,
+            raw12_exposure_us: None,
         };
+        if let Some(d) = &self.outputs.raw12_exposure_us {
+            let mut rng = crate::rng::dataset_rng(self.seed, frame_index, 13);
+            sample.raw12_exposure_us = Some(d.draw(&mut rng, 1.0));
+        }
         if let Some(st) = &self.sun_time {
             let when = draw_sun_time(st, self.seed, frame_index)
                 .map_err(|e| Error::Invalid(format!("{} sample {number}: {e}", split.name())))?;
@@ -754,10 +771,12 @@ pub struct Sample {
     pub albedo: f64,
     /// Time and place of the sun (descriptions with `sun_time`).
     pub when: Option<When>,
+    /// Exposure of the 12-bit camera frame, µs; `None` = auto-exposure.
+    pub raw12_exposure_us: Option<f64>,
 }
 
 /// Header of `labels.csv`.
-pub const LABEL_HEADER: &str = "split,file,yaw_deg,pitch_deg,roll_deg,frame,focal_length_mm,pixel_pitch_um,sun_altitude_deg,sun_azimuth_deg,turbidity,wavelength_nm,albedo,seed,frame_index,sun_cam_x,sun_cam_y,sun_cam_z,preset,width,height,sky_grid,number,time_utc,lat_deg,lon_deg";
+pub const LABEL_HEADER: &str = "split,file,yaw_deg,pitch_deg,roll_deg,frame,focal_length_mm,pixel_pitch_um,sun_altitude_deg,sun_azimuth_deg,turbidity,wavelength_nm,albedo,seed,frame_index,sun_cam_x,sun_cam_y,sun_cam_z,preset,width,height,sky_grid,number,time_utc,lat_deg,lon_deg,raw12_exposure_us";
 
 impl Sample {
     /// `<prefix><Number>_<Yaw>_<Pitch>_<Roll>_<FocalLength>_<SolarAltitude>_<Turbidity>_<Wavelength>_<GroundAlbedo>`.
@@ -825,14 +844,38 @@ impl Sample {
         };
         c.camera.attitude = self.attitude();
         c.raw.preset = preset;
+        if preset == Preset::Camera {
+            // as `psns render --preset camera --exposure-us X` or `--auto-exposure`
+            let mut sensor = crate::sensor::SensorConfig::preset(Preset::Camera);
+            sensor.exposure = match self.raw12_exposure_us {
+                Some(us) => crate::sensor::Exposure::Fixed { us },
+                None => crate::sensor::Exposure::auto(),
+            };
+            c.raw.sensor = Some(sensor);
+        }
         c.raw.seed = self.seed;
         c.raw.frame_index = self.frame_index;
         c.raw.sky_grid = self.sky_grid;
         c
     }
 
-    /// The row of `labels.csv` (columns of [`LABEL_HEADER`]).
+    /// The row of `labels.csv` (columns of [`LABEL_HEADER`]); `raw12` says whether the 12-bit
+    /// frame is written (its exposure column is empty otherwise).
+    pub fn label_row_with(&self, raw12: bool) -> String {
+        let exposure = match (raw12, self.raw12_exposure_us) {
+            (false, _) => String::new(),
+            (true, None) => "auto".into(),
+            (true, Some(us)) => us.to_string(),
+        };
+        format!("{},{exposure}", self.label_row_base())
+    }
+
+    /// The row of `labels.csv` of a dataset without the 12-bit frame.
     pub fn label_row(&self) -> String {
+        self.label_row_with(false)
+    }
+
+    fn label_row_base(&self) -> String {
         let v = self.sun_camera();
         let frame = match self.frame {
             AttitudeFrame::Solar => "solar",
@@ -1025,6 +1068,11 @@ mod tests {
             ("[yaw_deg]\nvalues = []\n", "yaw_deg.values is empty"),
             ("[yaw_deg]\nmin = 1\n", "max"),
             ("frame = \"ned\"\n", "ned"),
+            ("[outputs]\nraw12_exposure_us = 500\n", "add raw12 = true"),
+            (
+                "[outputs]\nraw12 = true\nraw12_exposure_us = 5\n",
+                "outputs.raw12_exposure_us = 5 is out of range (allowed 20..10000000)",
+            ),
         ];
         for (text, want) in cases {
             let e = DatasetConfig::from_toml(text, "c.toml").unwrap_err();
@@ -1088,7 +1136,7 @@ mod tests {
             assert!(w.time_utc.starts_with("2024-06-"), "{}", w.time_utc);
             let row = s.label_row();
             assert!(
-                row.ends_with(&format!(",{},45,{}", w.time_utc, w.lon_deg)),
+                row.ends_with(&format!(",{},45,{},", w.time_utc, w.lon_deg)),
                 "{row}"
             );
         }

@@ -18,7 +18,7 @@ const TINY: &str =
     "seed = 7\nwidth = 64\nheight = 48\n[splits]\nNFPI = 2\nGNIICPI = 2\nTGNIIPI = 2\n";
 
 /// Suns from times and places; at 85 degrees south in June the sun never rises.
-const SUN_TIME: &str = "seed = 2\nwidth = 64\nheight = 48\n[splits]\nGNIIPI = 3\n[sun_time]\nstart = \"2025-03-01T00:00:00Z\"\nend = \"2025-03-31T23:59:59Z\"\nlat_deg = { min = 30, max = 50 }\nlon_deg = { values = [10, 120] }\nmin_altitude_deg = 10\n";
+const SUN_TIME: &str = "seed = 2\nwidth = 64\nheight = 48\n[splits]\nGNIIPI = 3\n[sun_time]\nstart = \"2025-03-01T00:00:00Z\"\nend = \"2025-03-31T23:59:59Z\"\nlat_deg = { min = 30, max = 50 }\nlon_deg = { values = [10, 120] }\nmin_altitude_deg = 10\n[outputs]\nraw12 = true\n";
 const POLAR_NIGHT: &str = "width = 64\nheight = 48\n[splits]\nNFPI = 3\n[sun_time]\nstart = \"2025-06-10T00:00:00Z\"\nend = \"2025-06-11T00:00:00Z\"\nlat_deg = -85\n";
 
 fn write_config(dir: &Path, text: &str) -> PathBuf {
@@ -329,7 +329,7 @@ fn labels_match_file_names_and_rerendering_from_them_gives_the_image() {
     let t = tempfile::tempdir().unwrap();
     let cfg = write_config(
         t.path(),
-        "seed = 11\nwidth = 64\nheight = 48\nframe = \"enu\"\n[splits]\nGNIIPI = 4\nGNIICPI = 4\nTNFPI = 2\n[pitch_deg]\nmin = -5\nmax = 5\n[roll_deg]\nvalues = [-2, 3]\n[focal_length_mm]\nvalues = [3.5, 4]\n[outputs]\nraw12 = true\n",
+        "seed = 11\nwidth = 64\nheight = 48\nframe = \"enu\"\n[splits]\nGNIIPI = 4\nGNIICPI = 4\nTNFPI = 2\n[pitch_deg]\nmin = -5\nmax = 5\n[roll_deg]\nvalues = [-2, 3]\n[focal_length_mm]\nvalues = [3.5, 4]\n[outputs]\nraw12 = true\nraw12_exposure_us = { values = [500, 2000] }\n",
     );
     let d = t.path().join("d");
     ok(&build(&d, &cfg, &["--jobs", "1"]));
@@ -452,6 +452,9 @@ fn labels_match_file_names_and_rerendering_from_them_gives_the_image() {
         args.drain(b..b + 2);
         let o = args.iter().position(|s| s == "--out").unwrap();
         args[o + 1] = format!("{}12", args[o + 1]);
+        assert!(["500", "2000"].contains(&r["raw12_exposure_us"]), "{r:?}");
+        args.push("--exposure-us".into());
+        args.push(r["raw12_exposure_us"].into());
         let a: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
         ok(&psns(&a));
         let again = std::fs::read(Path::new(&args[o + 1]).join("raw.png")).unwrap();

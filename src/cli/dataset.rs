@@ -530,7 +530,7 @@ fn build(a: BuildArgs) -> anyhow::Result<()> {
     labels.push('\n');
     let mut mine = Vec::new();
     for (j, s) in plan.iter().enumerate() {
-        labels.push_str(&s.label_row());
+        labels.push_str(&s.label_row_with(cfg.outputs.raw12));
         labels.push('\n');
         if shard.contains(j as u64) {
             mine.push(s.clone());
