@@ -872,3 +872,43 @@ fn sun_from_times_and_places_is_labelled_and_reproducible() {
         std::fs::read(out.join("raw.png")).unwrap() == std::fs::read(d.join(r["file"])).unwrap()
     );
 }
+
+#[test]
+fn polarizer_images_are_the_mosaic_channels_and_truth_has_the_frame_size() {
+    let t = tempfile::tempdir().unwrap();
+    let cfg = write_config(
+        t.path(),
+        &format!("{TINY}[outputs]\npolarizer_images = true\ntruth = true\n"),
+    );
+    let d = t.path().join("d");
+    ok(&build(&d, &cfg, &["--jobs", "2"]));
+    let labels = std::fs::read_to_string(d.join("labels.csv")).unwrap();
+    for line in labels.lines().skip(1) {
+        let file = line.split(',').nth(1).unwrap();
+        let stem = file.trim_end_matches(".png");
+        let m = psns::io::read_gray(&d.join(file)).unwrap().image;
+        // IMX250MZR superpixel: (0,0) 90, (0,1) 45, (1,0) 135, (1,1) 0 degrees
+        for (angle, r0, c0) in [(90, 0, 0), (45, 0, 1), (135, 1, 0), (0, 1, 1)] {
+            let p = d.join(format!("extras/{stem}_i{angle}.png"));
+            let img = psns::io::read_gray(&p).unwrap().image;
+            assert_eq!((img.width, img.height), (32, 24));
+            for r in 0..24 {
+                for c in 0..32 {
+                    assert_eq!(
+                        img.get(r, c),
+                        m.get(2 * r + r0, 2 * c + c0),
+                        "{angle} ({r},{c})"
+                    );
+                }
+            }
+        }
+        let dop = psns::io::read_npy_f32(&d.join(format!("extras/{stem}_dop.npy"))).unwrap();
+        let aop = psns::io::read_npy_f32(&d.join(format!("extras/{stem}_aop.npy"))).unwrap();
+        assert_eq!(
+            (dop.width, dop.height, aop.width, aop.height),
+            (64, 48, 64, 48)
+        );
+        assert!(dop.data.iter().all(|v| (0.0..=1.0).contains(v)), "{stem}");
+        assert!(aop.data.iter().any(|&v| v != 0.0), "{stem}");
+    }
+}
