@@ -216,7 +216,8 @@ fn decimals(v: f64) -> usize {
 
 /// `v` rounded to `d` decimal places, as the f64 nearest that decimal (so it prints as written).
 fn round_decimal(v: f64, d: usize) -> f64 {
-    format!("{v:.d$}").parse().expect("formatted number parses")
+    let r: f64 = format!("{v:.d$}").parse().expect("formatted number parses");
+    r + 0.0 // -0 prints as "-0"; +0.0 makes it 0
 }
 
 impl Dist {
@@ -1032,6 +1033,16 @@ mod tests {
         }
         assert_eq!(seen.len(), 84); // 1.7, 1.8, ..., 10
         assert!(seen.contains("10") && seen.contains("1.7"));
+        // a grid through zero from below never prints "-0"
+        let d = uniform(-0.3, 0.3, 0.1);
+        let mut seen = std::collections::BTreeSet::new();
+        for i in 0..500 {
+            let mut r = crate::rng::dataset_rng(1, i, 2);
+            seen.insert(format!("{}", d.draw(&mut r, 0.1)));
+        }
+        assert_eq!(seen.len(), 7, "{seen:?}");
+        assert!(seen.contains("0") && !seen.contains("-0"), "{seen:?}");
+        assert_eq!(format!("{}", round_decimal(-1e-17, 1)), "0");
         let c = Dist::Choice(vec![400.0, 550.0]);
         let mut r = crate::rng::dataset_rng(1, 0, 8);
         assert!([400.0, 550.0].contains(&c.draw(&mut r, 1.0)));
