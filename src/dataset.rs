@@ -658,7 +658,14 @@ impl DatasetConfig {
 
     /// Every sample in canonical order, or the first that cannot be drawn.
     pub fn plan(&self) -> Result<Vec<Sample>> {
-        self.samples().collect()
+        use rayon::prelude::*;
+        // SPA draws (with `sun_time`) cost a few microseconds each: spread them over the cores
+        let ids: Vec<(Split, u64)> = self
+            .split_counts()
+            .into_iter()
+            .flat_map(|(s, n)| (1..=n).map(move |k| (s, k)))
+            .collect();
+        ids.par_iter().map(|&(s, k)| self.sample(s, k)).collect()
     }
 
     /// The files of one sample, relative to the dataset directory: the 8-bit mosaic first, then
