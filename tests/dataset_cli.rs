@@ -912,3 +912,37 @@ fn polarizer_images_are_the_mosaic_channels_and_truth_has_the_frame_size() {
         assert!(aop.data.iter().any(|&v| v != 0.0), "{stem}");
     }
 }
+
+/// On a terminal the build shows an indicatif bar with the rate and the ETA (run under `script`
+/// for a pseudo-terminal; a visible skip where util-linux `script` is missing).
+#[test]
+fn terminal_gets_a_progress_bar_with_rate_and_eta() {
+    if Command::new("script").arg("--version").output().is_err() {
+        use std::io::Write;
+        let _ = writeln!(
+            std::io::stderr().lock(),
+            "SKIPPED terminal_gets_a_progress_bar_with_rate_and_eta: `script` (util-linux) is not installed"
+        );
+        return;
+    }
+    let t = tempfile::tempdir().unwrap();
+    let cfg = write_config(t.path(), TINY);
+    let d = t.path().join("d");
+    let cmd = format!(
+        "{} dataset build --out {} --config {} --jobs 1",
+        bin(),
+        d.display(),
+        cfg.display()
+    );
+    let o = Command::new("script")
+        .args(["-qec", &cmd, "/dev/null"])
+        .env_remove("PSNS_PROGRESS")
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{o:?}");
+    let out = String::from_utf8_lossy(&o.stdout);
+    assert!(out.contains("psns dataset: ["), "{out}");
+    assert!(out.contains(" images/s, eta "), "{out}");
+    assert!(out.contains("built 6 samples"), "{out}");
+    assert!(d.join("manifest.csv").is_file());
+}
