@@ -372,6 +372,11 @@ pub struct DatasetConfig {
     pub wavelength_nm: Dist,
     /// Ground albedo.
     pub albedo: Dist,
+    /// Fraction of samples (0..1, drawn per sample) with soft unpolarized clouds blended into the
+    /// sky (`psns render --clouds`). Above 0 every sample gets a camera seed of its own, drawn
+    /// from the dataset seed and its frame index, so that the clouds (seeded by the camera seed)
+    /// differ from sample to sample.
+    pub soft_clouds: f64,
     /// Optional outputs.
     pub outputs: Outputs,
 }
@@ -407,6 +412,7 @@ impl Default for DatasetConfig {
             turbidity: uniform(1.7, 10.0, 0.1),
             wavelength_nm: uniform(380.0, 720.0, 1.0),
             albedo: uniform(0.0, 1.0, 0.01),
+            soft_clouds: 0.0,
             outputs: Outputs::default(),
         }
     }
@@ -561,6 +567,7 @@ impl DatasetConfig {
         for (p, d) in PARAMS.iter().zip(self.dists()) {
             d.validate(p.key, p.lo, p.hi)?;
         }
+        check_range("soft_clouds", self.soft_clouds, 0.0, 1.0)?;
         if let Some(d) = &self.outputs.raw12_exposure_us {
             if !self.outputs.raw12 {
                 return Err(Error::Invalid(
@@ -634,7 +641,14 @@ impl DatasetConfig {
             albedo: v[8],
             when: None,
             raw12_exposure_us: None,
+            soft_clouds: false,
         };
+        if self.soft_clouds > 0.0 {
+            let mut rng = crate::rng::dataset_rng(self.seed, frame_index, 14);
+            sample.soft_clouds = rng.random::<f64>() < self.soft_clouds;
+            // a camera of its own (the clouds are seeded by the camera seed), below 2^63
+            sample.seed = crate::rng::dataset_rng(self.seed, frame_index, 15).random::<u64>() >> 1;
+        }
         if let Some(d) = &self.outputs.raw12_exposure_us {
             let mut rng = crate::rng::dataset_rng(self.seed, frame_index, 13);
             sample.raw12_exposure_us = Some(d.draw(&mut rng, 1.0));
@@ -781,10 +795,12 @@ pub struct Sample {
     pub when: Option<When>,
     /// Exposure of the 12-bit camera frame, µs; `None` = auto-exposure.
     pub raw12_exposure_us: Option<f64>,
+    /// Soft clouds in the sky (`psns render --clouds`).
+    pub soft_clouds: bool,
 }
 
 /// Header of `labels.csv`.
-pub const LABEL_HEADER: &str = "split,file,yaw_deg,pitch_deg,roll_deg,frame,focal_length_mm,pixel_pitch_um,sun_altitude_deg,sun_azimuth_deg,turbidity,wavelength_nm,albedo,seed,frame_index,sun_cam_x,sun_cam_y,sun_cam_z,preset,width,height,sky_grid,number,time_utc,lat_deg,lon_deg,raw12_exposure_us";
+pub const LABEL_HEADER: &str = "split,file,yaw_deg,pitch_deg,roll_deg,frame,focal_length_mm,pixel_pitch_um,sun_altitude_deg,sun_azimuth_deg,turbidity,wavelength_nm,albedo,seed,frame_index,sun_cam_x,sun_cam_y,sun_cam_z,preset,width,height,sky_grid,number,time_utc,lat_deg,lon_deg,raw12_exposure_us,soft_clouds";
 
 impl Sample {
     /// `<prefix><Number>_<Yaw>_<Pitch>_<Roll>_<FocalLength>_<SolarAltitude>_<Turbidity>_<Wavelength>_<GroundAlbedo>`.
@@ -864,6 +880,9 @@ impl Sample {
         c.raw.seed = self.seed;
         c.raw.frame_index = self.frame_index;
         c.raw.sky_grid = self.sky_grid;
+        if self.soft_clouds {
+            c.raw.soft_clouds = Some(crate::sky::clouds::SoftClouds::default());
+        }
         c
     }
 
@@ -875,7 +894,11 @@ impl Sample {
             (true, None) => "auto".into(),
             (true, Some(us)) => us.to_string(),
         };
-        format!("{},{exposure}", self.label_row_base())
+        format!(
+            "{},{exposure},{}",
+            self.label_row_base(),
+            u8::from(self.soft_clouds)
+        )
     }
 
     /// The row of `labels.csv` of a dataset without the 12-bit frame.
@@ -1088,6 +1111,10 @@ mod tests {
             ("frame = \"ned\"\n", "ned"),
             ("[outputs]\nraw12_exposure_us = 500\n", "add raw12 = true"),
             (
+                "soft_clouds = 1.5\n",
+                "soft_clouds = 1.5 is out of range (allowed 0..1)",
+            ),
+            (
                 "[outputs]\nraw12 = true\nraw12_exposure_us = 5\n",
                 "outputs.raw12_exposure_us = 5 is out of range (allowed 20..10000000)",
             ),
@@ -1154,7 +1181,7 @@ mod tests {
             assert!(w.time_utc.starts_with("2024-06-"), "{}", w.time_utc);
             let row = s.label_row();
             assert!(
-                row.ends_with(&format!(",{},45,{},", w.time_utc, w.lon_deg)),
+                row.ends_with(&format!(",{},45,{},,0", w.time_utc, w.lon_deg)),
                 "{row}"
             );
         }

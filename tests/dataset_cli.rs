@@ -946,3 +946,70 @@ fn terminal_gets_a_progress_bar_with_rate_and_eta() {
     assert!(out.contains("built 6 samples"), "{out}");
     assert!(d.join("manifest.csv").is_file());
 }
+
+/// `soft_clouds = p`: about a fraction p of the samples have clouds, every sample has a camera
+/// seed of its own (so the clouds differ), and `psns render --seed S --clouds` reproduces them.
+#[test]
+fn soft_clouds_differ_per_sample_and_render_again() {
+    let t = tempfile::tempdir().unwrap();
+    let cfg = write_config(
+        t.path(),
+        "seed = 4\nwidth = 64\nheight = 48\nsoft_clouds = 0.5\n[splits]\nGNIIPI = 8\n",
+    );
+    let d = t.path().join("d");
+    ok(&build(&d, &cfg, &["--jobs", "1"]));
+    let labels = std::fs::read_to_string(d.join("labels.csv")).unwrap();
+    let mut lines = labels.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let rows: Vec<BTreeMap<&str, &str>> = lines
+        .map(|l| header.iter().copied().zip(l.split(',')).collect())
+        .collect();
+    let clouded = rows.iter().filter(|r| r["soft_clouds"] == "1").count();
+    assert!((1..8).contains(&clouded), "{clouded} of 8 with clouds");
+    let seeds: std::collections::BTreeSet<&str> = rows.iter().map(|r| r["seed"]).collect();
+    assert_eq!(seeds.len(), 8);
+    for r in &rows {
+        let out = t.path().join(format!("again{}", r["number"]));
+        let mut args = vec![
+            "render",
+            "--raw",
+            "--preset",
+            "gniipi",
+            "--width",
+            "64",
+            "--height",
+            "48",
+            "--yaw",
+            r["yaw_deg"],
+            "--frame",
+            r["frame"],
+            "--sun-altitude",
+            r["sun_altitude_deg"],
+            "--sun-azimuth",
+            r["sun_azimuth_deg"],
+            "--turbidity",
+            r["turbidity"],
+            "--wavelength",
+            r["wavelength_nm"],
+            "--albedo",
+            r["albedo"],
+            "--seed",
+            r["seed"],
+            "--frame-index",
+            r["frame_index"],
+            "--out",
+        ];
+        let o = out.to_str().unwrap().to_string();
+        args.push(&o);
+        if r["soft_clouds"] == "1" {
+            args.push("--clouds");
+        }
+        ok(&psns(&args));
+        assert!(
+            std::fs::read(out.join("raw.png")).unwrap()
+                == std::fs::read(d.join(r["file"])).unwrap(),
+            "{}",
+            r["file"]
+        );
+    }
+}
