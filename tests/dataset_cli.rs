@@ -510,6 +510,16 @@ fn bad_input_exits_2_names_the_key_and_writes_nothing() {
             &["--jobs", "0"],
             "jobs = 0 is out of range (allowed 1..1024)",
         ),
+        (
+            POLAR_NIGHT,
+            &[],
+            "NFPI sample 1: sun_time: the sun was below min_altitude_deg = 0",
+        ),
+        (
+            "[outputs]\nraw12_exposure_us = 500\n",
+            &[],
+            "outputs.raw12_exposure_us applies to the 12-bit frame",
+        ),
     ];
     for (text, extra, want) in cases {
         let cfg = write_config(t.path(), text);
