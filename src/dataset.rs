@@ -679,7 +679,13 @@ impl DatasetConfig {
             .into_iter()
             .flat_map(|(s, n)| (1..=n).map(move |k| (s, k)))
             .collect();
-        ids.par_iter().map(|&(s, k)| self.sample(s, k)).collect()
+        // a description that keeps the sun down fails on its first sample: fail fast there
+        if let Some(&(s, k)) = ids.first() {
+            self.sample(s, k)?;
+        }
+        let all: Vec<Result<Sample>> = ids.par_iter().map(|&(s, k)| self.sample(s, k)).collect();
+        // the first sample that fails, in order (not whichever thread failed first)
+        all.into_iter().collect()
     }
 
     /// The files of one sample, relative to the dataset directory: the 8-bit mosaic first, then
