@@ -16,6 +16,7 @@
 pub mod angle;
 pub mod camera;
 pub mod config;
+pub mod dataset;
 pub mod demosaic;
 pub mod error;
 pub mod heading;

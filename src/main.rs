@@ -36,6 +36,11 @@ enum Cmd {
     Demosaic(cli::demosaic::DemosaicArgs),
     /// The camera's yaw from one raw frame's polarization (sun-vector estimator), as CSV.
     Heading(cli::heading::HeadingArgs),
+    /// Datasets like PSNS: build (sharded, resumable), verify, merge shard manifests.
+    Dataset {
+        #[command(subcommand)]
+        what: cli::dataset::DatasetCmd,
+    },
     /// Benchmarks that chart speed against accuracy.
     Bench {
         #[command(subcommand)]
@@ -55,6 +60,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Cmd::Extract(a) => cli::verify::run_extract(a),
         Cmd::Demosaic(a) => cli::demosaic::run(a),
         Cmd::Heading(a) => cli::heading::run(a),
+        Cmd::Dataset { what } => cli::dataset::run(what),
         Cmd::Bench { what } => cli::bench::run(what),
         Cmd::Figures(a) => cli::figures::run(a),
     }

@@ -12,7 +12,7 @@
 //! | 0..8   | camera seed, u64 LE |
 //! | 8..16  | frame index, u64 LE (0 for fixed-pattern maps) |
 //! | 16..20 | map id or stage id, u32 LE |
-//! | 20..24 | domain, u32 LE: 0 = fixed-pattern map, 1 = temporal noise, 2 = scene (clouds) |
+//! | 20..24 | domain, u32 LE: 0 = fixed-pattern map, 1 = temporal noise, 2 = scene (clouds), 3 = dataset parameters |
 //! | 24..32 | row, u64 LE |
 //!
 //! This derivation is covered by a golden test; changing it changes every emulated camera.
@@ -24,6 +24,7 @@ use rand_chacha::ChaCha8Rng;
 const DOMAIN_MAP: u32 = 0;
 const DOMAIN_FRAME: u32 = 1;
 const DOMAIN_SCENE: u32 = 2;
+const DOMAIN_DATASET: u32 = 3;
 
 pub(crate) fn key(seed: u64, frame: u64, id: u32, domain: u32, row: u64) -> [u8; 32] {
     let mut k = [0u8; 32];
@@ -48,4 +49,11 @@ pub fn frame_rng(seed: u64, frame_index: u64, stage_id: u32, row: u64) -> ChaCha
 /// Stream for seeded scene content (soft clouds), `id` distinguishing uses.
 pub fn scene_rng(seed: u64, id: u32) -> ChaCha8Rng {
     ChaCha8Rng::from_seed(key(seed, 0, id, DOMAIN_SCENE, 0))
+}
+
+/// Stream drawing parameter `param_id` of dataset sample `frame_index` of a dataset with `seed`
+/// (`psns dataset`): the draws depend on these three numbers only, never on threads, shards or
+/// restarts.
+pub fn dataset_rng(seed: u64, frame_index: u64, param_id: u32) -> ChaCha8Rng {
+    ChaCha8Rng::from_seed(key(seed, frame_index, param_id, DOMAIN_DATASET, 0))
 }

@@ -22,6 +22,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("config", 9),
     ("io", 9),
     ("pipeline", 10),
+    ("dataset", 11),
 ];
 
 fn rust_files(dir: &Path, out: &mut Vec<std::path::PathBuf>) {

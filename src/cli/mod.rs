@@ -4,6 +4,7 @@
 
 pub mod args;
 pub mod bench;
+pub mod dataset;
 pub mod demosaic;
 pub mod figures;
 pub mod heading;

@@ -1,5 +1,5 @@
-//! Progress of long commands on stderr (`psns stream`, `psns bench demosaic`, `psns bench sky`,
-//! `psns figures`). Front-end only: the library never reports progress.
+//! Progress of long commands on stderr (`psns stream`, `psns dataset build`, `psns bench demosaic`,
+//! `psns bench sky`, `psns figures`). Front-end only: the library never reports progress.
 //!
 //! * stderr is a terminal: an [`indicatif`] bar (position, rate, ETA; a spinner with a count when
 //!   the total is unknown), cleared when the work ends, so only the command's own lines remain.
@@ -33,6 +33,8 @@ pub enum Unit {
     Frames,
     /// Steps of a batch job (rate in steps/s).
     Steps,
+    /// Images of a dataset (rate in images/s).
+    Images,
 }
 
 impl Unit {
@@ -40,12 +42,14 @@ impl Unit {
         match self {
             Unit::Frames => "frames",
             Unit::Steps => "steps",
+            Unit::Images => "images",
         }
     }
     fn rate(self) -> &'static str {
         match self {
             Unit::Frames => "fps",
             Unit::Steps => "steps/s",
+            Unit::Images => "images/s",
         }
     }
 }
