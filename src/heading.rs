@@ -223,6 +223,82 @@ pub fn eigenvector_heading(
     })
 }
 
+/// The camera-to-ENU rotation of a stream attitude quaternion `[w, x, y, z]` (normalised here).
+fn camera_to_enu(wxyz: [f64; 4]) -> DMat3 {
+    let q = glam::DQuat::from_xyzw(wxyz[1], wxyz[2], wxyz[3], wxyz[0]).normalize();
+    DMat3::from_quat(q)
+}
+
+/// The ENU yaw (degrees, [0, 360)) of an attitude quaternion `[w, x, y, z]` rotating camera
+/// vectors into ENU (the stream's `attitude_wxyz`): the ψ of C = R_y(roll) R_x(pitch) R_z(ψ), i.e.
+/// what `psns render --frame enu --yaw` means. Row 2 of C is R_z(ψ)ᵀ (0, cos ϑ, ±sin ϑ), so
+/// ψ = atan2 of its east and north components (defined for |pitch| < 90°).
+pub fn attitude_yaw_deg(wxyz: [f64; 4]) -> f64 {
+    let h = camera_to_enu(wxyz) * DVec3::Y;
+    h.x.atan2(h.y).to_degrees().rem_euclid(360.0)
+}
+
+/// Pitch and roll (degrees) of an attitude quaternion `[w, x, y, z]` (camera → ENU), as
+/// `--pitch/--roll` mean in `psns render`: what an IMU measures, from the up direction in the
+/// camera frame, C e_z = (−sin φ cos ϑ, sin ϑ, cos φ cos ϑ). Independent of the yaw.
+pub fn attitude_tilt_deg(wxyz: [f64; 4]) -> (f64, f64) {
+    let up = camera_to_enu(wxyz).transpose() * DVec3::Z;
+    (
+        up.y.clamp(-1.0, 1.0).asin().to_degrees(),
+        (-up.x).atan2(up.z).to_degrees(),
+    )
+}
+
+/// A signed angle difference wrapped to (−180, 180] degrees.
+pub fn wrap180(d: f64) -> f64 {
+    let r = d.rem_euclid(360.0);
+    if r > 180.0 {
+        r - 360.0
+    } else {
+        r
+    }
+}
+
+/// Summary of heading errors (degrees).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ErrorStats {
+    /// Errors summarised (finite ones).
+    pub count: usize,
+    /// Root mean square.
+    pub rms: f64,
+    /// 95th percentile of |error| (nearest rank).
+    pub p95: f64,
+    /// Largest |error|.
+    pub max: f64,
+}
+
+/// RMS, 95th percentile (nearest rank) and maximum of the finite values of `errors_deg`; NaN
+/// statistics when there are none.
+pub fn error_stats(errors_deg: &[f64]) -> ErrorStats {
+    let mut a: Vec<f64> = errors_deg
+        .iter()
+        .filter(|e| e.is_finite())
+        .map(|e| e.abs())
+        .collect();
+    if a.is_empty() {
+        return ErrorStats {
+            count: 0,
+            rms: f64::NAN,
+            p95: f64::NAN,
+            max: f64::NAN,
+        };
+    }
+    a.sort_by(f64::total_cmp);
+    let n = a.len();
+    let rank = ((0.95 * n as f64).ceil() as usize).clamp(1, n);
+    ErrorStats {
+        count: n,
+        rms: (a.iter().map(|e| e * e).sum::<f64>() / n as f64).sqrt(),
+        p95: a[rank - 1],
+        max: a[n - 1],
+    }
+}
+
 /// Marks as unusable (DoLP = NaN) every pixel within one pixel of a raw code at `full_scale`:
 /// a clipped channel gives a false, structured AoLP that the estimator cannot tell from sky, and
 /// interpolating demosaics spread it to the neighbours. Returns how many pixels were masked.
@@ -286,6 +362,41 @@ mod tests {
         setup.roll_deg = roll;
         setup.step = 2;
         eigenvector_heading(&im.aop_deg, &im.dop, &setup).unwrap()
+    }
+
+    /// The true yaw and tilt read back from a stream quaternion are the Euler angles of
+    /// `psns render --frame enu` (round trip through `camera_to_enu_quaternion`).
+    #[test]
+    fn attitude_yaw_and_tilt_round_trip() {
+        for (y, p, r) in [
+            (0.0, 0.0, 0.0),
+            (137.0, 3.0, -4.0),
+            (290.0, -5.0, 2.0),
+            (359.5, 30.0, 40.0),
+            (45.0, -60.0, -70.0),
+        ] {
+            let q = crate::camera::camera_to_enu_quaternion(&crate::camera::euler_matrix(y, p, r));
+            let (pp, rr) = attitude_tilt_deg(q);
+            assert!(
+                wrap180(attitude_yaw_deg(q) - y).abs() < 1e-9,
+                "{y} {p} {r}: {}",
+                attitude_yaw_deg(q)
+            );
+            assert!((pp - p).abs() < 1e-9 && (rr - r).abs() < 1e-9, "{p} {r}: {pp} {rr}");
+        }
+    }
+
+    #[test]
+    fn wrap_and_stats() {
+        assert_eq!(wrap180(190.0), -170.0);
+        assert_eq!(wrap180(-180.0), 180.0);
+        assert_eq!(wrap180(540.0), 180.0);
+        let s = error_stats(&[3.0, -4.0, f64::NAN]);
+        assert_eq!((s.count, s.max, s.p95), (2, 4.0, 4.0));
+        assert!((s.rms - 12.5f64.sqrt()).abs() < 1e-12);
+        let v: Vec<f64> = (1..=100).map(|i| i as f64).collect();
+        assert_eq!(error_stats(&v).p95, 95.0);
+        assert!(error_stats(&[]).rms.is_nan());
     }
 
     #[test]

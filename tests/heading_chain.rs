@@ -141,3 +141,135 @@ fn heading_command_recovers_the_rendered_yaw_and_refuses_a_clipped_frame() {
         common::stderr(&o)
     );
 }
+
+/// Parses the per-frame CSV of `psns heading STREAM`: (header, rows of fields).
+fn stream_rows(o: &std::process::Output) -> (String, Vec<Vec<String>>) {
+    assert!(o.status.success(), "{}", common::stderr(o));
+    let text = String::from_utf8(o.stdout.clone()).unwrap();
+    let mut lines = text.lines();
+    let head = lines.next().unwrap().to_string();
+    let rows = lines
+        .map(|l| l.split(',').map(str::to_string).collect())
+        .collect();
+    (head, rows)
+}
+
+/// A stream whose metadata yaw is rotated by 33° gives the same estimates and errors that differ
+/// by the rotation: the estimator never reads the true yaw. The tilt comes from the metadata
+/// (`--imu-tilt`, pitch and roll only) and is compensated.
+#[test]
+fn stream_estimates_never_read_the_true_yaw() {
+    use psns::stream::{FileHeader, FrameMeta, FILE_HEADER_SIZE, FRAME_HEADER_SIZE};
+    let dir = tempfile::tempdir().unwrap();
+    let traj = dir.path().join("traj.csv");
+    std::fs::write(
+        &traj,
+        "t_s,yaw_deg,pitch_deg,roll_deg\n0,20,0,0\n0.05,137,3,-4\n0.1,290,-5,2\n",
+    )
+    .unwrap();
+    let stream = dir.path().join("s.psns");
+    let o = common::psns(&[
+        "stream",
+        "--model",
+        "rayleigh",
+        "--width",
+        "612",
+        "--height",
+        "512",
+        "--pixel-pitch",
+        "13.8",
+        "--auto-exposure",
+        "--trajectory",
+        traj.to_str().unwrap(),
+        "--out",
+        stream.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let run = |p: &std::path::Path| {
+        stream_rows(&common::psns(&["heading", p.to_str().unwrap(), "--imu-tilt"]))
+    };
+    let (head, rows) = run(&stream);
+    assert_eq!(
+        head,
+        "frame_index,yaw_deg,confidence,pixels,true_yaw_deg,error_deg,saturated_pixels,ms"
+    );
+    assert_eq!(rows.len(), 3);
+    for (r, truth) in rows.iter().zip([20.0, 137.0, 290.0]) {
+        let v: Vec<f64> = r[1..6].iter().map(|x| x.parse().unwrap()).collect();
+        assert!((v[3] - truth).abs() < 1e-3, "{r:?}");
+        assert!(v[4].abs() < 0.1 && v[1] > 0.9, "{r:?}");
+    }
+    // rotate every frame's attitude by 33° about the vertical, fixing the header CRCs
+    let mut bytes = std::fs::read(&stream).unwrap();
+    let h = FileHeader::decode(&bytes[..FILE_HEADER_SIZE]).unwrap();
+    let turn = glam::DQuat::from_rotation_z(33f64.to_radians());
+    for i in 0..3 {
+        let off = h.frame_offset(i) as usize;
+        let (mut m, crc) = FrameMeta::decode(&bytes[off..off + FRAME_HEADER_SIZE]).unwrap();
+        let [w, x, y, z] = m.attitude_wxyz;
+        let q = turn * glam::DQuat::from_xyzw(x, y, z, w);
+        m.attitude_wxyz = [q.w, q.x, q.y, q.z];
+        bytes[off..off + FRAME_HEADER_SIZE].copy_from_slice(&m.encode(crc));
+    }
+    let altered = dir.path().join("altered.psns");
+    std::fs::write(&altered, &bytes).unwrap();
+    let (_, rows2) = run(&altered);
+    for (a, b) in rows.iter().zip(&rows2) {
+        assert_eq!(a[..4], b[..4], "estimate changed: {a:?} vs {b:?}");
+        let (t1, t2): (f64, f64) = (a[4].parse().unwrap(), b[4].parse().unwrap());
+        let (e1, e2): (f64, f64) = (a[5].parse().unwrap(), b[5].parse().unwrap());
+        let d = (t2 - t1).rem_euclid(360.0);
+        assert!((d - 33.0).abs() < 1e-3 || (d - 327.0).abs() < 1e-3, "{a:?} {b:?}");
+        assert!((e1 - e2).abs() > 30.0, "{a:?} {b:?}");
+    }
+    // a stream carries the sun: sun options are refused
+    let o = common::psns(&[
+        "heading",
+        stream.to_str().unwrap(),
+        "--sun-zenith",
+        "40",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", common::stderr(&o));
+}
+
+/// Real use: `psns stream ... --out - | psns heading -`.
+#[test]
+fn stream_piped_into_heading() {
+    use std::process::{Command, Stdio};
+    let mut producer = Command::new(env!("CARGO_BIN_EXE_psns"))
+        .args([
+            "stream",
+            "--frames",
+            "3",
+            "--width",
+            "612",
+            "--height",
+            "512",
+            "--pixel-pitch",
+            "13.8",
+            "--model",
+            "rayleigh",
+            "--auto-exposure",
+            "--out",
+            "-",
+        ])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let consumer = Command::new(env!("CARGO_BIN_EXE_psns"))
+        .args(["heading", "-"])
+        .stdin(producer.stdout.take().unwrap())
+        .output()
+        .unwrap();
+    assert!(producer.wait().unwrap().success());
+    let (_, rows) = stream_rows(&consumer);
+    assert_eq!(rows.len(), 3, "{rows:?}");
+    for (k, r) in rows.iter().enumerate() {
+        assert_eq!(r[0], k.to_string());
+        let err: f64 = r[5].parse().unwrap();
+        assert!(err.abs() < 0.05, "{r:?}");
+    }
+    let e = common::stderr(&consumer);
+    assert!(e.contains("3 frames") && e.contains("RMS"), "{e}");
+}
