@@ -13,8 +13,8 @@ use clap::Args;
 use psns::camera::{Attitude, Intrinsics};
 use psns::demosaic::Method;
 use psns::heading::{
-    attitude_tilt_deg, attitude_yaw_deg, error_stats, eigenvector_heading, mask_saturated,
-    wrap180, HeadingEstimate, HeadingSetup,
+    attitude_tilt_deg, attitude_yaw_deg, error_stats, estimate_heading, mask_saturated, wrap180,
+    HeadingEstimate, HeadingMethod, HeadingSetup, PolarView,
 };
 use psns::image::Image;
 use psns::sensor::mosaic::MosaicLayout;
@@ -38,6 +38,10 @@ pub struct HeadingArgs {
     /// Demosaic method.
     #[arg(long, default_value = "bilinear", value_parser = |s: &str| s.parse::<Method>().map_err(|e| e.to_string()))]
     demosaic: Method,
+    /// Estimator: model-fit (Berry field fitted from the eigenvector answer; default, the most
+    /// accurate), eigen (sun vector), hough (solar meridian).
+    #[arg(long, default_value = "model-fit", value_parser = |s: &str| s.parse::<HeadingMethod>().map_err(|e| e.to_string()))]
+    method: HeadingMethod,
     /// Significant bits of the codes in a PNG/TIFF (saturation is the top code); a stream says.
     #[arg(long, value_parser = super::args::whole)]
     bits: Option<u64>,
@@ -111,14 +115,20 @@ fn estimate_codes(
     black_level: f64,
     layout: MosaicLayout,
     bits: u8,
-    method: Method,
+    demosaic: Method,
+    method: HeadingMethod,
     setup: &HeadingSetup,
 ) -> Result<(Option<HeadingEstimate>, usize)> {
     psns::demosaic::check_raw(codes)?;
     let full = ((1u32 << bits) - 1).min(65535) as u16;
-    let mut p = demosaic_codes(codes, black_level, layout, method)?;
+    let mut p = demosaic_codes(codes, black_level, layout, demosaic)?;
     let saturated = mask_saturated(&mut p.dolp, codes, full);
-    match eigenvector_heading(&p.aolp_deg, &p.dolp, setup) {
+    let view = PolarView {
+        aolp_deg: &p.aolp_deg,
+        dolp: &p.dolp,
+        s0: Some(&p.stokes.s0),
+    };
+    match estimate_heading(method, &view, setup) {
         Ok(e) => Ok((Some(e), saturated)),
         // too few usable pixels (saturated, unpolarized): no heading, zero confidence
         Err(Error::Invalid(m)) if m.starts_with("heading: only") => {
@@ -161,6 +171,7 @@ fn heading_row(a: &HeadingArgs) -> Result<String> {
         raw.layout,
         bits,
         a.demosaic,
+        a.method,
         &setup,
     )?;
     Ok(match e {
@@ -292,7 +303,15 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
             );
             (None, 0)
         } else {
-            estimate_codes(&codes, black, h.layout, h.bits_valid, a.demosaic, &setup)?
+            estimate_codes(
+                &codes,
+                black,
+                h.layout,
+                h.bits_valid,
+                a.demosaic,
+                a.method,
+                &setup,
+            )?
         };
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         total_s += ms / 1e3;
