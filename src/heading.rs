@@ -547,14 +547,231 @@ pub fn estimate_heading(
     view: &PolarView,
     setup: &HeadingSetup,
 ) -> Result<HeadingEstimate> {
-    let eigen = eigenvector_heading(view.aolp_deg, view.dolp, setup)?;
+    if method == HeadingMethod::Hough {
+        return hough_heading(view, setup);
+    }
+    let eigen = eigen_resolved(view, setup)?;
     match method {
         HeadingMethod::Eigen => Ok(eigen),
         HeadingMethod::ModelFit => {
             model_fit_heading(view.aolp_deg, view.dolp, setup, &eigen, false).map(|r| r.0)
         }
-        HeadingMethod::Hough => Err(Error::Invalid("heading method hough: not yet".into())),
+        HeadingMethod::Hough => unreachable!("handled above"),
     }
+}
+
+/// Below this known sun elevation (degrees) the sign of the eigenvector's sun, "above the
+/// horizon", is unreliable: the intensity decides instead.
+pub const HORIZON_ELEVATION_DEG: f64 = 8.0;
+
+/// The intensity's vote on which of ±`s_c` is the sun. Each pixel on the sunward side is paired
+/// with its mirror image across the vertical plane perpendicular to the sun's azimuth (level frame,
+/// from the known tilt): the pair sees the sky at the same zenith angle, sunward and anti-sunward,
+/// so neither the horizon brightening nor the shape of the field of view can bias the vote. Each
+/// pair votes with its S0 difference times its distance from that plane: the sunward half of the
+/// sky is brighter. Returned normalised to [−1, 1] (Σ ΔL x / Σ |ΔL| x); `None` without S0, with a
+/// sun at the zenith, or with fewer than 10 pairs inside the image.
+pub fn intensity_side(view: &PolarView, setup: &HeadingSetup, s_c: DVec3) -> Option<f64> {
+    let s0 = view.s0?;
+    let i = &setup.intrinsics;
+    let tilt = rot_y(setup.roll_deg.to_radians()) * rot_x(setup.pitch_deg.to_radians());
+    let u = tilt.transpose() * s_c;
+    let hl = u.x.hypot(u.y);
+    if hl < 1e-9 {
+        return None;
+    }
+    let h = DVec3::new(u.x / hl, u.y / hl, 0.0);
+    let step = setup.step.max(1);
+    let usable = |k: usize| {
+        let (l, d) = (s0.data[k] as f64, view.dolp.data[k] as f64);
+        (l.is_finite() && d.is_finite() && l > 0.0).then_some(l)
+    };
+    let (mut num, mut den, mut pairs) = (0.0, 0.0, 0usize);
+    for row in (0..i.height).step_by(step) {
+        for col in (0..i.width).step_by(step) {
+            let v = tilt.transpose() * i.ray(col as f64, row as f64).normalize();
+            let x = v.dot(h);
+            if x <= 0.0 {
+                continue;
+            }
+            let Some((cm, rm)) = i.project(tilt * (v - 2.0 * x * h)) else {
+                continue;
+            };
+            let (cm, rm) = (cm.round(), rm.round());
+            if cm < 0.0 || rm < 0.0 || cm >= i.width as f64 || rm >= i.height as f64 {
+                continue;
+            }
+            let k = row * i.width + col;
+            let km = rm as usize * i.width + cm as usize;
+            let (Some(l), Some(lm)) = (usable(k), usable(km)) else {
+                continue;
+            };
+            num += (l - lm) * x;
+            den += (l - lm).abs() * x;
+            pairs += 1;
+        }
+    }
+    if pairs < 10 {
+        return None;
+    }
+    Some(if den > 0.0 { num / den } else { 0.0 })
+}
+
+/// The eigenvector answer with the 180° ambiguity near the horizon decided by the intensity:
+/// with the known sun elevation below [`HORIZON_ELEVATION_DEG`], "the sun is above the horizon"
+/// no longer fixes the eigenvector's sign, so the brighter half of the sky does; the confidence is
+/// scaled by how clearly it does (|vote| / 0.3, at most 1).
+pub fn eigen_resolved(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEstimate> {
+    let mut e = eigenvector_heading(view.aolp_deg, view.dolp, setup)?;
+    if 90.0 - setup.sun.zenith_deg >= HORIZON_ELEVATION_DEG {
+        return Ok(e);
+    }
+    match intensity_side(view, setup, e.sun_camera) {
+        Some(c) => {
+            if c < 0.0 {
+                e.sun_camera = -e.sun_camera;
+                e.yaw_deg = (e.yaw_deg + 180.0).rem_euclid(360.0);
+            }
+            e.confidence *= (c.abs() / 0.3).min(1.0);
+        }
+        None => e.confidence *= 0.5,
+    }
+    Ok(e)
+}
+
+/// The solar-meridian (Hough) method, after Lu et al. 2015: on the solar meridian the E-vector is
+/// perpendicular to the meridian plane (AoLP 90° from the meridian, in Rayleigh and, by symmetry,
+/// Berry skies). Every usable pixel whose level-frame E-vector lies within 3° of the normal of its
+/// own vertical plane votes, with its DoLP times a kernel (1 − (ε/3°)²)² on that angle ε and
+/// at least 15° from the zenith, for the azimuth of that vertical plane (an axial
+/// angle); the peak of the histogram (0.25° bins, smoothed) is refined by the weighted axial mean
+/// of the votes within ±1.5°. The sun is on the brighter side of the meridian line
+/// ([`intensity_side`]); its azimuth and the known elevation give the yaw. The known tilt is
+/// compensated as in [`eigenvector_heading`].
+///
+/// Confidence: the share of the votes near the peak, times the horizontal-sun factor, times the
+/// clarity of the intensity decision. Needs S0.
+pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEstimate> {
+    let i = &setup.intrinsics;
+    if (view.aolp_deg.width, view.aolp_deg.height) != (i.width, i.height)
+        || (view.dolp.width, view.dolp.height) != (i.width, i.height)
+    {
+        return Err(Error::Invalid(format!(
+            "heading: images of {} x {} pixels for intrinsics of {} x {}",
+            view.aolp_deg.width, view.aolp_deg.height, i.width, i.height
+        )));
+    }
+    setup.sun.check_up()?;
+    let tilt = rot_y(setup.roll_deg.to_radians()) * rot_x(setup.pitch_deg.to_radians());
+    let tt = tilt.transpose();
+    let tol = 3f64.to_radians().cos();
+    // (1 − cos ε) ∝ ε², so q below is (ε / 3°)² and the kernel is (1 − (ε/3°)²)²
+    let step = setup.step.max(1);
+    const BINS: usize = 720;
+    let mut hist = vec![0.0f64; BINS];
+    let mut votes: Vec<(f64, f64, DVec3)> = Vec::new();
+    let mut usable = 0usize;
+    for row in (0..i.height).step_by(step) {
+        for col in (0..i.width).step_by(step) {
+            let k = row * i.width + col;
+            let (a, d) = (view.aolp_deg.data[k] as f64, view.dolp.data[k] as f64);
+            if !(a.is_finite() && d.is_finite()) || d < setup.min_dolp || d > 1.0 {
+                continue;
+            }
+            let ray = i.ray(col as f64, row as f64);
+            if ray.z <= 1e-6 {
+                continue;
+            }
+            usable += 1;
+            let v = tt * ray.normalize();
+            let hz = v.x.hypot(v.y);
+            if hz < 0.26 {
+                continue; // within 15° of the zenith the azimuth of a pixel is imprecise
+            }
+            let e = tt * e_vector(ray, a);
+            let n = DVec3::new(-v.y / hz, v.x / hz, 0.0);
+            let c = e.dot(n).abs();
+            if c < tol {
+                continue;
+            }
+            // kernel on the E-vector's angle from the normal: a vote's weight peaks on the
+            // meridian, so the votes' spread in azimuth has a peak, not a plateau
+            let q = (1.0 - c) / (1.0 - tol);
+            let wv = d * (1.0 - q) * (1.0 - q);
+            let alpha = v.y.atan2(v.x).rem_euclid(std::f64::consts::PI);
+            let b = ((alpha / std::f64::consts::PI * BINS as f64) as usize).min(BINS - 1);
+            hist[b] += wv;
+            votes.push((alpha, wv, v));
+        }
+    }
+    if votes.len() < 10 {
+        return Err(Error::Invalid(format!(
+            "heading: only {} pixels on the solar meridian of {usable} usable (need 10)",
+            votes.len()
+        )));
+    }
+    let smooth = |b: usize| -> f64 { (0..5).map(|o| hist[(b + BINS + o - 2) % BINS]).sum() };
+    let peak = (0..BINS)
+        .max_by(|&x, &y| smooth(x).total_cmp(&smooth(y)))
+        .unwrap_or(0);
+    let pi = std::f64::consts::PI;
+    let mut alpha = (peak as f64 + 0.5) / BINS as f64 * pi;
+    // Refinement: the weighted axial mean of the votes within ±1.5° of the line, using only votes
+    // whose mirror image across the candidate meridian plane is also inside the image (the image
+    // boundary would otherwise cut the band of votes asymmetrically); three passes, recentred.
+    let win = 1.5f64.to_radians();
+    let (c0, r0) = i.principal();
+    let inside = |v: DVec3| {
+        let r = tilt * v;
+        r.z > 1e-6 && {
+            let (x, y) = (
+                c0 + i.focal_px() * r.x / r.z,
+                r0 + i.focal_px() * r.y / r.z,
+            );
+            x >= 0.0 && y >= 0.0 && x <= (i.width - 1) as f64 && y <= (i.height - 1) as f64
+        }
+    };
+    let mut wn = 0.0;
+    for _ in 0..3 {
+        let n = DVec3::new(-alpha.sin(), alpha.cos(), 0.0);
+        let (mut sc, mut ss) = (0.0, 0.0);
+        wn = 0.0;
+        for &(a, d, v) in &votes {
+            let dd = (a - alpha).rem_euclid(pi);
+            if dd.min(pi - dd) > win || !inside(v - 2.0 * v.dot(n) * n) {
+                continue;
+            }
+            sc += d * (2.0 * a).cos();
+            ss += d * (2.0 * a).sin();
+            wn += d;
+        }
+        if wn > 0.0 {
+            alpha = 0.5 * ss.atan2(sc);
+        }
+    }
+    let total: f64 = votes.iter().map(|v| v.1).sum();
+    let share = wn / total.max(1e-300);
+    // the sun side: the brighter half
+    let el = (90.0 - setup.sun.zenith_deg).to_radians();
+    let u = DVec3::new(el.cos() * alpha.cos(), el.cos() * alpha.sin(), el.sin());
+    let mut s_c = tilt * u;
+    let side = intensity_side(view, setup, DVec3::new(s_c.x, s_c.y, s_c.z))
+        .ok_or_else(|| Error::Invalid("heading: the hough method needs the intensity S0".into()))?;
+    let mut u = u;
+    if side < 0.0 {
+        u = DVec3::new(-u.x, -u.y, u.z);
+        s_c = tilt * u;
+    }
+    let sun_enu = setup.sun.vector();
+    let (yaw_deg, horiz) = yaw_from(u, sun_enu);
+    let confidence =
+        (share * (horiz / 0.17).min(1.0) * (side.abs() / 0.2).min(1.0)).clamp(0.0, 1.0);
+    Ok(HeadingEstimate {
+        yaw_deg,
+        confidence,
+        pixels: votes.len(),
+        sun_camera: s_c,
+    })
 }
 
 /// The camera-to-ENU rotation of a stream attitude quaternion `[w, x, y, z]` (normalised here).
@@ -861,6 +1078,68 @@ mod tests {
         let (m, info) = model_fit_heading(&im.aop_deg, &im.dop, &setup, &e, false).unwrap();
         assert!(axial360(m.yaw_deg, 200.0) < 0.01, "{m:?} {info:?}");
         assert!(info.babinet_deg < 1.0 && info.brewster_deg < 1.0, "{info:?}");
+    }
+
+    fn view(im: &crate::render::IdealImages) -> PolarView<'_> {
+        PolarView {
+            aolp_deg: &im.aop_deg,
+            dolp: &im.dop,
+            s0: Some(&im.li),
+        }
+    }
+
+    /// The solar-meridian (Hough) method on ideal images of both skies (the Berry field is
+    /// symmetric about the meridian, so the method has no bias there), tilt compensated, the sun's
+    /// side from the intensity.
+    #[test]
+    fn hough_finds_the_solar_meridian() {
+        for model in [PolarizationModel::Rayleigh, PolarizationModel::Wang] {
+            for (yaw, pitch, roll, zen, az) in [
+                (40.0, 0.0, 0.0, 50.0, 200.0),
+                (123.0, 4.0, -3.0, 30.0, 10.0),
+                (-75.0, -5.0, 5.0, 70.0, 300.0),
+                (250.0, 2.0, 5.0, 80.0, 95.0),
+            ] {
+                let (im, setup) = ideal(model, SunPosition::new(zen, az), yaw, pitch, roll);
+                let e = hough_heading(&view(&im), &setup).unwrap();
+                let err = axial360(e.yaw_deg, yaw);
+                eprintln!(
+                    "hough {model:?} yaw {yaw} sun {zen}: err {err:.4} conf {:.3} votes {}",
+                    e.confidence, e.pixels
+                );
+                assert!(err < 0.2, "{model:?} yaw {yaw} sun {zen}: {e:?} err {err}");
+                assert!(e.confidence > 0.3, "{e:?}");
+            }
+        }
+    }
+
+    /// Sun on the horizon: "the sun is above the horizon" cannot fix the eigenvector's sign (the
+    /// old rule gets some of these yaws 180° wrong); the brighter half of the sky does.
+    #[test]
+    fn horizon_ambiguity_is_resolved_by_intensity() {
+        let mut old_wrong = 0;
+        for k in 0..8 {
+            let yaw = 45.0 * k as f64 + 7.0;
+            let (im, setup) = ideal(
+                PolarizationModel::Wang,
+                SunPosition::new(90.0, 200.0),
+                yaw,
+                2.0,
+                -3.0,
+            );
+            let old = eigenvector_heading(&im.aop_deg, &im.dop, &setup).unwrap();
+            if axial360(old.yaw_deg, yaw) > 90.0 {
+                old_wrong += 1;
+            }
+            for m in HeadingMethod::ALL {
+                let e = estimate_heading(m, &view(&im), &setup).unwrap();
+                let err = axial360(e.yaw_deg, yaw);
+                eprintln!("horizon {m} yaw {yaw}: err {err:.3} conf {:.3}", e.confidence);
+                assert!(err < 1.0, "{m} yaw {yaw}: {e:?}");
+            }
+        }
+        eprintln!("old sign rule: {old_wrong} of 8 wrong by 180 deg");
+        assert!(old_wrong > 0, "the ambiguity this test relies on did not occur");
     }
 
     /// A sun near the zenith cannot fix the yaw: the confidence says so.

@@ -61,7 +61,7 @@ fn chain_error(
 /// sky 0.16-0.32°, the eigenvector method's bias on the Berry field (the same from the noise-free
 /// truth); the model fit (the default method) on the default sky: under the 0.1°.
 fn raw_frames_give_the_true_yaw() {
-    use HeadingMethod::{Eigen, ModelFit};
+    use HeadingMethod::{Eigen, Hough, ModelFit};
     for (yaw, pitch, roll) in [(0.0, 0.0, 0.0), (137.0, 3.0, -4.0), (290.0, -5.0, 2.0)] {
         let (err, conf) = chain_error(PolarizationModel::Rayleigh, Eigen, yaw, pitch, roll);
         eprintln!("rayleigh raw yaw {yaw}: eigen err {err:.4} deg, confidence {conf:.3}");
@@ -72,6 +72,9 @@ fn raw_frames_give_the_true_yaw() {
         let (err, conf) = chain_error(PolarizationModel::Wang, ModelFit, yaw, pitch, roll);
         eprintln!("default-sky raw yaw {yaw}: model-fit err {err:.4} deg, confidence {conf:.3}");
         assert!(err < 0.1 && conf > 0.5, "default sky model fit yaw {yaw}: error {err}");
+        let (err, conf) = chain_error(PolarizationModel::Wang, Hough, yaw, pitch, roll);
+        eprintln!("default-sky raw yaw {yaw}: hough err {err:.4} deg, confidence {conf:.3}");
+        assert!(err < 0.5 && conf > 0.3, "default sky hough yaw {yaw}: error {err}");
     }
 }
 
