@@ -292,3 +292,50 @@ fn stream_piped_into_heading() {
     let e = common::stderr(&consumer);
     assert!(e.contains("3 frames") && e.contains("RMS"), "{e}");
 }
+
+/// `psns bench heading --quick`: every factor and method gets a cell; the default method meets
+/// the 0.1° at the baseline; a quick run never writes into docs/.
+#[test]
+fn bench_heading_quick_writes_cells_and_charts() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("b");
+    let o = common::psns(&["bench", "heading", "--quick", "--out", out.to_str().unwrap()]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let csv = std::fs::read_to_string(out.join("heading.csv")).unwrap();
+    let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    for f in [
+        "sun elevation (deg)",
+        "yaw (deg)",
+        "turbidity",
+        "exposure (x auto)",
+        "cloud patches",
+        "demosaic",
+        "bit depth",
+        "tilt pitch/roll (deg)",
+        "max DoLP (rayleigh sky)",
+    ] {
+        for m in ["eigen", "model-fit", "hough"] {
+            assert!(
+                rows.iter().any(|r| r[0] == f && r[2] == m),
+                "no cell for {f} / {m}"
+            );
+        }
+    }
+    let base = rows
+        .iter()
+        .find(|r| r[0] == "exposure (x auto)" && r[1] == "auto" && r[2] == "model-fit")
+        .unwrap();
+    let rms: f64 = base[5].parse().unwrap();
+    assert!(rms < 0.1, "baseline model-fit RMS {rms}");
+    // clouds are counted as cover
+    let cloudy = rows
+        .iter()
+        .find(|r| r[0] == "cloud patches" && r[1] == "40")
+        .unwrap();
+    assert!(cloudy[11].parse::<f64>().unwrap() > 0.2, "{cloudy:?}");
+    for f in ["heading_factors.svg", "heading_time.svg", "heading_frames.csv"] {
+        assert!(out.join(f).metadata().unwrap().len() > 1000, "{f}");
+    }
+    let o = common::psns(&["bench", "heading", "--quick", "--out", "docs/bench"]);
+    assert_eq!(o.status.code(), Some(2), "{}", common::stderr(&o));
+}

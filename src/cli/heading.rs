@@ -108,6 +108,22 @@ fn given_tilt(a: &HeadingArgs) -> Result<(f64, f64)> {
     }
 }
 
+/// Demosaics one mosaic (codes minus the black level) and masks the pixels next to a code at
+/// full scale of `bits` (DoLP = NaN); returns the images and the number of masked pixels.
+pub fn polar_from_codes(
+    codes: &Image<u16>,
+    black_level: f64,
+    layout: MosaicLayout,
+    bits: u8,
+    demosaic: Method,
+) -> Result<(psns::demosaic::PolarImages, usize)> {
+    psns::demosaic::check_raw(codes)?;
+    let full = ((1u32 << bits) - 1).min(65535) as u16;
+    let mut p = demosaic_codes(codes, black_level, layout, demosaic)?;
+    let saturated = mask_saturated(&mut p.dolp, codes, full);
+    Ok((p, saturated))
+}
+
 /// The estimate from one mosaic: demosaic, mask clipped pixels, estimate. `Ok(None)` when too few
 /// pixels are usable (the reason on stderr); also returns the number of masked pixels.
 fn estimate_codes(
@@ -119,10 +135,7 @@ fn estimate_codes(
     method: HeadingMethod,
     setup: &HeadingSetup,
 ) -> Result<(Option<HeadingEstimate>, usize)> {
-    psns::demosaic::check_raw(codes)?;
-    let full = ((1u32 << bits) - 1).min(65535) as u16;
-    let mut p = demosaic_codes(codes, black_level, layout, demosaic)?;
-    let saturated = mask_saturated(&mut p.dolp, codes, full);
+    let (p, saturated) = polar_from_codes(codes, black_level, layout, bits, demosaic)?;
     let view = PolarView {
         aolp_deg: &p.aolp_deg,
         dolp: &p.dolp,
