@@ -214,7 +214,15 @@ pub fn eigenvector_heading(
     } else {
         0.0
     };
-    let confidence = (separation * (horiz / 0.17).min(1.0)).clamp(0.0, 1.0); // 0.17 ≈ sin 10°
+    // the robust spread of the residual angles: noise (low light, low DoLP) and clouds widen it
+    let mut r: Vec<f64> = samples.iter().map(|(e, _)| e.dot(s_c).abs()).collect();
+    r.sort_by(f64::total_cmp);
+    let spread_deg = (1.4826 * r[r.len() / 2]).asin().to_degrees();
+    let confidence = (separation
+        * (horiz / 0.17).min(1.0) // 0.17 ≈ sin 10°
+        * spread_factor(spread_deg)
+        * (samples.len() as f64 / 500.0).min(1.0))
+    .clamp(0.0, 1.0);
     Ok(HeadingEstimate {
         yaw_deg,
         confidence,
@@ -357,13 +365,16 @@ fn fit_samples(
     out
 }
 
+/// Pixels the model fit aims for (every k-th pixel in each direction).
+pub const MODEL_FIT_SAMPLES: f64 = 12_000.0;
+
 /// The model fit (issue 12 (c)): the yaw ψ and the Berry field's neutral-point distances δ_Ba,
 /// δ_Br (and with `fit_elevation` the sun zenith) that best explain the observed AoLP,
 /// started from `start` (the eigenvector answer). The predicted AoLP of a pixel is the Berry
 /// E-vector ([`crate::sky::berry::BerryField`]) at its ENU view direction C(ψ)ᵀ r, projected on
 /// the sensor with C(ψ) = R_y(roll) R_x(pitch) R_z(ψ); residuals are wrapped to ±90°, weighted by
-/// √DoLP, and made robust by Tukey weights (MAD scale, re-estimated every few iterations). Solved
-/// by Levenberg-Marquardt with numerical derivatives on about 6000 pixels.
+/// DoLP (inverse variance: weights DoLP²), and made robust by Tukey weights (MAD scale, re-estimated every few iterations). Solved
+/// by Levenberg-Marquardt with numerical derivatives on about [`MODEL_FIT_SAMPLES`] pixels.
 ///
 /// On a Rayleigh sky the fit drives δ to 0 (the Berry field's Rayleigh limit), so it is exact
 /// there too.
@@ -377,7 +388,10 @@ pub fn model_fit_heading(
     use crate::sky::berry::BerryField;
     let i = &setup.intrinsics;
     let n_px = (i.width * i.height) as f64;
-    let step = setup.step.max((n_px / 6000.0).sqrt().floor() as usize).max(1);
+    let step = setup
+        .step
+        .max((n_px / MODEL_FIT_SAMPLES).sqrt().floor() as usize)
+        .max(1);
     let samples = fit_samples(aolp_deg, dolp, setup, step);
     if samples.len() < 10 {
         return Err(Error::Invalid(format!(
@@ -417,7 +431,8 @@ pub fn model_fit_heading(
         }));
     };
     let mut p = clamp([start.yaw_deg, 25.0, 25.0, setup.sun.zenith_deg]);
-    let mut w: Vec<f64> = samples.iter().map(|s| s.2).collect();
+    // inverse-variance weights: the AoLP noise of a pixel is ∝ 1/DoLP
+    let mut w: Vec<f64> = samples.iter().map(|s| s.2 * s.2).collect();
     let cost = |r: &[f64], w: &[f64]| r.iter().zip(w).map(|(r, w)| w * r * r).sum::<f64>();
     let (mut r, mut rt) = (Vec::new(), Vec::new());
     residuals(p, &mut r);
@@ -432,7 +447,7 @@ pub fn model_fit_heading(
             w[k] = if u.abs() >= 1.0 {
                 0.0
             } else {
-                s.2 * (1.0 - u * u).powi(2)
+                s.2 * s.2 * (1.0 - u * u).powi(2)
             };
         }
     };
@@ -500,7 +515,7 @@ pub fn model_fit_heading(
         }
     }
     let wsum: f64 = w.iter().sum();
-    let dsum: f64 = samples.iter().map(|s| s.2).sum();
+    let dsum: f64 = samples.iter().map(|s| s.2 * s.2).sum();
     let rms = (cost(&r, &w) / wsum.max(1e-300)).sqrt().to_degrees();
     let inlier = wsum / dsum.max(1e-300);
     // the camera-frame sun of the fitted attitude
@@ -508,9 +523,15 @@ pub fn model_fit_heading(
     let sun = SunPosition::new(p[3], az);
     let s_c = c * sun.vector();
     let horiz = sun.vector().truncate().length();
-    let confidence = ((horiz / 0.17).min(1.0) * inlier * (-(rms / 10.0).powi(2)).exp())
-        .clamp(0.0, 1.0)
-        .min(start.confidence.max(0.0) + 0.5);
+    // how well the yaw is fixed (sun height), how much of the sky agrees with the model, how
+    // tight the residuals are, how many pixels there are, and (halved at worst) the starting
+    // answer's own confidence, which carries the 180° decision near the horizon
+    let confidence = ((horiz / 0.17).min(1.0)
+        * inlier
+        * spread_factor(rms)
+        * (samples.len() as f64 / 300.0).min(1.0)
+        * (0.5 + 0.5 * start.confidence.clamp(0.0, 1.0)))
+    .clamp(0.0, 1.0);
     Ok((
         HeadingEstimate {
             yaw_deg: p[0].rem_euclid(360.0),
@@ -848,6 +869,13 @@ pub fn error_stats(errors_deg: &[f64]) -> ErrorStats {
         p95: a[rank - 1],
         max: a[n - 1],
     }
+}
+
+/// Confidence factor of a robust residual spread (degrees): 1 / (1 + (spread / 10°)²), so a
+/// clean sky (spread of a few degrees) keeps most of its confidence and a noise-dominated frame
+/// (spread of tens of degrees) loses it.
+fn spread_factor(spread_deg: f64) -> f64 {
+    1.0 / (1.0 + (spread_deg / 10.0).powi(2))
 }
 
 /// Marks as unusable (DoLP = NaN) every pixel within one pixel of a raw code at `full_scale`:

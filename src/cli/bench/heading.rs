@@ -276,18 +276,21 @@ pub fn run_sweep(
     let (mut frames, mut cells) = (Vec::new(), Vec::new());
     for (factor, values) in factors(opts.quick) {
         for (label, case) in values {
-            let exposure = match case.exposure {
-                Expo::Auto => Exposure::auto(),
+            let (exposure, light) = match case.exposure {
+                Expo::Auto => (Exposure::auto(), 1.0),
                 Expo::Fraction(f) => {
-                    // the auto-exposure time of this scene, scaled
+                    // the auto-exposure time of this scene, scaled; below the shortest exposure
+                    // (20 µs) the lens transmission takes the rest, so the light is f × auto
                     let pipe = psns::pipeline::RawPipeline::new(&scene(&case, intr, Exposure::auto()))?;
                     let (frame, _) = pipe.render_configured()?;
-                    Exposure::Fixed {
-                        us: (frame.exposure_us * f).max(20.0),
-                    }
+                    let want = frame.exposure_us * f;
+                    (Exposure::Fixed { us: want.max(20.0) }, want / want.max(20.0))
                 }
             };
-            let cfg = scene(&case, intr, exposure);
+            let mut cfg = scene(&case, intr, exposure);
+            if let Some(s) = cfg.raw.sensor.as_mut() {
+                s.lens_transmission *= light;
+            }
             let cover = cloud_cover(&cfg)?;
             let pipe = psns::pipeline::RawPipeline::new(&cfg)?;
             let sun = SunPosition::new(90.0 - case.sun_elevation, SUN_AZIMUTH);
