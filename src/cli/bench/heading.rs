@@ -483,7 +483,9 @@ pub fn factors_svg(cells: &[CellRow]) -> Result<String> {
                     }
                 })
                 .y_desc("error, deg")
-                .light_line_style(RGBColor(238, 238, 238))
+                .disable_x_mesh()
+                .max_light_lines(0)
+                .bold_line_style(RGBColor(230, 230, 230))
                 .label_style(("sans-serif", 11))
                 .draw()
                 .map_err(perr)?;
@@ -559,7 +561,8 @@ pub fn time_svg(cells: &[CellRow]) -> Result<String> {
             .configure_mesh()
             .x_desc("ms per frame (median of the cell)")
             .y_desc("RMS heading error, deg (no estimate at 180)")
-            .light_line_style(RGBColor(238, 238, 238))
+            .max_light_lines(0)
+            .bold_line_style(RGBColor(230, 230, 230))
             .label_style(("sans-serif", 13))
             .draw()
             .map_err(perr)?;
