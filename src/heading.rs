@@ -23,6 +23,7 @@ use crate::error::{check_range, Error, Result};
 use crate::image::Image;
 use crate::sun::SunPosition;
 use glam::{DMat3, DVec3};
+use rayon::prelude::*;
 
 /// What the estimator is given besides the pixels.
 #[derive(Clone, Copy, Debug)]
@@ -39,6 +40,9 @@ pub struct HeadingSetup {
     pub min_dolp: f64,
     /// Use every `step`-th pixel in each direction (1 = all).
     pub step: usize,
+    /// Model fit only: fit the sun's zenith angle too (with one neutral-point distance), starting
+    /// from `sun`'s.
+    pub fit_elevation: bool,
 }
 
 impl HeadingSetup {
@@ -51,6 +55,7 @@ impl HeadingSetup {
             sun,
             min_dolp: 0.05,
             step: 4,
+            fit_elevation: false,
         }
     }
 }
@@ -374,7 +379,7 @@ pub const MODEL_FIT_SAMPLES: f64 = 12_000.0;
 /// E-vector ([`crate::sky::berry::BerryField`]) at its ENU view direction C(ψ)ᵀ r, projected on
 /// the sensor with C(ψ) = R_y(roll) R_x(pitch) R_z(ψ); residuals are wrapped to ±90°, weighted by
 /// DoLP (inverse variance: weights DoLP²), and made robust by Tukey weights (MAD scale, re-estimated every few iterations). Solved
-/// by Levenberg-Marquardt with numerical derivatives on about [`MODEL_FIT_SAMPLES`] pixels.
+/// by Levenberg-Marquardt with forward-difference derivatives (residuals in parallel) on about [`MODEL_FIT_SAMPLES`] pixels.
 ///
 /// On a Rayleigh sky the fit drives δ to 0 (the Berry field's Rayleigh limit), so it is exact
 /// there too.
@@ -420,15 +425,18 @@ pub fn model_fit_heading(
         let c = tilt * crate::camera::rot_z(p[0].to_radians());
         let ct = c.transpose();
         let f = BerryField::new(p[3], az, p[1], p[2]);
-        out.clear();
-        out.extend(samples.iter().map(|&(r, phi, _)| {
-            let v = ct * r;
-            if v.z <= 0.0 {
-                return 0.0;
-            }
-            let e = c * f.eval(v).e;
-            wrap_half_pi(phi - e.y.atan2(e.x))
-        }));
+        samples
+            .par_iter()
+            .with_min_len(1024)
+            .map(|&(r, phi, _)| {
+                let v = ct * r;
+                if v.z <= 0.0 {
+                    return 0.0;
+                }
+                let e = c * f.eval(v).e;
+                wrap_half_pi(phi - e.y.atan2(e.x))
+            })
+            .collect_into_vec(out);
     };
     let mut p = clamp([start.yaw_deg, 25.0, 25.0, setup.sun.zenith_deg]);
     // inverse-variance weights: the AoLP noise of a pixel is ∝ 1/DoLP
@@ -458,16 +466,25 @@ pub fn model_fit_heading(
         if it == 2 || it == 5 || it == 9 {
             reweight(&r, &mut w);
         }
-        // central differences
+        // forward differences (the Jacobian only steers the steps; the answer is the residual's)
         for (k, &pk) in active.iter().enumerate() {
-            let (mut a, mut b) = (p, p);
+            let mut a = p;
             a[pk] += h[pk];
-            b[pk] -= h[pk];
-            residuals(clamp(a), &mut rt);
-            let ra = rt.clone();
-            residuals(clamp(b), &mut rt);
+            let mut a = clamp(a);
+            if a[pk] == p[pk] {
+                // at an upper bound: step down instead
+                a = p;
+                a[pk] -= h[pk];
+                a = clamp(a);
+            }
+            let dp = a[pk] - p[pk];
+            residuals(a, &mut rt);
             for (j, row) in jac.iter_mut().enumerate() {
-                row[k] = wrap_half_pi(ra[j] - rt[j]) / (2.0 * h[pk]);
+                row[k] = if dp != 0.0 {
+                    wrap_half_pi(rt[j] - r[j]) / dp
+                } else {
+                    0.0
+                };
             }
         }
         let mut jtj = [[0.0; 4]; 4];
@@ -575,7 +592,14 @@ pub fn estimate_heading(
     match method {
         HeadingMethod::Eigen => Ok(eigen),
         HeadingMethod::ModelFit => {
-            model_fit_heading(view.aolp_deg, view.dolp, setup, &eigen, false).map(|r| r.0)
+            model_fit_heading(
+                view.aolp_deg,
+                view.dolp,
+                setup,
+                &eigen,
+                setup.fit_elevation,
+            )
+            .map(|r| r.0)
         }
         HeadingMethod::Hough => unreachable!("handled above"),
     }

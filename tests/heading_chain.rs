@@ -241,6 +241,25 @@ fn stream_estimates_never_read_the_true_yaw() {
         assert!((d - 33.0).abs() < 1e-3 || (d - 327.0).abs() < 1e-3, "{a:?} {b:?}");
         assert!((e1 - e2).abs() > 30.0, "{a:?} {b:?}");
     }
+    // the model fit with the sun's elevation free gives the same yaws; hough cannot free it
+    let (_, free) = stream_rows(&common::psns(&[
+        "heading",
+        stream.to_str().unwrap(),
+        "--imu-tilt",
+        "--fit-sun-elevation",
+    ]));
+    for (r, truth) in free.iter().zip([20.0, 137.0, 290.0]) {
+        let y: f64 = r[1].parse().unwrap();
+        assert!(((y - truth + 180.0).rem_euclid(360.0) - 180.0).abs() < 0.1, "{r:?}");
+    }
+    let o = common::psns(&[
+        "heading",
+        stream.to_str().unwrap(),
+        "--fit-sun-elevation",
+        "--method",
+        "hough",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", common::stderr(&o));
     // a stream carries the sun: sun options are refused
     let o = common::psns(&[
         "heading",

@@ -42,6 +42,10 @@ pub struct HeadingArgs {
     /// accurate), eigen (sun vector), hough (solar meridian).
     #[arg(long, default_value = "model-fit", value_parser = |s: &str| s.parse::<HeadingMethod>().map_err(|e| e.to_string()))]
     method: HeadingMethod,
+    /// Model fit: also fit the sun's elevation (one neutral-point distance), starting from the
+    /// given or the stream's sun; for a sun position known only roughly.
+    #[arg(long)]
+    fit_sun_elevation: bool,
     /// Significant bits of the codes in a PNG/TIFF (saturation is the top code); a stream says.
     #[arg(long, value_parser = super::args::whole)]
     bits: Option<u64>,
@@ -58,6 +62,13 @@ pub struct HeadingArgs {
 /// Runs `psns heading`: one row `yaw_deg,confidence,pixels,saturated_pixels` for an image, or a
 /// row per frame of a stream (see [`STREAM_HEADER`]) and a summary on stderr.
 pub fn run(a: HeadingArgs) -> anyhow::Result<()> {
+    if a.fit_sun_elevation && a.method != HeadingMethod::ModelFit {
+        return Err(Error::Invalid(format!(
+            "--fit-sun-elevation applies to --method model-fit, not {}",
+            a.method
+        ))
+        .into());
+    }
     if is_stream(&a.input)? {
         return Ok(run_stream(&a)?);
     }
@@ -178,6 +189,7 @@ fn heading_row(a: &HeadingArgs) -> Result<String> {
     let mut setup = HeadingSetup::new(i, sun);
     setup.pitch_deg = pitch;
     setup.roll_deg = roll;
+    setup.fit_elevation = a.fit_sun_elevation;
     let (e, saturated) = estimate_codes(
         &raw.codes,
         raw.black_level,
@@ -309,6 +321,7 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         let mut setup = HeadingSetup::new(intr, sun);
         setup.pitch_deg = p;
         setup.roll_deg = r;
+        setup.fit_elevation = a.fit_sun_elevation;
         let est = if sun.check_up().is_err() {
             eprintln!(
                 "psns: frame {}: sun elevation {} deg, below the horizon",
