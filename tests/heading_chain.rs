@@ -476,3 +476,38 @@ fn failures_come_with_low_confidence() {
     // sun 2° above the horizon: the 180° decision from the intensity
     never_confidently_wrong("horizon", &failure_case(2.0, &none, 1.0));
 }
+
+/// Bad input to `psns heading`: exit 2 with a message naming the option, nothing on stdout.
+#[test]
+fn heading_bad_input_is_refused() {
+    let dir = tempfile::tempdir().unwrap();
+    let stream = dir.path().join("s.psns");
+    let o = common::psns(&[
+        "stream", "--frames", "1", "--width", "64", "--height", "48", "--out",
+        stream.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let s = stream.to_str().unwrap();
+    for (args, needle) in [
+        (vec!["heading", s, "--method", "median"], "median"),
+        (vec!["heading", s, "--bits", "12"], "--bits"),
+        (vec!["heading", s, "--width", "65"], "--width 65"),
+        (vec!["heading", s, "--time", "2024-06-01T12:00:00Z"], "--time"),
+        (vec!["heading", s, "--yaw", "3"], "tilt"),
+        (vec!["heading", s, "--fit-sun-elevation", "--method", "eigen"], "model-fit"),
+    ] {
+        let o = common::psns(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", common::stderr(&o));
+        assert!(o.stdout.is_empty(), "{args:?}");
+        assert!(common::stderr(&o).contains(needle), "{args:?}: {}", common::stderr(&o));
+    }
+    // stdin that is not a stream
+    let o = common::psns_stdin(&["heading", "-"], "hello, not a stream at all\n");
+    assert_eq!(o.status.code(), Some(2), "{}", common::stderr(&o));
+    assert!(common::stderr(&o).contains("not a psns stream"), "{}", common::stderr(&o));
+    // --imu-tilt needs a stream
+    let png = dir.path().join("x.png");
+    std::fs::write(&png, b"\x89PNG\r\n\x1a\n0000").unwrap();
+    let o = common::psns(&["heading", png.to_str().unwrap(), "--imu-tilt"]);
+    assert_eq!(o.status.code(), Some(2), "{}", common::stderr(&o));
+}
