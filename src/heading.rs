@@ -40,6 +40,10 @@ pub struct HeadingSetup {
     pub min_dolp: f64,
     /// Use every `step`-th pixel in each direction (1 = all).
     pub step: usize,
+    /// Flat-field correction of S0 for the intensity decision near the horizon: the image's
+    /// relative illumination is taken as cos^n of the field angle (default 1.5, the camera
+    /// preset's lens; 0 = none). Without it a tilted camera's vignetting outvotes the sky.
+    pub vignetting_cos_power: f64,
     /// Model fit only: fit the sun's zenith angle too (with one neutral-point distance), starting
     /// from `sun`'s.
     pub fit_elevation: bool,
@@ -55,6 +59,7 @@ impl HeadingSetup {
             sun,
             min_dolp: 0.05,
             step: 4,
+            vignetting_cos_power: 1.5,
             fit_elevation: false,
         }
     }
@@ -223,8 +228,12 @@ pub fn eigenvector_heading(
     let mut r: Vec<f64> = samples.iter().map(|(e, _)| e.dot(s_c).abs()).collect();
     r.sort_by(f64::total_cmp);
     let spread_deg = (1.4826 * r[r.len() / 2]).asin().to_degrees();
+    // A sun-direction error δ becomes a yaw error of about δ / sin(sun zenith). This method has a
+    // bias of a few tenths of a degree in the sun's direction on the Berry sky, so its
+    // confidence falls below sin 45° of horizontal sun component (with a 5° tilt and the sun at
+    // 70° its error reaches 2-3° in the bench).
     let confidence = (separation
-        * (horiz / 0.17).min(1.0) // 0.17 ≈ sin 10°
+        * (horiz / EIGEN_FULL_HORIZ).min(1.0)
         * spread_factor(spread_deg)
         * (samples.len() as f64 / 500.0).min(1.0))
     .clamp(0.0, 1.0);
@@ -613,8 +622,9 @@ pub const HORIZON_ELEVATION_DEG: f64 = 8.0;
 /// with its mirror image across the vertical plane perpendicular to the sun's azimuth (level frame,
 /// from the known tilt): the pair sees the sky at the same zenith angle, sunward and anti-sunward,
 /// so neither the horizon brightening nor the shape of the field of view can bias the vote. Each
-/// pair votes with its S0 difference times its distance from that plane: the sunward half of the
-/// sky is brighter. Returned normalised to [−1, 1] (Σ ΔL x / Σ |ΔL| x); `None` without S0, with a
+/// pair votes with its S0 difference (flat-fielded by cos^n of the field angle,
+/// [`HeadingSetup::vignetting_cos_power`]) times its distance from that plane: the sunward half
+/// of the sky is brighter. Returned normalised to [−1, 1] (Σ ΔL x / Σ |ΔL| x); `None` without S0, with a
 /// sun at the zenith, or with fewer than 10 pairs inside the image.
 pub fn intensity_side(view: &PolarView, setup: &HeadingSetup, s_c: DVec3) -> Option<f64> {
     let s0 = view.s0?;
@@ -627,14 +637,18 @@ pub fn intensity_side(view: &PolarView, setup: &HeadingSetup, s_c: DVec3) -> Opt
     }
     let h = DVec3::new(u.x / hl, u.y / hl, 0.0);
     let step = setup.step.max(1);
-    let usable = |k: usize| {
+    let n = setup.vignetting_cos_power;
+    let usable = |k: usize, ray: DVec3| {
         let (l, d) = (s0.data[k] as f64, view.dolp.data[k] as f64);
-        (l.is_finite() && d.is_finite() && l > 0.0).then_some(l)
+        // flat-field: divide by the relative illumination cos^n of the field angle
+        let ri = (ray.z / ray.length()).powf(n);
+        (l.is_finite() && d.is_finite() && l > 0.0 && ri > 0.0).then_some(l / ri)
     };
     let (mut num, mut den, mut pairs) = (0.0, 0.0, 0usize);
     for row in (0..i.height).step_by(step) {
         for col in (0..i.width).step_by(step) {
-            let v = tilt.transpose() * i.ray(col as f64, row as f64).normalize();
+            let ray = i.ray(col as f64, row as f64);
+            let v = tilt.transpose() * ray.normalize();
             let x = v.dot(h);
             if x <= 0.0 {
                 continue;
@@ -648,7 +662,7 @@ pub fn intensity_side(view: &PolarView, setup: &HeadingSetup, s_c: DVec3) -> Opt
             }
             let k = row * i.width + col;
             let km = rm as usize * i.width + cm as usize;
-            let (Some(l), Some(lm)) = (usable(k), usable(km)) else {
+            let (Some(l), Some(lm)) = (usable(k, ray), usable(km, i.ray(cm, rm))) else {
                 continue;
             };
             num += (l - lm) * x;
@@ -690,12 +704,13 @@ pub fn eigen_resolved(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingE
 /// own vertical plane votes, with its DoLP times a kernel (1 − (ε/3°)²)² on that angle ε and
 /// at least 15° from the zenith, for the azimuth of that vertical plane (an axial
 /// angle); the peak of the histogram (0.25° bins, smoothed) is refined by the weighted axial mean
-/// of the votes within ±1.5°. The sun is on the brighter side of the meridian line
-/// ([`intensity_side`]); its azimuth and the known elevation give the yaw. The known tilt is
+/// of the votes within ±1.5°. Which end of the line is the sun: the candidate the E-vectors are
+/// more nearly perpendicular to at the known elevation, or, within 8° of the horizon, the brighter
+/// side ([`intensity_side`]); its azimuth and the known elevation give the yaw. The known tilt is
 /// compensated as in [`eigenvector_heading`].
 ///
 /// Confidence: the share of the votes near the peak, times the horizontal-sun factor, times the
-/// clarity of the intensity decision. Needs S0.
+/// clarity of the side decision (|vote| / 0.2, at most 1). Needs S0 near the horizon.
 pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEstimate> {
     let i = &setup.intrinsics;
     if (view.aolp_deg.width, view.aolp_deg.height) != (i.width, i.height)
@@ -716,6 +731,7 @@ pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEs
     let mut hist = vec![0.0f64; BINS];
     let mut votes: Vec<(f64, f64, DVec3)> = Vec::new();
     let mut usable = 0usize;
+    let mut evecs: Vec<(DVec3, f64)> = Vec::new();
     for row in (0..i.height).step_by(step) {
         for col in (0..i.width).step_by(step) {
             let k = row * i.width + col;
@@ -728,6 +744,7 @@ pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEs
                 continue;
             }
             usable += 1;
+            evecs.push((e_vector(ray, a), d));
             let v = tt * ray.normalize();
             let hz = v.x.hypot(v.y);
             if hz < 0.26 {
@@ -796,17 +813,35 @@ pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEs
     }
     let total: f64 = votes.iter().map(|v| v.1).sum();
     let share = wn / total.max(1e-300);
-    // the sun side: the brighter half
+    // The sun's side of the line. Above HORIZON_ELEVATION_DEG the known elevation decides: of the
+    // two candidates (azimuth α or α + 180° at that elevation) the sun is the one the E-vectors
+    // are more nearly perpendicular to (Σ DoLP (e·s)² smaller). Nearer the horizon the two
+    // candidates coincide and the brighter half of the sky decides ([`intensity_side`]).
     let el = (90.0 - setup.sun.zenith_deg).to_radians();
-    let u = DVec3::new(el.cos() * alpha.cos(), el.cos() * alpha.sin(), el.sin());
-    let mut s_c = tilt * u;
-    let side = intensity_side(view, setup, DVec3::new(s_c.x, s_c.y, s_c.z))
-        .ok_or_else(|| Error::Invalid("heading: the hough method needs the intensity S0".into()))?;
-    let mut u = u;
+    let mut u = DVec3::new(el.cos() * alpha.cos(), el.cos() * alpha.sin(), el.sin());
+    let other = DVec3::new(-u.x, -u.y, u.z);
+    let side = if 90.0 - setup.sun.zenith_deg >= HORIZON_ELEVATION_DEG {
+        let (a, b) = (tilt * u, tilt * other);
+        let (mut ca, mut cb) = (0.0, 0.0);
+        for &(e, d) in &evecs {
+            ca += d * e.dot(a).powi(2);
+            cb += d * e.dot(b).powi(2);
+        }
+        // normalised difference in [−1, 1], positive for u
+        if ca + cb > 0.0 {
+            (cb - ca) / (ca + cb)
+        } else {
+            0.0
+        }
+    } else {
+        intensity_side(view, setup, tilt * u).ok_or_else(|| {
+            Error::Invalid("heading: the hough method needs the intensity S0".into())
+        })?
+    };
     if side < 0.0 {
-        u = DVec3::new(-u.x, -u.y, u.z);
-        s_c = tilt * u;
+        u = other;
     }
+    let s_c = tilt * u;
     let sun_enu = setup.sun.vector();
     let (yaw_deg, horiz) = yaw_from(u, sun_enu);
     let confidence =
@@ -901,6 +936,10 @@ pub fn error_stats(errors_deg: &[f64]) -> ErrorStats {
 fn spread_factor(spread_deg: f64) -> f64 {
     1.0 / (1.0 + (spread_deg / 10.0).powi(2))
 }
+
+/// The horizontal sun component (sin of the sun's zenith angle) from which the eigenvector
+/// method's confidence is not reduced: sin 45°.
+pub const EIGEN_FULL_HORIZ: f64 = std::f64::consts::FRAC_1_SQRT_2;
 
 /// Marks as unusable (DoLP = NaN) every pixel within one pixel of a raw code at `full_scale`:
 /// a clipped channel gives a false, structured AoLP that the estimator cannot tell from sky, and
@@ -1179,6 +1218,8 @@ mod tests {
                 2.0,
                 -3.0,
             );
+            let mut setup = setup;
+            setup.vignetting_cos_power = 0.0; // ideal radiance: no lens falloff to flat-field
             let old = eigenvector_heading(&im.aop_deg, &im.dop, &setup).unwrap();
             if axial360(old.yaw_deg, yaw) > 90.0 {
                 old_wrong += 1;

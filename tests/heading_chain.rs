@@ -332,6 +332,7 @@ fn bench_heading_quick_writes_cells_and_charts() {
         "bit depth",
         "tilt pitch/roll (deg)",
         "max DoLP (rayleigh sky)",
+        "combined: sun/tilt/clouds",
     ] {
         for m in ["eigen", "model-fit", "hough"] {
             assert!(
@@ -365,6 +366,7 @@ fn failure_case(
     sun_elevation: f64,
     edit: &dyn Fn(&mut SceneConfig),
     light: f64,
+    tilt: (f64, f64),
 ) -> Vec<(HeadingMethod, f64, f64)> {
     use psns::sensor::{Exposure, SensorConfig};
     let mut cfg = SceneConfig::default();
@@ -390,7 +392,7 @@ fn failure_case(
     let sun = SunPosition::new(90.0 - sun_elevation, 200.0);
     let mut out = Vec::new();
     for (k, yaw) in [17.0f64, 107.0, 197.0, 287.0].into_iter().enumerate() {
-        let (st, _) = pipe.stokes(sun, &Attitude::enu(yaw, 0.0, 0.0)).unwrap();
+        let (st, _) = pipe.stokes(sun, &Attitude::enu(yaw, tilt.0, tilt.1)).unwrap();
         let frame = pipe.frame_codes(&st, k as u64).unwrap();
         let b = frame.black_level_dn as f32;
         let codes = Image::from_vec(
@@ -406,7 +408,9 @@ fn failure_case(
             dolp: &p.dolp,
             s0: Some(&p.stokes.s0),
         };
-        let setup = HeadingSetup::new(cfg.camera.intrinsics, sun);
+        let mut setup = HeadingSetup::new(cfg.camera.intrinsics, sun);
+        setup.pitch_deg = tilt.0;
+        setup.roll_deg = tilt.1;
         for m in HeadingMethod::ALL {
             let (err, conf) = match estimate_heading(m, &view, &setup) {
                 Ok(e) => (psns::heading::wrap180(e.yaw_deg - yaw).abs(), e.confidence),
@@ -438,7 +442,7 @@ fn never_confidently_wrong(name: &str, rows: &[(HeadingMethod, f64, f64)]) -> us
 fn failures_come_with_low_confidence() {
     let none = |_: &mut SceneConfig| {};
     // sun 1° from the zenith: the yaw is undetermined
-    let zenith = failure_case(89.0, &none, 1.0);
+    let zenith = failure_case(89.0, &none, 1.0, (0.0, 0.0));
     assert!(never_confidently_wrong("zenith", &zenith) > 0);
     for &(m, _, conf) in &zenith {
         assert!(conf < 0.2, "zenith: {m} confidence {conf}");
@@ -451,6 +455,7 @@ fn failures_come_with_low_confidence() {
             c.sky.dop_max = 0.035;
         },
         1.0,
+        (0.0, 0.0),
     );
     assert!(never_confidently_wrong("low DoLP", &flat) > 0);
     // errors there reach 1-2°, ten times the clear sky's: the confidence says so
@@ -458,7 +463,7 @@ fn failures_come_with_low_confidence() {
         assert!(conf < 0.3, "low DoLP: {m} confidence {conf}");
     }
     // very low light: 0.003 of the auto-exposure light
-    never_confidently_wrong("low light", &failure_case(40.0, &none, 0.003));
+    never_confidently_wrong("low light", &failure_case(40.0, &none, 0.003, (0.0, 0.0)));
     // heavy cloud: 40 patches (about 75 % cover)
     never_confidently_wrong(
         "clouds",
@@ -471,10 +476,32 @@ fn failures_come_with_low_confidence() {
                 })
             },
             1.0,
+            (0.0, 0.0),
         ),
     );
     // sun 2° above the horizon: the 180° decision from the intensity
-    never_confidently_wrong("horizon", &failure_case(2.0, &none, 1.0));
+    never_confidently_wrong("horizon", &failure_case(2.0, &none, 1.0, (0.0, 0.0)));
+    // the same with a 5° tilt each way: the vignetting must not outvote the sky (it did before
+    // the flat-field correction), and at 10° the known elevation decides the sun's side
+    never_confidently_wrong("horizon tilted", &failure_case(2.0, &none, 1.0, (5.0, -5.0)));
+    let low = failure_case(10.0, &none, 1.0, (5.0, -5.0));
+    assert_eq!(never_confidently_wrong("sun 10 tilted", &low), 0);
+    // high sun, 5° tilt and 20 cloud patches: the eigenvector method's Berry bias becomes a yaw
+    // error of 2-3° (bench); its confidence must say so
+    never_confidently_wrong(
+        "sun 70 tilted cloudy",
+        &failure_case(
+            70.0,
+            &|c: &mut SceneConfig| {
+                c.raw.soft_clouds = Some(psns::sky::clouds::SoftClouds {
+                    count: 20,
+                    ..Default::default()
+                })
+            },
+            1.0,
+            (5.0, -5.0),
+        ),
+    );
 }
 
 /// Bad input to `psns heading`: exit 2 with a message naming the option, nothing on stdout.

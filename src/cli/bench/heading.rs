@@ -160,6 +160,22 @@ fn factors(quick: bool) -> Vec<(&'static str, Vec<(String, Case)>)> {
                 .collect(),
         ),
     ));
+    // the target cells: sun 10..70° with both tilts at 5° (compensated), clear and cloudy
+    let mut combined = Vec::new();
+    for clouds in [0usize, 20] {
+        for e in [10.0, 40.0, 70.0] {
+            combined.push((
+                format!("{e}/t5/c{clouds}"),
+                with(&|c| {
+                    c.sun_elevation = e;
+                    c.tilt = (5.0, -5.0);
+                    c.clouds = clouds;
+                }),
+            ));
+        }
+    }
+    // label: sun elevation / tilt 5° (pitch 5, roll −5) / cloud patches
+    out.push(("combined: sun/tilt/clouds", pick(combined)));
     out.push((
         "max DoLP (rayleigh sky)",
         pick(
@@ -402,7 +418,7 @@ pub fn run_sweep(
 }
 
 /// Order of the factors in the charts.
-pub const FACTOR_ORDER: [&str; 9] = [
+pub const FACTOR_ORDER: [&str; 10] = [
     "sun elevation (deg)",
     "yaw (deg)",
     "turbidity",
@@ -412,6 +428,7 @@ pub const FACTOR_ORDER: [&str; 9] = [
     "bit depth",
     "tilt pitch/roll (deg)",
     "max DoLP (rayleigh sky)",
+    "combined: sun/tilt/clouds",
 ];
 
 type PlotErr<E> = plotters::drawing::DrawingAreaErrorKind<E>;
@@ -441,7 +458,7 @@ pub fn factors_svg(cells: &[CellRow]) -> Result<String> {
     use plotters::prelude::*;
     let mut svg = String::new();
     {
-        let root = SVGBackend::with_string(&mut svg, (1500, 980)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, (1500, 1280)).into_drawing_area();
         root.fill(&WHITE).map_err(perr)?;
         let (title, body) = root.split_vertically(40);
         title
@@ -451,7 +468,7 @@ pub fn factors_svg(cells: &[CellRow]) -> Result<String> {
                 ("sans-serif", 18).into_font(),
             ))
             .map_err(perr)?;
-        let panels = body.split_evenly((3, 3));
+        let panels = body.split_evenly((4, 3));
         for (area, &factor) in panels.iter().zip(FACTOR_ORDER.iter()) {
             let mut labels: Vec<String> = Vec::new();
             for c in cells.iter().filter(|c| c.factor == factor) {
