@@ -162,7 +162,9 @@ pub fn eigenvector_heading(
     check_range("roll", setup.roll_deg, -90.0, 90.0)?;
     check_range("min-dolp", setup.min_dolp, 0.0, 1.0)?;
     setup.sun.check_up()?;
-    let step = setup.step.max(1);
+    // at least every `step`-th pixel, and no more than about EIGEN_SAMPLES of them
+    let n_px = (i.width * i.height) as f64;
+    let step = setup.step.max((n_px / EIGEN_SAMPLES).sqrt().floor() as usize).max(1);
     let mut samples: Vec<(DVec3, f64)> = Vec::new();
     for row in (0..i.height).step_by(step) {
         for col in (0..i.width).step_by(step) {
@@ -936,6 +938,9 @@ pub fn error_stats(errors_deg: &[f64]) -> ErrorStats {
 fn spread_factor(spread_deg: f64) -> f64 {
     1.0 / (1.0 + (spread_deg / 10.0).powi(2))
 }
+
+/// Pixels the eigenvector method aims for at most (larger frames are sampled more sparsely).
+pub const EIGEN_SAMPLES: f64 = 40_000.0;
 
 /// The horizontal sun component (sin of the sun's zenith angle) from which the eigenvector
 /// method's confidence is not reduced: sin 45°.
