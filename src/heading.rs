@@ -164,7 +164,10 @@ pub fn eigenvector_heading(
     setup.sun.check_up()?;
     // at least every `step`-th pixel, and no more than about EIGEN_SAMPLES of them
     let n_px = (i.width * i.height) as f64;
-    let step = setup.step.max((n_px / EIGEN_SAMPLES).sqrt().floor() as usize).max(1);
+    let step = setup
+        .step
+        .max((n_px / EIGEN_SAMPLES).sqrt().floor() as usize)
+        .max(1);
     let mut samples: Vec<(DVec3, f64)> = Vec::new();
     for row in (0..i.height).step_by(step) {
         for col in (0..i.width).step_by(step) {
@@ -421,14 +424,22 @@ pub fn model_fit_heading(
     // p = [ψ deg, δ_Ba, δ_Br, θ_s]. The Berry field depends on the sun only through its neutral
     // points, so with the elevation free one distance δ_Ba = δ_Br is fitted (the sun is then
     // midway between Babinet and Brewster).
-    let active: &[usize] = if fit_elevation { &[0, 1, 3] } else { &[0, 1, 2] };
+    let active: &[usize] = if fit_elevation {
+        &[0, 1, 3]
+    } else {
+        &[0, 1, 2]
+    };
     let np = active.len();
     let clamp = |p: [f64; 4]| {
         let d = p[1].clamp(0.0, 60.0);
         [
             p[0],
             d,
-            if fit_elevation { d } else { p[2].clamp(0.0, 60.0) },
+            if fit_elevation {
+                d
+            } else {
+                p[2].clamp(0.0, 60.0)
+            },
             p[3].clamp(0.0, 90.0),
         ]
     };
@@ -528,8 +539,8 @@ pub fn model_fit_heading(
             let q = clamp(q);
             residuals(q, &mut rt);
             if cost(&rt, &w) < c0 {
-                converged = (q[0] - p[0]).abs() < 1e-6
-                    && (1..4).all(|k| (q[k] - p[k]).abs() < 1e-4);
+                converged =
+                    (q[0] - p[0]).abs() < 1e-6 && (1..4).all(|k| (q[k] - p[k]).abs() < 1e-4);
                 p = q;
                 std::mem::swap(&mut r, &mut rt);
                 lambda = (lambda / 3.0).max(1e-9);
@@ -603,14 +614,8 @@ pub fn estimate_heading(
     match method {
         HeadingMethod::Eigen => Ok(eigen),
         HeadingMethod::ModelFit => {
-            model_fit_heading(
-                view.aolp_deg,
-                view.dolp,
-                setup,
-                &eigen,
-                setup.fit_elevation,
-            )
-            .map(|r| r.0)
+            model_fit_heading(view.aolp_deg, view.dolp, setup, &eigen, setup.fit_elevation)
+                .map(|r| r.0)
         }
         HeadingMethod::Hough => unreachable!("handled above"),
     }
@@ -788,10 +793,7 @@ pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEs
     let inside = |v: DVec3| {
         let r = tilt * v;
         r.z > 1e-6 && {
-            let (x, y) = (
-                c0 + i.focal_px() * r.x / r.z,
-                r0 + i.focal_px() * r.y / r.z,
-            );
+            let (x, y) = (c0 + i.focal_px() * r.x / r.z, r0 + i.focal_px() * r.y / r.z);
             x >= 0.0 && y >= 0.0 && x <= (i.width - 1) as f64 && y <= (i.height - 1) as f64
         }
     };
@@ -1029,7 +1031,10 @@ mod tests {
                 "{y} {p} {r}: {}",
                 attitude_yaw_deg(q)
             );
-            assert!((pp - p).abs() < 1e-9 && (rr - r).abs() < 1e-9, "{p} {r}: {pp} {rr}");
+            assert!(
+                (pp - p).abs() < 1e-9 && (rr - r).abs() < 1e-9,
+                "{p} {r}: {pp} {rr}"
+            );
         }
     }
 
@@ -1154,7 +1159,10 @@ mod tests {
             assert!(em < 0.01, "yaw {yaw} sun {zen}: fit error {em} ({info:?})");
             assert!(m.confidence > 0.5, "{m:?}");
         }
-        assert!(worst_eigen > 0.1, "the eigen bias this test relies on is gone");
+        assert!(
+            worst_eigen > 0.1,
+            "the eigen bias this test relies on is gone"
+        );
     }
 
     /// The fit also works with the sun's elevation free, and on a Rayleigh sky (δ → 0).
@@ -1173,7 +1181,10 @@ mod tests {
         let e = eigenvector_heading(&im.aop_deg, &im.dop, &setup).unwrap();
         let (m, info) = model_fit_heading(&im.aop_deg, &im.dop, &setup, &e, false).unwrap();
         assert!(axial360(m.yaw_deg, 200.0) < 0.01, "{m:?} {info:?}");
-        assert!(info.babinet_deg < 1.0 && info.brewster_deg < 1.0, "{info:?}");
+        assert!(
+            info.babinet_deg < 1.0 && info.brewster_deg < 1.0,
+            "{info:?}"
+        );
     }
 
     fn view(im: &crate::render::IdealImages) -> PolarView<'_> {
@@ -1232,12 +1243,18 @@ mod tests {
             for m in HeadingMethod::ALL {
                 let e = estimate_heading(m, &view(&im), &setup).unwrap();
                 let err = axial360(e.yaw_deg, yaw);
-                eprintln!("horizon {m} yaw {yaw}: err {err:.3} conf {:.3}", e.confidence);
+                eprintln!(
+                    "horizon {m} yaw {yaw}: err {err:.3} conf {:.3}",
+                    e.confidence
+                );
                 assert!(err < 1.0, "{m} yaw {yaw}: {e:?}");
             }
         }
         eprintln!("old sign rule: {old_wrong} of 8 wrong by 180 deg");
-        assert!(old_wrong > 0, "the ambiguity this test relies on did not occur");
+        assert!(
+            old_wrong > 0,
+            "the ambiguity this test relies on did not occur"
+        );
     }
 
     /// A sun near the zenith cannot fix the yaw: the confidence says so.

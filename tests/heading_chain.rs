@@ -4,7 +4,9 @@
 use psns::camera::{Attitude, Intrinsics};
 use psns::config::SceneConfig;
 use psns::demosaic::{full_chain, Method};
-use psns::heading::{eigenvector_heading, estimate_heading, HeadingMethod, HeadingSetup, PolarView};
+use psns::heading::{
+    eigenvector_heading, estimate_heading, HeadingMethod, HeadingSetup, PolarView,
+};
 use psns::image::Image;
 use psns::pipeline::RawPipeline;
 use psns::sky::PolarizationModel;
@@ -71,10 +73,16 @@ fn raw_frames_give_the_true_yaw() {
         assert!(err < 1.0, "default sky yaw {yaw}: error {err}");
         let (err, conf) = chain_error(PolarizationModel::Wang, ModelFit, yaw, pitch, roll);
         eprintln!("default-sky raw yaw {yaw}: model-fit err {err:.4} deg, confidence {conf:.3}");
-        assert!(err < 0.1 && conf > 0.5, "default sky model fit yaw {yaw}: error {err}");
+        assert!(
+            err < 0.1 && conf > 0.5,
+            "default sky model fit yaw {yaw}: error {err}"
+        );
         let (err, conf) = chain_error(PolarizationModel::Wang, Hough, yaw, pitch, roll);
         eprintln!("default-sky raw yaw {yaw}: hough err {err:.4} deg, confidence {conf:.3}");
-        assert!(err < 0.5 && conf > 0.3, "default sky hough yaw {yaw}: error {err}");
+        assert!(
+            err < 0.5 && conf > 0.3,
+            "default sky hough yaw {yaw}: error {err}"
+        );
     }
 }
 
@@ -205,7 +213,11 @@ fn stream_estimates_never_read_the_true_yaw() {
     ]);
     assert!(o.status.success(), "{}", common::stderr(&o));
     let run = |p: &std::path::Path| {
-        stream_rows(&common::psns(&["heading", p.to_str().unwrap(), "--imu-tilt"]))
+        stream_rows(&common::psns(&[
+            "heading",
+            p.to_str().unwrap(),
+            "--imu-tilt",
+        ]))
     };
     let (head, rows) = run(&stream);
     assert_eq!(
@@ -238,7 +250,10 @@ fn stream_estimates_never_read_the_true_yaw() {
         let (t1, t2): (f64, f64) = (a[4].parse().unwrap(), b[4].parse().unwrap());
         let (e1, e2): (f64, f64) = (a[5].parse().unwrap(), b[5].parse().unwrap());
         let d = (t2 - t1).rem_euclid(360.0);
-        assert!((d - 33.0).abs() < 1e-3 || (d - 327.0).abs() < 1e-3, "{a:?} {b:?}");
+        assert!(
+            (d - 33.0).abs() < 1e-3 || (d - 327.0).abs() < 1e-3,
+            "{a:?} {b:?}"
+        );
         assert!((e1 - e2).abs() > 30.0, "{a:?} {b:?}");
     }
     // the model fit with the sun's elevation free gives the same yaws; hough cannot free it
@@ -250,7 +265,10 @@ fn stream_estimates_never_read_the_true_yaw() {
     ]));
     for (r, truth) in free.iter().zip([20.0, 137.0, 290.0]) {
         let y: f64 = r[1].parse().unwrap();
-        assert!(((y - truth + 180.0).rem_euclid(360.0) - 180.0).abs() < 0.1, "{r:?}");
+        assert!(
+            ((y - truth + 180.0).rem_euclid(360.0) - 180.0).abs() < 0.1,
+            "{r:?}"
+        );
     }
     let o = common::psns(&[
         "heading",
@@ -261,12 +279,7 @@ fn stream_estimates_never_read_the_true_yaw() {
     ]);
     assert_eq!(o.status.code(), Some(2), "{}", common::stderr(&o));
     // a stream carries the sun: sun options are refused
-    let o = common::psns(&[
-        "heading",
-        stream.to_str().unwrap(),
-        "--sun-zenith",
-        "40",
-    ]);
+    let o = common::psns(&["heading", stream.to_str().unwrap(), "--sun-zenith", "40"]);
     assert_eq!(o.status.code(), Some(2), "{}", common::stderr(&o));
 }
 
@@ -318,10 +331,20 @@ fn stream_piped_into_heading() {
 fn bench_heading_quick_writes_cells_and_charts() {
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("b");
-    let o = common::psns(&["bench", "heading", "--quick", "--out", out.to_str().unwrap()]);
+    let o = common::psns(&[
+        "bench",
+        "heading",
+        "--quick",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
     assert!(o.status.success(), "{}", common::stderr(&o));
     let csv = std::fs::read_to_string(out.join("heading.csv")).unwrap();
-    let rows: Vec<Vec<&str>> = csv.lines().skip(1).map(|l| l.split(',').collect()).collect();
+    let rows: Vec<Vec<&str>> = csv
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').collect())
+        .collect();
     for f in [
         "sun elevation (deg)",
         "yaw (deg)",
@@ -353,7 +376,11 @@ fn bench_heading_quick_writes_cells_and_charts() {
         .find(|r| r[0] == "cloud patches" && r[1] == "40")
         .unwrap();
     assert!(cloudy[11].parse::<f64>().unwrap() > 0.2, "{cloudy:?}");
-    for f in ["heading_factors.svg", "heading_time.svg", "heading_frames.csv"] {
+    for f in [
+        "heading_factors.svg",
+        "heading_time.svg",
+        "heading_frames.csv",
+    ] {
         assert!(out.join(f).metadata().unwrap().len() > 1000, "{f}");
     }
     let o = common::psns(&["bench", "heading", "--quick", "--out", "docs/bench"]);
@@ -392,7 +419,9 @@ fn failure_case(
     let sun = SunPosition::new(90.0 - sun_elevation, 200.0);
     let mut out = Vec::new();
     for (k, yaw) in [17.0f64, 107.0, 197.0, 287.0].into_iter().enumerate() {
-        let (st, _) = pipe.stokes(sun, &Attitude::enu(yaw, tilt.0, tilt.1)).unwrap();
+        let (st, _) = pipe
+            .stokes(sun, &Attitude::enu(yaw, tilt.0, tilt.1))
+            .unwrap();
         let frame = pipe.frame_codes(&st, k as u64).unwrap();
         let b = frame.black_level_dn as f32;
         let codes = Image::from_vec(
@@ -430,7 +459,10 @@ fn never_confidently_wrong(name: &str, rows: &[(HeadingMethod, f64, f64)]) -> us
         eprintln!("{name}: {m} err {err:.3} conf {conf:.3}");
         if err.is_nan() || err > 2.0 {
             failed += 1;
-            assert!(conf < 0.5, "{name}: {m} is wrong by {err} deg at confidence {conf}");
+            assert!(
+                conf < 0.5,
+                "{name}: {m} is wrong by {err} deg at confidence {conf}"
+            );
         }
     }
     failed
@@ -483,7 +515,10 @@ fn failures_come_with_low_confidence() {
     never_confidently_wrong("horizon", &failure_case(2.0, &none, 1.0, (0.0, 0.0)));
     // the same with a 5° tilt each way: the vignetting must not outvote the sky (it did before
     // the flat-field correction), and at 10° the known elevation decides the sun's side
-    never_confidently_wrong("horizon tilted", &failure_case(2.0, &none, 1.0, (5.0, -5.0)));
+    never_confidently_wrong(
+        "horizon tilted",
+        &failure_case(2.0, &none, 1.0, (5.0, -5.0)),
+    );
     let low = failure_case(10.0, &none, 1.0, (5.0, -5.0));
     assert_eq!(never_confidently_wrong("sun 10 tilted", &low), 0);
     // high sun, 5° tilt and 20 cloud patches: the eigenvector method's Berry bias becomes a yaw
@@ -510,7 +545,14 @@ fn heading_bad_input_is_refused() {
     let dir = tempfile::tempdir().unwrap();
     let stream = dir.path().join("s.psns");
     let o = common::psns(&[
-        "stream", "--frames", "1", "--width", "64", "--height", "48", "--out",
+        "stream",
+        "--frames",
+        "1",
+        "--width",
+        "64",
+        "--height",
+        "48",
+        "--out",
         stream.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", common::stderr(&o));
@@ -519,19 +561,33 @@ fn heading_bad_input_is_refused() {
         (vec!["heading", s, "--method", "median"], "median"),
         (vec!["heading", s, "--bits", "12"], "--bits"),
         (vec!["heading", s, "--width", "65"], "--width 65"),
-        (vec!["heading", s, "--time", "2024-06-01T12:00:00Z"], "--time"),
+        (
+            vec!["heading", s, "--time", "2024-06-01T12:00:00Z"],
+            "--time",
+        ),
         (vec!["heading", s, "--yaw", "3"], "tilt"),
-        (vec!["heading", s, "--fit-sun-elevation", "--method", "eigen"], "model-fit"),
+        (
+            vec!["heading", s, "--fit-sun-elevation", "--method", "eigen"],
+            "model-fit",
+        ),
     ] {
         let o = common::psns(&args);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", common::stderr(&o));
         assert!(o.stdout.is_empty(), "{args:?}");
-        assert!(common::stderr(&o).contains(needle), "{args:?}: {}", common::stderr(&o));
+        assert!(
+            common::stderr(&o).contains(needle),
+            "{args:?}: {}",
+            common::stderr(&o)
+        );
     }
     // stdin that is not a stream
     let o = common::psns_stdin(&["heading", "-"], "hello, not a stream at all\n");
     assert_eq!(o.status.code(), Some(2), "{}", common::stderr(&o));
-    assert!(common::stderr(&o).contains("not a psns stream"), "{}", common::stderr(&o));
+    assert!(
+        common::stderr(&o).contains("not a psns stream"),
+        "{}",
+        common::stderr(&o)
+    );
     // --imu-tilt needs a stream
     let png = dir.path().join("x.png");
     std::fs::write(&png, b"\x89PNG\r\n\x1a\n0000").unwrap();

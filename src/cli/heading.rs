@@ -89,7 +89,10 @@ fn is_stream(input: &Path) -> Result<bool> {
     use std::io::Read;
     let mut f = std::fs::File::open(input).map_err(|e| Error::input(input, e))?;
     if f.metadata().is_ok_and(|m| m.is_dir()) {
-        return Err(Error::Invalid(format!("{} is a directory", input.display())));
+        return Err(Error::Invalid(format!(
+            "{} is a directory",
+            input.display()
+        )));
     }
     // a FIFO is read once: only a regular file may be peeked and reopened
     if !f.metadata().is_ok_and(|m| m.is_file()) {
@@ -226,10 +229,7 @@ fn stream_intrinsics(a: &HeadingArgs, h: &psns::stream::FileHeader) -> Result<In
                 .unwrap_or([c.principal_col, c.principal_row]),
         ),
     };
-    for (name, v, have) in [
-        ("width", s.width, i.width),
-        ("height", s.height, i.height),
-    ] {
+    for (name, v, have) in [("width", s.width, i.width), ("height", s.height, i.height)] {
         if let Some(v) = v {
             if v != have as i64 {
                 return Err(Error::Invalid(format!(
@@ -300,7 +300,10 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         }
         if !f.payload_crc_ok {
             damaged += 1;
-            eprintln!("psns: frame {}: payload CRC mismatch, skipped", f.meta.index);
+            eprintln!(
+                "psns: frame {}: payload CRC mismatch, skipped",
+                f.meta.index
+            );
             continue;
         }
         let t0 = Instant::now();

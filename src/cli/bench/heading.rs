@@ -88,10 +88,12 @@ fn factors(quick: bool) -> Vec<(&'static str, Vec<(String, Case)>)> {
     out.push((
         "sun elevation (deg)",
         pick(
-            [5.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 85.0, 89.0]
-                .iter()
-                .map(|&e| (format!("{e}"), with(&|c| c.sun_elevation = e)))
-                .collect(),
+            [
+                5.0, 10.0, 20.0, 30.0, 40.0, 50.0, 60.0, 70.0, 80.0, 85.0, 89.0,
+            ]
+            .iter()
+            .map(|&e| (format!("{e}"), with(&|c| c.sun_elevation = e)))
+            .collect(),
         ),
     ));
     out.push((
@@ -154,10 +156,16 @@ fn factors(quick: bool) -> Vec<(&'static str, Vec<(String, Case)>)> {
     out.push((
         "tilt pitch/roll (deg)",
         pick(
-            [(0.0, 0.0), (2.0, -2.0), (5.0, 5.0), (-5.0, 3.0), (10.0, -10.0)]
-                .iter()
-                .map(|&t| (format!("{}/{}", t.0, t.1), with(&|c| c.tilt = t)))
-                .collect(),
+            [
+                (0.0, 0.0),
+                (2.0, -2.0),
+                (5.0, 5.0),
+                (-5.0, 3.0),
+                (10.0, -10.0),
+            ]
+            .iter()
+            .map(|&t| (format!("{}/{}", t.0, t.1), with(&|c| c.tilt = t)))
+            .collect(),
         ),
     ));
     // the target cells: sun 10..70° with both tilts at 5° (compensated), clear and cloudy
@@ -283,7 +291,12 @@ pub fn run_sweep(
     let (w, h, k, yaws): (usize, usize, f64, Vec<f64>) = if opts.quick {
         (304, 256, 8.0, vec![17.0, 197.0])
     } else {
-        (612, 512, 4.0, (0..8).map(|j| 17.0 + 45.0 * j as f64).collect())
+        (
+            612,
+            512,
+            4.0,
+            (0..8).map(|j| 17.0 + 45.0 * j as f64).collect(),
+        )
     };
     let intr = Intrinsics {
         pixel_pitch_um: 3.45 * k,
@@ -297,10 +310,14 @@ pub fn run_sweep(
                 Expo::Fraction(f) => {
                     // the auto-exposure time of this scene, scaled; below the shortest exposure
                     // (20 µs) the lens transmission takes the rest, so the light is f × auto
-                    let pipe = psns::pipeline::RawPipeline::new(&scene(&case, intr, Exposure::auto()))?;
+                    let pipe =
+                        psns::pipeline::RawPipeline::new(&scene(&case, intr, Exposure::auto()))?;
                     let (frame, _) = pipe.render_configured()?;
                     let want = frame.exposure_us * f;
-                    (Exposure::Fixed { us: want.max(20.0) }, want / want.max(20.0))
+                    (
+                        Exposure::Fixed { us: want.max(20.0) },
+                        want / want.max(20.0),
+                    )
                 }
             };
             let mut cfg = scene(&case, intr, exposure);
@@ -629,7 +646,10 @@ pub fn bench_heading(opts: &HeadingBenchOptions) -> Result<Vec<String>> {
     create_dir(&opts.out)?;
     let t0 = Instant::now();
     let (frames, cells) = run_sweep(opts, &mut |s| {
-        eprintln!("psns bench heading: {s} ({:.0} s)", t0.elapsed().as_secs_f64())
+        eprintln!(
+            "psns bench heading: {s} ({:.0} s)",
+            t0.elapsed().as_secs_f64()
+        )
     })?;
     let mut written = Vec::new();
     let mut put = |name: &str, text: &str| -> Result<()> {
