@@ -36,6 +36,7 @@ fn default_outputs_are_outside_docs() {
     for args in [
         &["bench", "demosaic"][..],
         &["bench", "sky"][..],
+        &["bench", "heading"][..],
         &["figures"][..],
     ] {
         let d = default_out(args);

@@ -1,66 +1,176 @@
-//! `psns heading`: the camera's yaw from one raw frame (PNG/TIFF mosaic), as a user with a real
-//! camera would call it: pixels, sun position, intrinsics and the IMU's tilt, nothing else.
+//! `psns heading`: the camera's yaw from raw frames, as a user with a real camera would call it:
+//! pixels, sun position, intrinsics and the IMU's tilt, nothing else.
+//!
+//! Two inputs: one raw PNG/TIFF mosaic (one CSV row), or a psns frame stream (a file, a FIFO, or
+//! `-` for stdin; recognised by its magic), one row per frame with the true yaw from the frame
+//! metadata and the error, then summary statistics on stderr. The estimate never reads the true
+//! attitude: from a stream it takes the sun (azimuth, elevation) and, with `--imu-tilt`, the pitch
+//! and roll, as an IMU would supply them.
 
 use super::args::SceneArgs;
 use super::demosaic::{demosaic_codes, load_raw};
 use clap::Args;
-use psns::camera::Attitude;
+use psns::camera::{Attitude, Intrinsics};
 use psns::demosaic::Method;
-use psns::heading::{eigenvector_heading, mask_saturated, HeadingSetup};
+use psns::heading::{
+    attitude_tilt_deg, attitude_yaw_deg, error_stats, estimate_heading, mask_saturated, wrap180,
+    HeadingEstimate, HeadingMethod, HeadingSetup, PolarView,
+};
+use psns::image::Image;
 use psns::sensor::mosaic::MosaicLayout;
+use psns::stream::{Event, StreamReader};
+use psns::sun::SunPosition;
 use psns::{Error, Result};
 use std::io::Write;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
+use std::time::Instant;
 
 /// Options of `psns heading`.
 #[derive(Args)]
 pub struct HeadingArgs {
-    /// Raw PNG/TIFF mosaic (codes), or a psns stream with --frame.
+    /// Raw PNG/TIFF mosaic (codes), or a psns frame stream (file, FIFO, or - for stdin).
     input: PathBuf,
     /// Sun position (--sun-zenith/--sun-azimuth or --time/--lat/--lon), intrinsics
     /// (--width/--height/--focal-length/--pixel-pitch) and the known tilt (--pitch/--roll, ENU).
+    /// A stream gives the sun per frame and the intrinsics in its header (options override them).
     #[command(flatten)]
     scene: SceneArgs,
     /// Demosaic method.
     #[arg(long, default_value = "bilinear", value_parser = |s: &str| s.parse::<Method>().map_err(|e| e.to_string()))]
     demosaic: Method,
+    /// Estimator: model-fit (Berry field fitted from the eigenvector answer; default, the most
+    /// accurate), eigen (sun vector), hough (solar meridian).
+    #[arg(long, default_value = "model-fit", value_parser = |s: &str| s.parse::<HeadingMethod>().map_err(|e| e.to_string()))]
+    method: HeadingMethod,
+    /// Model fit: also fit the sun's elevation (one neutral-point distance), starting from the
+    /// given or the stream's sun; for a sun position known only roughly.
+    #[arg(long)]
+    fit_sun_elevation: bool,
     /// Significant bits of the codes in a PNG/TIFF (saturation is the top code); a stream says.
     #[arg(long, value_parser = super::args::whole)]
     bits: Option<u64>,
-    /// Frame index of a stream input (`--frame` is the attitude frame of the scene options).
+    /// Stream input: only the frame with this index (`--frame` is the attitude frame of the
+    /// scene options).
     #[arg(long, value_parser = super::args::whole, value_name = "N")]
     index: Option<u64>,
+    /// Stream input: take each frame's pitch and roll (never its yaw) from the frame's attitude,
+    /// as an IMU would supply them; otherwise --pitch/--roll (default level).
+    #[arg(long, conflicts_with_all = ["pitch", "roll"])]
+    imu_tilt: bool,
 }
 
-/// Runs `psns heading`: prints `yaw_deg,confidence,pixels,saturated_pixels`.
+/// Runs `psns heading`: one row `yaw_deg,confidence,pixels,saturated_pixels` for an image, or a
+/// row per frame of a stream (see [`STREAM_HEADER`]) and a summary on stderr.
 pub fn run(a: HeadingArgs) -> anyhow::Result<()> {
+    if a.fit_sun_elevation && a.method != HeadingMethod::ModelFit {
+        return Err(Error::Invalid(format!(
+            "--fit-sun-elevation applies to --method model-fit, not {}",
+            a.method
+        ))
+        .into());
+    }
+    if is_stream(&a.input)? {
+        return Ok(run_stream(&a)?);
+    }
+    if a.imu_tilt {
+        return Err(Error::Invalid("--imu-tilt applies to stream input only".into()).into());
+    }
     let row = heading_row(&a)?;
     let mut out = std::io::stdout().lock();
     writeln!(out, "yaw_deg,confidence,pixels,saturated_pixels\n{row}")?;
     Ok(())
 }
 
-fn heading_row(a: &HeadingArgs) -> Result<String> {
+/// `-` (stdin, always read as a stream) or a file that starts with the stream's magic.
+fn is_stream(input: &Path) -> Result<bool> {
+    if input.as_os_str() == "-" {
+        return Ok(true);
+    }
+    use std::io::Read;
+    let mut f = std::fs::File::open(input).map_err(|e| Error::input(input, e))?;
+    if f.metadata().is_ok_and(|m| m.is_dir()) {
+        return Err(Error::Invalid(format!(
+            "{} is a directory",
+            input.display()
+        )));
+    }
+    // a FIFO is read once: only a regular file may be peeked and reopened
+    if !f.metadata().is_ok_and(|m| m.is_file()) {
+        return Ok(true);
+    }
+    let mut head = [0u8; 8];
+    let n = f.read(&mut head).map_err(|e| Error::input(input, e))?;
+    Ok(n == 8 && head == psns::stream::FILE_MAGIC)
+}
+
+/// The tilt given as --pitch/--roll (ENU Euler attitude), refusing a yaw or a quaternion.
+fn given_tilt(a: &HeadingArgs) -> Result<(f64, f64)> {
     if a.scene.yaw.is_some() || a.scene.quaternion.is_some() {
         return Err(Error::Invalid(
             "psns heading estimates the yaw: give only the tilt (--pitch, --roll)".into(),
         ));
     }
-    let cfg = a.scene.scene()?;
-    let sun = cfg.sun.resolve()?;
-    cfg.sun.check_up(sun)?;
-    let (pitch, roll) = match cfg.camera.attitude {
+    match a.scene.scene()?.camera.attitude {
         Attitude::Euler {
             pitch_deg,
             roll_deg,
             ..
-        } => (pitch_deg, roll_deg),
-        Attitude::Quaternion { .. } => {
-            return Err(Error::Invalid(
-                "psns heading takes the tilt as --pitch/--roll, not a quaternion".into(),
-            ))
-        }
+        } => Ok((pitch_deg, roll_deg)),
+        Attitude::Quaternion { .. } => Err(Error::Invalid(
+            "psns heading takes the tilt as --pitch/--roll, not a quaternion".into(),
+        )),
+    }
+}
+
+/// Demosaics one mosaic (codes minus the black level) and masks the pixels next to a code at
+/// full scale of `bits` (DoLP = NaN); returns the images and the number of masked pixels.
+pub fn polar_from_codes(
+    codes: &Image<u16>,
+    black_level: f64,
+    layout: MosaicLayout,
+    bits: u8,
+    demosaic: Method,
+) -> Result<(psns::demosaic::PolarImages, usize)> {
+    psns::demosaic::check_raw(codes)?;
+    let full = ((1u32 << bits) - 1).min(65535) as u16;
+    let mut p = demosaic_codes(codes, black_level, layout, demosaic)?;
+    let saturated = mask_saturated(&mut p.dolp, codes, full);
+    Ok((p, saturated))
+}
+
+/// The estimate from one mosaic: demosaic, mask clipped pixels, estimate. `Ok(None)` when too few
+/// pixels are usable (the reason on stderr); also returns the number of masked pixels.
+fn estimate_codes(
+    codes: &Image<u16>,
+    black_level: f64,
+    layout: MosaicLayout,
+    bits: u8,
+    demosaic: Method,
+    method: HeadingMethod,
+    setup: &HeadingSetup,
+) -> Result<(Option<HeadingEstimate>, usize)> {
+    let (p, saturated) = polar_from_codes(codes, black_level, layout, bits, demosaic)?;
+    let view = PolarView {
+        aolp_deg: &p.aolp_deg,
+        dolp: &p.dolp,
+        s0: Some(&p.stokes.s0),
     };
+    match estimate_heading(method, &view, setup) {
+        Ok(e) => Ok((Some(e), saturated)),
+        // too few usable pixels (saturated, unpolarized): no heading, zero confidence
+        Err(Error::Invalid(m)) if m.starts_with("heading: only") => {
+            eprintln!("psns: {m}");
+            Ok((None, saturated))
+        }
+        Err(e) => Err(e),
+    }
+}
+
+fn heading_row(a: &HeadingArgs) -> Result<String> {
+    let (pitch, roll) = given_tilt(a)?;
+    let cfg = a.scene.scene()?;
+    let sun = cfg.sun.resolve()?;
+    cfg.sun.check_up(sun)?;
     let raw = load_raw(&a.input, MosaicLayout::default(), a.index)?;
     let i = cfg.camera.intrinsics;
     if (raw.codes.width, raw.codes.height) != (i.width, i.height) {
@@ -73,30 +183,193 @@ fn heading_row(a: &HeadingArgs) -> Result<String> {
             i.height
         )));
     }
-    psns::demosaic::check_raw(&raw.codes)?;
-    let bits = match (a.bits, raw.frame) {
-        (Some(b), _) if (8..=16).contains(&b) => b as u8,
-        (Some(b), _) => return Err(Error::range("bits", b as f64, "8..16")),
-        (None, Some(_)) => raw.bits,
-        (None, None) if raw.bits == 8 => 8,
-        (None, None) => 12, // the IMX250MZR's deepest mode, in a 16-bit file
+    let bits = match a.bits {
+        Some(b) if (8..=16).contains(&b) => b as u8,
+        Some(b) => return Err(Error::range("bits", b as f64, "8..16")),
+        None if raw.bits == 8 => 8,
+        None => 12, // the IMX250MZR's deepest mode, in a 16-bit file
     };
-    let full = ((1u32 << bits) - 1).min(65535) as u16;
-    let mut p = demosaic_codes(&raw.codes, raw.black_level, raw.layout, a.demosaic)?;
-    let saturated = mask_saturated(&mut p.dolp, &raw.codes, full);
     let mut setup = HeadingSetup::new(i, sun);
     setup.pitch_deg = pitch;
     setup.roll_deg = roll;
-    match eigenvector_heading(&p.aolp_deg, &p.dolp, &setup) {
-        Ok(e) => Ok(format!(
+    setup.fit_elevation = a.fit_sun_elevation;
+    let (e, saturated) = estimate_codes(
+        &raw.codes,
+        raw.black_level,
+        raw.layout,
+        bits,
+        a.demosaic,
+        a.method,
+        &setup,
+    )?;
+    Ok(match e {
+        Some(e) => format!(
             "{:.4},{:.4},{},{saturated}",
             e.yaw_deg, e.confidence, e.pixels
-        )),
-        // too few usable pixels (saturated, unpolarized): no heading, zero confidence
-        Err(Error::Invalid(m)) if m.starts_with("heading: only") => {
-            eprintln!("psns: {m}");
-            Ok(format!("nan,0,0,{saturated}"))
+        ),
+        None => format!("nan,0,0,{saturated}"),
+    })
+}
+
+/// Columns of the per-frame CSV of a stream.
+pub const STREAM_HEADER: &str =
+    "frame_index,yaw_deg,confidence,pixels,true_yaw_deg,error_deg,saturated_pixels,ms";
+
+/// Intrinsics of a stream: its header's, each overridden by an option given.
+fn stream_intrinsics(a: &HeadingArgs, h: &psns::stream::FileHeader) -> Result<Intrinsics> {
+    let s = &a.scene;
+    let c = &h.camera;
+    let i = Intrinsics {
+        width: h.width as usize,
+        height: h.height as usize,
+        focal_length_mm: s.focal_length.unwrap_or(c.focal_length_mm),
+        pixel_pitch_um: s.pixel_pitch.unwrap_or(c.pixel_pitch_um),
+        principal_point: Some(
+            s.principal_point
+                .unwrap_or([c.principal_col, c.principal_row]),
+        ),
+    };
+    for (name, v, have) in [("width", s.width, i.width), ("height", s.height, i.height)] {
+        if let Some(v) = v {
+            if v != have as i64 {
+                return Err(Error::Invalid(format!(
+                    "--{name} {v} disagrees with the stream's frames ({} x {})",
+                    h.width, h.height
+                )));
+            }
         }
-        Err(e) => Err(e),
     }
+    i.validate()?;
+    Ok(i)
+}
+
+fn run_stream(a: &HeadingArgs) -> Result<()> {
+    let s = &a.scene;
+    if let Some(name) = super::args::first_given(&[
+        ("sun-zenith", s.sun_zenith.is_some()),
+        ("sun-altitude", s.sun_altitude.is_some()),
+        ("sun-azimuth", s.sun_azimuth.is_some()),
+        ("time", s.time.is_some()),
+    ]) {
+        return Err(Error::Invalid(format!(
+            "--{name}: a stream's frames carry the sun position; give no sun options"
+        )));
+    }
+    if a.bits.is_some() {
+        return Err(Error::Invalid(
+            "--bits: a stream's header gives the bit depth".into(),
+        ));
+    }
+    let (pitch, roll) = given_tilt(a)?;
+    let mut reader = StreamReader::new(super::open_input(&a.input)?)?;
+    let mut intr = stream_intrinsics(a, reader.header())?;
+    let mut out = std::io::stdout().lock();
+    let w = |out: &mut std::io::StdoutLock, line: &str| -> Result<()> {
+        writeln!(out, "{line}")
+            .and_then(|_| out.flush())
+            .map_err(|e| Error::io("writing stdout", e))
+    };
+    w(&mut out, STREAM_HEADER)?;
+    let (mut errors, mut frames, mut none, mut damaged) = (Vec::new(), 0usize, 0usize, 0usize);
+    let mut total_s = 0.0;
+    while let Some(ev) = reader.next_event()? {
+        let f = match ev {
+            Event::Frame(f) => f,
+            Event::Restart(_) => {
+                intr = stream_intrinsics(a, reader.header())?;
+                continue;
+            }
+            Event::Gap { from, to } => {
+                eprintln!("psns: frames {from}..{to} missing (dropped)");
+                continue;
+            }
+            Event::Corrupt { index, reason, .. } => {
+                damaged += 1;
+                eprintln!("psns: damaged record (frame {index:?}): {reason}");
+                continue;
+            }
+            Event::Truncated { index, .. } => {
+                damaged += 1;
+                eprintln!("psns: stream ends inside a record (frame {index:?})");
+                continue;
+            }
+            Event::Skipped { .. } => continue,
+        };
+        if a.index.is_some_and(|n| n != f.meta.index) {
+            continue;
+        }
+        if !f.payload_crc_ok {
+            damaged += 1;
+            eprintln!(
+                "psns: frame {}: payload CRC mismatch, skipped",
+                f.meta.index
+            );
+            continue;
+        }
+        let t0 = Instant::now();
+        let h = reader.header();
+        let codes = Image::from_vec(h.width as usize, h.height as usize, f.codes(h)?);
+        let black = if h.msb_aligned {
+            f.meta.black_level / 2f64.powi(16 - h.bits_valid as i32)
+        } else {
+            f.meta.black_level
+        };
+        let m = &f.meta;
+        let sun = SunPosition::new(90.0 - m.sun_elevation_deg, m.sun_azimuth_deg);
+        let (p, r) = if a.imu_tilt {
+            attitude_tilt_deg(m.attitude_wxyz)
+        } else {
+            (pitch, roll)
+        };
+        let mut setup = HeadingSetup::new(intr, sun);
+        setup.pitch_deg = p;
+        setup.roll_deg = r;
+        setup.fit_elevation = a.fit_sun_elevation;
+        let est = if sun.check_up().is_err() {
+            eprintln!(
+                "psns: frame {}: sun elevation {} deg, below the horizon",
+                m.index, m.sun_elevation_deg
+            );
+            (None, 0)
+        } else {
+            estimate_codes(
+                &codes,
+                black,
+                h.layout,
+                h.bits_valid,
+                a.demosaic,
+                a.method,
+                &setup,
+            )?
+        };
+        let ms = t0.elapsed().as_secs_f64() * 1e3;
+        total_s += ms / 1e3;
+        frames += 1;
+        // the truth is read only here, after the estimate, for the error column
+        let truth = attitude_yaw_deg(m.attitude_wxyz);
+        let line = match est {
+            (Some(e), sat) => {
+                let err = wrap180(e.yaw_deg - truth);
+                errors.push(err);
+                format!(
+                    "{},{:.4},{:.4},{},{truth:.4},{err:.4},{sat},{ms:.1}",
+                    m.index, e.yaw_deg, e.confidence, e.pixels
+                )
+            }
+            (None, sat) => {
+                none += 1;
+                format!("{},nan,0,0,{truth:.4},nan,{sat},{ms:.1}", m.index)
+            }
+        };
+        w(&mut out, &line)?;
+    }
+    let st = error_stats(&errors);
+    eprintln!(
+        "psns heading: {frames} frames ({none} without an estimate, {damaged} damaged); error RMS {:.4} deg, p95 {:.4}, max {:.4}; {:.1} ms per frame",
+        st.rms,
+        st.p95,
+        st.max,
+        if frames > 0 { total_s * 1e3 / frames as f64 } else { f64::NAN }
+    );
+    Ok(())
 }

@@ -2,6 +2,7 @@
 //! ([`scenes`]) and their charts. Front-end code: the measurements call the library's kernels.
 
 pub mod demosaic;
+pub mod heading;
 pub mod scenes;
 pub mod sky;
 pub mod stream;
@@ -25,6 +26,17 @@ pub enum BenchCmd {
         #[arg(long, default_value_t = 7, value_parser = crate::cli::args::runs)]
         runs: usize,
         /// Small frames and few runs (a quick look; refused with an --out inside docs/).
+        #[arg(long)]
+        quick: bool,
+    },
+    /// The heading chain end to end: every estimator against the truth over sun elevation, yaw,
+    /// turbidity, exposure, clouds, demosaic, bit depth, tilt and DoLP, one factor at a time around
+    /// a baseline (612 x 512 frames); writes heading.csv, heading_frames.csv and two SVG charts.
+    Heading {
+        /// Output directory (the docs' charts: `--out docs/bench`).
+        #[arg(long, default_value = "out-bench")]
+        out: PathBuf,
+        /// Small frames, two yaws, two values per factor (refused with an --out inside docs/).
         #[arg(long)]
         quick: bool,
     },
@@ -88,6 +100,12 @@ pub fn run(what: BenchCmd) -> anyhow::Result<()> {
                 steps,
             };
             for f in stream::bench_stream(&cfg, &opts)? {
+                eprintln!("wrote {f}");
+            }
+        }
+        BenchCmd::Heading { out, quick } => {
+            let opts = heading::HeadingBenchOptions { out, quick };
+            for f in heading::bench_heading(&opts)? {
                 eprintln!("wrote {f}");
             }
         }
