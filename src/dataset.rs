@@ -400,7 +400,8 @@ impl Default for DatasetConfig {
             height: 2048,
             pixel_pitch_um: 3.45,
             frame: AttitudeFrame::Solar,
-            sky_grid: 4,
+            // psns render's default, so a sample re-renders with the default command line
+            sky_grid: crate::config::RawConfig::default().sky_grid,
             splits,
             yaw_deg: uniform(0.0, 359.9, 0.1),
             pitch_deg: Dist::Fixed(0.0),

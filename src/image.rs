@@ -87,6 +87,18 @@ impl StokesImage {
     pub fn height(&self) -> usize {
         self.s0.height
     }
+    /// Fills the three planes row by row, rows in parallel: `f(row, s0, s1, s2)`.
+    pub fn par_rows(&mut self, f: impl Fn(usize, &mut [f32], &mut [f32], &mut [f32]) + Sync) {
+        use rayon::prelude::*;
+        let w = self.width().max(1);
+        let StokesImage { s0, s1, s2 } = self;
+        s0.data
+            .par_chunks_mut(w)
+            .zip(s1.data.par_chunks_mut(w))
+            .zip(s2.data.par_chunks_mut(w))
+            .enumerate()
+            .for_each(|(r, ((a, b), c))| f(r, a, b, c));
+    }
 }
 
 /// A source of sensor-frame Stokes radiance one row at a time: a whole [`StokesImage`], or a

@@ -182,13 +182,30 @@ impl RawPipeline {
         0.025 / self.sensor_cfg.full_well_e.sqrt()
     }
 
-    /// The raw frame of a Stokes scene.
+    /// The raw frame of a Stokes scene by the path `psns render --raw` and `psns stream` take:
+    /// the fast sensor unless `exact` or a configuration only the exact path models (see
+    /// [`Self::fast`]); with the ground truth when `truth` (else `truth` is 0 × 0).
+    pub fn frame_of(&self, st: &StokesImage, frame_index: u64, truth: bool) -> Result<RawFrame> {
+        if self.fast() {
+            let mut f = self.sensor.frame_fast(st, frame_index, Vec::new())?;
+            if truth {
+                f.truth = self.sensor.truth_for(st, f.exposure_us);
+            }
+            Ok(f)
+        } else if truth {
+            self.frame(st, frame_index)
+        } else {
+            self.frame_codes(st, frame_index)
+        }
+    }
+
+    /// The raw frame of a Stokes scene by the exact path.
     pub fn frame(&self, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
         self.sensor.frame(stokes, frame_index)
     }
 
-    /// The raw frame of a Stokes scene without the ground truth (`truth` is 0 × 0): see
-    /// [`Sensor::frame_codes`].
+    /// The raw frame of a Stokes scene by the exact path without the ground truth (`truth` is
+    /// 0 × 0): see [`Sensor::frame_codes`].
     pub fn frame_codes(&self, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
         self.sensor.frame_codes(stokes, frame_index)
     }
@@ -210,15 +227,10 @@ impl RawPipeline {
             // a static render needs the sun up (sky.md §8)
             self.cfg.sun.check_up(sun)?;
         }
-        let index = self.cfg.raw.frame_index;
-        let frame = if self.fast() {
-            // the fast sensor on the grid sky, with the ground truth of that sky
-            let mut f = self.sensor.frame_fast(&st, index, Vec::new())?;
-            f.truth = self.sensor.truth_for(&st, f.exposure_us);
-            f
-        } else {
-            self.frame(&st, index)?
-        };
-        Ok((frame, info, scene_s))
+        Ok((
+            self.frame_of(&st, self.cfg.raw.frame_index, true)?,
+            info,
+            scene_s,
+        ))
     }
 }

@@ -126,20 +126,14 @@ pub struct StokesOptions {
 pub fn render_stokes(sky: &Sky, cam: &Camera, opts: StokesOptions) -> (StokesImage, usize) {
     let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
     let mut out = StokesImage::zeros(w, h);
-    out.s0
-        .data
-        .par_chunks_mut(w)
-        .zip(out.s1.data.par_chunks_mut(w))
-        .zip(out.s2.data.par_chunks_mut(w))
-        .enumerate()
-        .for_each(|(r, ((s0, s1), s2))| {
-            for c in 0..w {
-                let [a, b, d] = pixel_sky(sky, cam, c as f64, r as f64).stokes();
-                s0[c] = a as f32;
-                s1[c] = b as f32;
-                s2[c] = d as f32;
-            }
-        });
+    out.par_rows(|r, s0, s1, s2| {
+        for c in 0..w {
+            let [a, b, d] = pixel_sky(sky, cam, c as f64, r as f64).stokes();
+            s0[c] = a as f32;
+            s1[c] = b as f32;
+            s2[c] = d as f32;
+        }
+    });
     let n_sun = if opts.sun_disc {
         add_sun_disc(sky, cam, &mut out)
     } else {
@@ -539,15 +533,8 @@ impl<'a> SkyGrid<'a> {
 
     /// The whole image.
     pub fn to_image(&self) -> StokesImage {
-        let (w, h) = (self.width, self.height);
-        let mut out = StokesImage::zeros(w, h);
-        let StokesImage { s0, s1, s2 } = &mut out;
-        s0.data
-            .par_chunks_mut(w)
-            .zip(s1.data.par_chunks_mut(w))
-            .zip(s2.data.par_chunks_mut(w))
-            .enumerate()
-            .for_each(|(r, ((a, b), c))| self.fill_row(r, a, b, c));
+        let mut out = StokesImage::zeros(self.width, self.height);
+        out.par_rows(|r, a, b, c| self.fill_row(r, a, b, c));
         out
     }
 

@@ -86,8 +86,8 @@ fn full_size_camera_frame_timing() {
     );
 }
 
-#[test]
-fn golden_frame_hash() {
+/// The golden camera (32 × 16, black level 16, seed 12345) and the SHA-256 of a frame's codes.
+fn golden_sensor() -> Sensor {
     let intr = Intrinsics {
         width: 32,
         height: 16,
@@ -95,17 +95,22 @@ fn golden_frame_hash() {
     };
     let mut cfg = SensorConfig::default();
     cfg.black_level_dn = 16.0;
-    let f = Sensor::new(&cfg, &intr, 12345)
-        .unwrap()
-        .frame(&sky(32, 16), 7)
-        .unwrap();
-    let bytes: Vec<u8> = f.codes.data.iter().flat_map(|v| v.to_le_bytes()).collect();
-    let hex: String = Sha256::digest(&bytes)
+    Sensor::new(&cfg, &intr, 12345).unwrap()
+}
+
+fn codes_sha256(codes: &[u16]) -> String {
+    let bytes: Vec<u8> = codes.iter().flat_map(|v| v.to_le_bytes()).collect();
+    Sha256::digest(&bytes)
         .iter()
         .map(|b| format!("{b:02x}"))
-        .collect();
+        .collect()
+}
+
+#[test]
+fn golden_frame_hash() {
+    let f = golden_sensor().frame(&sky(32, 16), 7).unwrap();
     // recorded from the first implementation; a change means every emulated camera changed
-    assert_eq!(hex, GOLDEN);
+    assert_eq!(codes_sha256(&f.codes.data), GOLDEN);
 }
 const GOLDEN: &str = "876bf6db25c474c39e8ba4f9a1ab88871abcea0d618c6a2c75e8e081df721f4f";
 
@@ -113,22 +118,9 @@ const GOLDEN: &str = "876bf6db25c474c39e8ba4f9a1ab88871abcea0d618c6a2c75e8e081df
 /// the exact path's by design). A change means every fast-path camera changed.
 #[test]
 fn golden_fast_frame_hash() {
-    let intr = Intrinsics {
-        width: 32,
-        height: 16,
-        ..Default::default()
-    };
-    let mut cfg = SensorConfig::default();
-    cfg.black_level_dn = 16.0;
-    let f = Sensor::new(&cfg, &intr, 12345)
-        .unwrap()
+    let f = golden_sensor()
         .frame_fast(&sky(32, 16), 7, Vec::new())
         .unwrap();
-    let bytes: Vec<u8> = f.codes.data.iter().flat_map(|v| v.to_le_bytes()).collect();
-    let hex: String = Sha256::digest(&bytes)
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect();
-    assert_eq!(hex, GOLDEN_FAST);
+    assert_eq!(codes_sha256(&f.codes.data), GOLDEN_FAST);
 }
 const GOLDEN_FAST: &str = "07b2489a7ad34b6d4568cf8fadf71ac26cfc75f7cc47b2ba3d0ab2ff81bbe6fc";

@@ -418,11 +418,8 @@ fn render(
     let sun = scene.sun.resolve()?;
     scene.sun.check_up(sun)?;
     let frame = |pipe: &RawPipeline, st: &psns::image::StokesImage| {
-        let f = if truth {
-            pipe.frame(st, scene.raw.frame_index)?
-        } else {
-            pipe.frame_codes(st, scene.raw.frame_index)?
-        };
+        // the path psns render --raw takes, so the images re-render byte for byte
+        let f = pipe.frame_of(st, scene.raw.frame_index, truth)?;
         Ok::<_, Error>((f, pipe.sensor_config().layout))
     };
     match scene.raw.preset {

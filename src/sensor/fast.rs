@@ -918,26 +918,10 @@ mod speed {
             }
             acc
         }
-        #[target_feature(enable = "avx2,fma")]
-        unsafe fn hash_avx2(key: &NoiseKey, n: usize) -> u32 {
-            let mut z = [0u32; BLOCK];
-            let mut acc = 0u32;
-            for b in (0..n).step_by(BLOCK) {
-                for i in 0..BLOCK {
-                    z[i] = key.bits((b + i) as u32);
-                }
-                acc ^= z[7];
-            }
-            acc
-        }
         let n = rows * w;
         let t0 = std::time::Instant::now();
         let a = unsafe { normals_avx2(&fc.shot_key, n) };
         let ns = t0.elapsed().as_secs_f64() * 1e9 / n as f64;
         println!("normals: {ns:.2} ns/pixel ({a})");
-        let t0 = std::time::Instant::now();
-        let a = unsafe { hash_avx2(&fc.shot_key, n) };
-        let ns = t0.elapsed().as_secs_f64() * 1e9 / n as f64;
-        println!("hash: {ns:.2} ns/pixel ({a})");
     }
 }

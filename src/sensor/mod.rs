@@ -544,6 +544,18 @@ impl Sensor {
         }
     }
 
+    fn check_rows(&self, src: &dyn StokesRows) -> Result<()> {
+        let (w, h) = (self.intrinsics.width, self.intrinsics.height);
+        if src.width() != w || src.height() != h {
+            return Err(Error::Invalid(format!(
+                "the scene is {}x{}, the sensor is {w}x{h}",
+                src.width(),
+                src.height()
+            )));
+        }
+        Ok(())
+    }
+
     fn check_input(&self, stokes: &StokesImage) -> Result<()> {
         let (w, h) = (self.intrinsics.width, self.intrinsics.height);
         for (n, im) in [("S0", &stokes.s0), ("S1", &stokes.s1), ("S2", &stokes.s2)] {
@@ -665,14 +677,8 @@ impl Sensor {
         frame_index: u64,
         codes: Vec<u16>,
     ) -> Result<RawFrame> {
+        self.check_rows(src)?;
         let (w, h) = (self.intrinsics.width, self.intrinsics.height);
-        if src.width() != w || src.height() != h {
-            return Err(Error::Invalid(format!(
-                "the scene is {}x{}, the sensor is {w}x{h}",
-                src.width(),
-                src.height()
-            )));
-        }
         if !self.fast_capable() {
             return Err(Error::Invalid(
                 "this sensor configuration needs the exact path (--exact)".into(),
@@ -728,14 +734,7 @@ impl Sensor {
     /// Noise-free electron rate (e⁻/s) of every pixel as the fast path computes it (the
     /// counterpart of [`Self::electron_rate`], for comparing the two paths).
     pub fn electron_rate_fast(&self, src: &dyn StokesRows) -> Result<Vec<f64>> {
-        let (w, h) = (self.intrinsics.width, self.intrinsics.height);
-        if src.width() != w || src.height() != h {
-            return Err(Error::Invalid(format!(
-                "the scene is {}x{}, the sensor is {w}x{h}",
-                src.width(),
-                src.height()
-            )));
-        }
+        self.check_rows(src)?;
         Ok(fast::rates(self, self.fast_statics(), src).0)
     }
 
@@ -899,22 +898,16 @@ impl Sensor {
     pub(crate) fn truth(&self, stokes: &StokesImage, gain: f64) -> StokesImage {
         let (w, h) = (self.intrinsics.width, self.intrinsics.height);
         let mut out = StokesImage::zeros(w, h);
-        let StokesImage { s0, s1, s2 } = &mut out;
-        s0.data
-            .par_chunks_mut(w)
-            .zip(s1.data.par_chunks_mut(w))
-            .zip(s2.data.par_chunks_mut(w))
-            .enumerate()
-            .for_each(|(r, ((a, b), c))| {
-                for i in 0..w {
-                    let k = r * w + i;
-                    let (x0, x1, x2) = finite3(stokes, k);
-                    let g = gain * self.ri_at(k);
-                    a[i] = (g * x0) as f32;
-                    b[i] = (g * x1) as f32;
-                    c[i] = (g * x2) as f32;
-                }
-            });
+        out.par_rows(|r, a, b, c| {
+            for i in 0..w {
+                let k = r * w + i;
+                let (x0, x1, x2) = finite3(stokes, k);
+                let g = gain * self.ri_at(k);
+                a[i] = (g * x0) as f32;
+                b[i] = (g * x1) as f32;
+                c[i] = (g * x2) as f32;
+            }
+        });
         out
     }
 

@@ -26,37 +26,51 @@ pub struct GridBenchRow {
     pub p99_aop_deg: f64,
 }
 
-/// Error of an approximate Stokes render against the exact one.
+/// Errors of pixel `i` of an approximate Stokes render against the exact one: |ΔS0|/S0, |ΔDoLP|
+/// and, where the exact DoLP exceeds 0.02, |ΔAoLP| in degrees. `None` where the exact S0 ≤ 0.
+pub fn pixel_errors(
+    exact: &psns::image::StokesImage,
+    approx: &psns::image::StokesImage,
+    i: usize,
+) -> Option<(f64, f64, Option<f64>)> {
+    let (a0, a1, a2) = (
+        exact.s0.data[i] as f64,
+        exact.s1.data[i] as f64,
+        exact.s2.data[i] as f64,
+    );
+    let (b0, b1, b2) = (
+        approx.s0.data[i] as f64,
+        approx.s1.data[i] as f64,
+        approx.s2.data[i] as f64,
+    );
+    if a0 <= 0.0 {
+        return None;
+    }
+    let (pa, pb) = (
+        a1.hypot(a2) / a0,
+        if b0 > 0.0 { b1.hypot(b2) / b0 } else { 0.0 },
+    );
+    let aop = (pa > 0.02).then(|| {
+        psns::angle::SensorAngle::from_stokes(a1, a2)
+            .diff(psns::angle::SensorAngle::from_stokes(b1, b2))
+    });
+    Some(((b0 - a0).abs() / a0, (pa - pb).abs(), aop))
+}
+
+/// Error of an approximate Stokes render against the exact one: max |ΔS0|/S0, max |ΔDoLP|, max and
+/// p99 |ΔAoLP| (see [`pixel_errors`]).
 pub fn stokes_errors(
     exact: &psns::image::StokesImage,
     approx: &psns::image::StokesImage,
 ) -> (f64, f64, f64, f64) {
     let (mut rel, mut dop, mut aop) = (0.0f64, 0.0f64, Vec::new());
     for i in 0..exact.s0.data.len() {
-        let (a0, a1, a2) = (
-            exact.s0.data[i] as f64,
-            exact.s1.data[i] as f64,
-            exact.s2.data[i] as f64,
-        );
-        let (b0, b1, b2) = (
-            approx.s0.data[i] as f64,
-            approx.s1.data[i] as f64,
-            approx.s2.data[i] as f64,
-        );
-        if a0 <= 0.0 {
+        let Some((r, d, a)) = pixel_errors(exact, approx, i) else {
             continue;
-        }
-        rel = rel.max((b0 - a0).abs() / a0);
-        let (pa, pb) = (
-            a1.hypot(a2) / a0,
-            if b0 > 0.0 { b1.hypot(b2) / b0 } else { 0.0 },
-        );
-        dop = dop.max((pa - pb).abs());
-        if pa > 0.02 {
-            let da = psns::angle::SensorAngle::from_stokes(a1, a2)
-                .diff(psns::angle::SensorAngle::from_stokes(b1, b2));
-            aop.push(da);
-        }
+        };
+        rel = rel.max(r);
+        dop = dop.max(d);
+        aop.extend(a);
     }
     aop.sort_by(|a, b| a.total_cmp(b));
     let max = aop.last().copied().unwrap_or(0.0);

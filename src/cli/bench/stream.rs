@@ -418,24 +418,10 @@ pub fn accuracy(cfg: &SceneConfig, steps: &[usize]) -> Result<Vec<Accuracy>> {
                 }
                 let (me, mf) = (re[i] * t, rf[i] * t);
                 acc[k][0].push((mf - me).abs() / me.sqrt().max(1e-9));
-                let (a0, a1, a2) = (
-                    exact.s0.data[i] as f64,
-                    exact.s1.data[i] as f64,
-                    exact.s2.data[i] as f64,
-                );
-                let (b0, b1, b2) = (
-                    approx.s0.data[i] as f64,
-                    approx.s1.data[i] as f64,
-                    approx.s2.data[i] as f64,
-                );
-                acc[k][1].push((b0 - a0).abs() / a0);
-                let (pa, pb) = (a1.hypot(a2) / a0, b1.hypot(b2) / b0.max(1e-30));
-                acc[k][2].push((pa - pb).abs());
-                if pa > 0.02 {
-                    acc[k][3].push(
-                        psns::angle::SensorAngle::from_stokes(a1, a2)
-                            .diff(psns::angle::SensorAngle::from_stokes(b1, b2)),
-                    );
+                if let Some((rel, dop, aop)) = super::sky::pixel_errors(&exact, &approx, i) {
+                    acc[k][1].push(rel);
+                    acc[k][2].push(dop);
+                    acc[k][3].extend(aop);
                 }
             }
         }
