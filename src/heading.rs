@@ -994,22 +994,7 @@ mod tests {
         pitch: f64,
         roll: f64,
     ) -> HeadingEstimate {
-        let p = SkyParams {
-            model,
-            ..SkyParams::default()
-        };
-        let sky = Sky::new(sun, &p).unwrap();
-        // the full sensor's field of view at 1/8 of its pixels
-        let i = Intrinsics {
-            pixel_pitch_um: 3.45 * 8.0,
-            ..Intrinsics::with_size(306, 256)
-        };
-        let cam = Camera::new(i, &Attitude::enu(yaw, pitch, roll), sun.azimuth_deg).unwrap();
-        let im = render_ideal(&sky, &cam);
-        let mut setup = HeadingSetup::new(i, sun);
-        setup.pitch_deg = pitch;
-        setup.roll_deg = roll;
-        setup.step = 2;
+        let (im, setup) = ideal(model, sun, yaw, pitch, roll);
         eigenvector_heading(&im.aop_deg, &im.dop, &setup).unwrap()
     }
 
@@ -1122,6 +1107,7 @@ mod tests {
             ..SkyParams::default()
         };
         let sky = Sky::new(sun, &p).unwrap();
+        // the full sensor's field of view at 1/8 of its pixels
         let i = Intrinsics {
             pixel_pitch_um: 3.45 * 8.0,
             ..Intrinsics::with_size(306, 256)

@@ -15,13 +15,14 @@
 //! - **Read noise folded in** when σ_read ≥ 1 e⁻: Poisson(μ) + N(0, σ²) is drawn as one
 //!   Cornish–Fisher normal with mean μ, variance μ + σ² and third cumulant μ. The whole-electron
 //!   lattice of the Poisson part is then invisible: its characteristic function at frequency 1 is
-//!   damped by exp(−2π²σ²) ≤ 3e-9. Pixels where the full well or the low-mean rule matter take the
-//!   unfolded per-pixel path.
-//! - f32 arithmetic in the kernel (f64 in the unfolded path).
+//!   damped by exp(−2π²σ²) ≤ 3e-9. This holds at any mean, so only pixels that may reach the full
+//!   well take the unfolded path (whole electrons, clip, then DSNU and read noise); with σ_read < 1
+//!   e⁻ every pixel does.
+//! - f32 arithmetic throughout, AVX2 + FMA where the CPU has them (the same bits without).
 //!
 //! Everything else (optics, polarizer with its orientation error, PRNU, RI, dark current, DSNU,
 //! full well, gain, black level, ADC) is the exact path's model with the exact path's fixed-pattern
-//! maps, folded into three per-pixel coefficients.
+//! maps, stored as 16-bit fixed point ([`FastStatics`]).
 
 use super::Sensor;
 use crate::image::StokesRows;
@@ -493,7 +494,7 @@ fn chunk_unfolded(
 }
 
 /// The vectorisable loop of one row: mean electrons into `mu`, folded Cornish–Fisher draw, ADC.
-/// `ds` is the DSNU row (zeros when off).
+/// Returns the row's largest mean and largest code.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn row_folded_body(
@@ -549,45 +550,8 @@ fn row_folded_body(
     (f32::from_bits(mu_max), code_max)
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-#[allow(clippy::too_many_arguments)]
-unsafe fn row_folded_avx2(
-    fc: &FrameConsts,
-    s0: &[f32],
-    s1: &[f32],
-    s2: &[f32],
-    st: &StaticRow,
-    idx0: u32,
-    mu: &mut [f32],
-    out: &mut [u16],
-) -> (f32, u16) {
-    row_folded_body(fc, s0, s1, s2, st, idx0, mu, out)
-}
-
-#[allow(clippy::too_many_arguments)]
-fn row_folded(
-    fc: &FrameConsts,
-    s0: &[f32],
-    s1: &[f32],
-    s2: &[f32],
-    st: &StaticRow,
-    idx0: u32,
-    mu: &mut [f32],
-    out: &mut [u16],
-) -> (f32, u16) {
-    #[cfg(target_arch = "x86_64")]
-    if has_avx2_fma() {
-        // SAFETY: the CPU has AVX2 and FMA (checked above). `mul_add` is exactly rounded with or
-        // without the instruction, so both builds give the same bits.
-        return unsafe { row_folded_avx2(fc, s0, s1, s2, st, idx0, mu, out) };
-    }
-    row_folded_body(fc, s0, s1, s2, st, idx0, mu, out)
-}
-
-/// The unfolded kernel for the chunks of a row holding pixels that need it (all of them when
-/// the configuration is not folded; else those that may reach the full well); counts the
-/// full-well pixels that read below the top code in `sat`.
+/// The unfolded kernel for the chunks of a row holding pixels that need it (see [`row_body`]);
+/// counts the full-well pixels that read below the top code in `sat`.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn row_fixup_body(
@@ -633,42 +597,77 @@ fn row_fixup_body(
     }
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
+/// One row: the folded kernel everywhere (it also fills `mu`), the unfolded one for the chunks
+/// that need it (all of them when the configuration is not folded, else those that may reach the
+/// full well), and the saturation counts in `sat`.
+#[inline(always)]
 #[allow(clippy::too_many_arguments)]
-unsafe fn row_fixup_avx2(
+fn row_body(
     fc: &FrameConsts,
     folded: bool,
     mu_hi: f32,
-    mu: &[f32],
+    s: [&[f32]; 3],
     st: &StaticRow,
     k0: usize,
     r: usize,
+    mu: &mut [f32],
     row: &mut [u16],
     sat: &mut [u32; 4],
 ) {
-    row_fixup_body(fc, folded, mu_hi, mu, st, k0, r, row, sat)
+    let (mu_max, code_max) = row_folded_body(fc, s[0], s[1], s[2], st, k0 as u32, mu, row);
+    let fixup = !folded || mu_max > mu_hi;
+    if fixup {
+        row_fixup_body(fc, folded, mu_hi, mu, st, k0, r, row, sat);
+    }
+    if fixup || code_max == fc.max {
+        for (c, &v) in row.iter().enumerate() {
+            if v == fc.max {
+                sat[((r & 1) << 1) | (c & 1)] += 1;
+            }
+        }
+    }
 }
 
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
 #[allow(clippy::too_many_arguments)]
-fn row_fixup(
+unsafe fn row_avx2(
     fc: &FrameConsts,
     folded: bool,
     mu_hi: f32,
-    mu: &[f32],
+    s: [&[f32]; 3],
     st: &StaticRow,
     k0: usize,
     r: usize,
+    mu: &mut [f32],
+    row: &mut [u16],
+    sat: &mut [u32; 4],
+) {
+    row_body(fc, folded, mu_hi, s, st, k0, r, mu, row, sat)
+}
+
+/// [`row_body`], built for AVX2 and FMA when the CPU has them.
+#[allow(clippy::too_many_arguments)]
+fn row_kernel(
+    fc: &FrameConsts,
+    folded: bool,
+    mu_hi: f32,
+    s: [&[f32]; 3],
+    st: &StaticRow,
+    k0: usize,
+    r: usize,
+    mu: &mut [f32],
     row: &mut [u16],
     sat: &mut [u32; 4],
 ) {
     #[cfg(target_arch = "x86_64")]
     if has_avx2_fma() {
-        // SAFETY: see row_folded
-        unsafe { row_fixup_avx2(fc, folded, mu_hi, mu, st, k0, r, row, sat) };
+        // SAFETY: the CPU has AVX2 and FMA (checked above). `mul_add` is exactly rounded with or
+        // without the instruction, so both builds give the same bits.
+        unsafe { row_avx2(fc, folded, mu_hi, s, st, k0, r, mu, row, sat) };
         return;
     }
-    row_fixup_body(fc, folded, mu_hi, mu, st, k0, r, row, sat)
+    row_body(fc, folded, mu_hi, s, st, k0, r, mu, row, sat)
 }
 
 #[cfg(target_arch = "x86_64")]
@@ -710,23 +709,9 @@ pub(crate) fn render_codes(
             for (i, row) in out.chunks_mut(w).enumerate() {
                 let r = band * BAND + i;
                 src.fill_row(r, &mut s0, &mut s1, &mut s2);
-                let k0 = r * w;
                 let sr = st.row(r, w);
-                // the folded kernel everywhere (it also fills `mu`), then the unfolded one for the
-                // chunks holding pixels where the low-mean rule or the full well matter
-                let (mu_max, code_max) =
-                    row_folded(fc, &s0, &s1, &s2, &sr, k0 as u32, &mut mu, row);
-                let fixup = !folded || mu_max > mu_hi;
-                if fixup {
-                    row_fixup(fc, folded, mu_hi, &mu, &sr, k0, r, row, &mut sat);
-                }
-                if fixup || code_max == fc.max {
-                    for (c, &v) in row.iter().enumerate() {
-                        if v == fc.max {
-                            sat[((r & 1) << 1) | (c & 1)] += 1;
-                        }
-                    }
-                }
+                let s = [&s0[..], &s1[..], &s2[..]];
+                row_kernel(fc, folded, mu_hi, s, &sr, r * w, r, &mut mu, row, &mut sat);
             }
             sat
         })
@@ -894,17 +879,41 @@ mod speed {
         };
         let mut mu = vec![0f32; w];
         let mut out = vec![0u16; w];
+        let mut sat = [0u32; 4];
         let rows = 2000;
         let t0 = std::time::Instant::now();
         for r in 0..rows {
-            let _ = row_folded(&fc, &s0, &s1, &s2, &sr, (r * w) as u32, &mut mu, &mut out);
+            let s = [&s0[..], &s1[..], &s2[..]];
+            row_kernel(
+                &fc,
+                true,
+                f32::MAX,
+                s,
+                &sr,
+                r * w,
+                r,
+                &mut mu,
+                &mut out,
+                &mut sat,
+            );
         }
         let ns = t0.elapsed().as_secs_f64() * 1e9 / (rows * w) as f64;
         println!("folded: {ns:.2} ns/pixel (mu {})", mu[0]);
-        let mut sat = [0u32; 4];
         let t0 = std::time::Instant::now();
         for r in 0..rows / 10 {
-            row_fixup(&fc, false, 0.0, &mu, &sr, r * w, r, &mut out, &mut sat);
+            let s = [&s0[..], &s1[..], &s2[..]];
+            row_kernel(
+                &fc,
+                false,
+                0.0,
+                s,
+                &sr,
+                r * w,
+                r,
+                &mut mu,
+                &mut out,
+                &mut sat,
+            );
         }
         let ns = t0.elapsed().as_secs_f64() * 1e9 / (rows / 10 * w) as f64;
         println!("unfolded: {ns:.2} ns/pixel");

@@ -43,6 +43,28 @@ pub struct StageTimes {
     pub exact_pixels: f64,
 }
 
+/// Header of `stream_stages.csv` (and of the lines printed while measuring).
+const STAGES_HEADER: &str =
+    "mode,sky_ms,sensor_ms,pack_ms,total_ms,fps,nodes,refined_cells,exact_pixels";
+
+impl StageTimes {
+    /// One line of `stream_stages.csv`.
+    fn csv_row(&self) -> String {
+        format!(
+            "\"{}\",{:.3},{:.3},{:.3},{:.3},{:.2},{:.0},{:.0},{:.0}",
+            self.mode,
+            self.sky_ms,
+            self.sensor_ms,
+            self.pack_ms,
+            self.total_ms,
+            1e3 / self.total_ms,
+            self.nodes,
+            self.refined_cells,
+            self.exact_pixels
+        )
+    }
+}
+
 /// The attitude of frame `k` of a turning camera like `psns stream`'s built-in trajectory
 /// (level, ENU yaw in steps of 3.6°).
 fn attitude(k: usize) -> Attitude {
@@ -190,7 +212,7 @@ pub struct StreamBenchOptions {
 pub fn bench_stream(cfg: &SceneConfig, o: &StreamBenchOptions) -> Result<Vec<String>> {
     create_dir(&o.out)?;
     let mut stages = Vec::new();
-    eprintln!("mode,sky_ms,sensor_ms,pack_ms,total_ms,fps,nodes,refined_cells,exact_pixels");
+    eprintln!("{STAGES_HEADER}");
     for s in o
         .steps
         .iter()
@@ -203,18 +225,7 @@ pub fn bench_stream(cfg: &SceneConfig, o: &StreamBenchOptions) -> Result<Vec<Str
             o.frames
         };
         let t = stage_times(cfg, s, n)?;
-        eprintln!(
-            "{},{:.2},{:.2},{:.2},{:.2},{:.1},{:.0},{:.0},{:.0}",
-            t.mode,
-            t.sky_ms,
-            t.sensor_ms,
-            t.pack_ms,
-            t.total_ms,
-            1e3 / t.total_ms,
-            t.nodes,
-            t.refined_cells,
-            t.exact_pixels
-        );
+        eprintln!("{}", t.csv_row());
         stages.push(t);
     }
     let exe = std::env::current_exe().map_err(|e| Error::io("finding the psns binary", e))?;
@@ -281,24 +292,7 @@ pub fn bench_stream(cfg: &SceneConfig, o: &StreamBenchOptions) -> Result<Vec<Str
     std::fs::write(&p, svg).map_err(|e| Error::io(p.display().to_string(), e))?;
     files.push(p.display().to_string());
     let p = o.out.join("stream_stages.csv");
-    write_csv(
-        &p,
-        "mode,sky_ms,sensor_ms,pack_ms,total_ms,fps,nodes,refined_cells,exact_pixels",
-        stages.iter().map(|t| {
-            format!(
-                "\"{}\",{:.3},{:.3},{:.3},{:.3},{:.2},{:.0},{:.0},{:.0}",
-                t.mode,
-                t.sky_ms,
-                t.sensor_ms,
-                t.pack_ms,
-                t.total_ms,
-                1e3 / t.total_ms,
-                t.nodes,
-                t.refined_cells,
-                t.exact_pixels
-            )
-        }),
-    )?;
+    write_csv(&p, STAGES_HEADER, stages.iter().map(StageTimes::csv_row))?;
     files.push(p.display().to_string());
     let p = o.out.join("stream_e2e.csv");
     write_csv(
