@@ -44,9 +44,7 @@ fn kappa(s: &StokesImage, full: f64) -> f64 {
 fn kappa_ri(s: &StokesImage, full: f64, ri: impl Fn(usize) -> f64) -> f64 {
     let m = (0..s.s0.data.len())
         .map(|k| {
-            ri(k)
-                * 0.5
-                * (s.s0.data[k] as f64 + (s.s1.data[k] as f64).hypot(s.s2.data[k] as f64))
+            ri(k) * 0.5 * (s.s0.data[k] as f64 + (s.s1.data[k] as f64).hypot(s.s2.data[k] as f64))
         })
         .fold(0.0, f64::max);
     full / m
@@ -105,7 +103,9 @@ fn gniipi_noise_and_falloff() {
     let cfg = SensorConfig::preset(Preset::Gniipi);
     let f = simulate(&scene, &Intrinsics::with_size(w, h), &cfg, 4, 0).unwrap();
     let i = Intrinsics::with_size(w, h);
-    let k = kappa_ri(&scene, 255.0, |k| cfg.ri.factor(&i, (k % w) as f64, (k / w) as f64));
+    let k = kappa_ri(&scene, 255.0, |k| {
+        cfg.ri.factor(&i, (k % w) as f64, (k / w) as f64)
+    });
     // falloff: truth = κ · RI · S with the configured RI (cos^4 of the field angle)
     let mut res = Vec::new();
     for r in 0..h {
@@ -222,7 +222,10 @@ fn gniipi_brightest_sample_is_full_scale_after_falloff_and_noise_is_2_percent_of
     let brightest = (0..w * h)
         .map(|k| 0.5 * (t.s0.data[k] as f64 + (t.s1.data[k] as f64).hypot(t.s2.data[k] as f64)))
         .fold(0.0, f64::max);
-    assert!((brightest - 255.0).abs() < 1e-3, "brightest sample {brightest}, want 255");
+    assert!(
+        (brightest - 255.0).abs() < 1e-3,
+        "brightest sample {brightest}, want 255"
+    );
     let top = *f.codes.data.iter().max().unwrap();
     assert!(top >= 250, "brightest code {top}");
     // σ = 2 % of the brightest noise-free sample (5.1 DN), measured on the noisy frame
@@ -254,9 +257,16 @@ fn gniipi_brightest_sample_is_full_scale_after_falloff_and_noise_is_2_percent_of
 fn psns_presets_fall_off_as_cos4_camera_as_cos1_5() {
     use psns::sensor::optics::RelativeIllumination;
     for p in [Preset::Nfpi, Preset::Gniipi, Preset::Gniicpi] {
-        assert_eq!(SensorConfig::preset(p).ri, RelativeIllumination::CosPower { n: 4.0 }, "{p}");
+        assert_eq!(
+            SensorConfig::preset(p).ri,
+            RelativeIllumination::CosPower { n: 4.0 },
+            "{p}"
+        );
     }
-    assert_eq!(SensorConfig::preset(Preset::Camera).ri, RelativeIllumination::CosPower { n: 1.5 });
+    assert_eq!(
+        SensorConfig::preset(Preset::Camera).ri,
+        RelativeIllumination::CosPower { n: 1.5 }
+    );
     // a flat field: corner / centre of the noise-free gniipi codes = cos⁴ of the corner angle
     let (w, h) = (2448 / 4, 2048 / 4);
     let i = wide(w, h);
@@ -265,7 +275,10 @@ fn psns_presets_fall_off_as_cos4_camera_as_cos1_5() {
     c.psns.as_mut().unwrap().noise_fraction = 0.0;
     c.bit_depth = 12;
     let f = simulate(&flat, &i, &c, 1, 0).unwrap();
-    let (corner, centre) = (*f.truth.s0.get(0, 0) as f64, *f.truth.s0.get(h / 2, w / 2) as f64);
+    let (corner, centre) = (
+        *f.truth.s0.get(0, 0) as f64,
+        *f.truth.s0.get(h / 2, w / 2) as f64,
+    );
     let cos = {
         let fp = i.focal_px();
         let (x, y) = (0.5 * (w - 1) as f64, 0.5 * (h - 1) as f64);
@@ -276,6 +289,9 @@ fn psns_presets_fall_off_as_cos4_camera_as_cos1_5() {
         let fp = i.focal_px();
         (fp / (0.25 + 0.25 + fp * fp).sqrt()).powi(4)
     };
-    assert!((ratio / want - 1.0).abs() < 1e-5, "corner/centre {ratio}, cos^4 {want}");
+    assert!(
+        (ratio / want - 1.0).abs() < 1e-5,
+        "corner/centre {ratio}, cos^4 {want}"
+    );
     assert!((ratio - 0.119).abs() < 0.003, "corner {ratio}");
 }

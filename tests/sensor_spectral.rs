@@ -30,14 +30,23 @@ fn electrons_at_450_and_650_nm_follow_the_curves() {
     // photons per watt ∝ λ, times η(λ) T∥(λ); ideal polarizer
     let want = 650.0 / 450.0 * (qe.at(650.0) * tp.at(650.0)) / (qe.at(450.0) * tp.at(450.0));
     let got = rate(650.0, false) / rate(450.0, false);
-    assert!((got / want - 1.0).abs() < 1e-12, "ratio {got}, curves {want}");
+    assert!(
+        (got / want - 1.0).abs() < 1e-12,
+        "ratio {got}, curves {want}"
+    );
     // the curves really differ from constants: η falls to 0.5625 and T∥ rises to 0.87 at 650 nm
     assert!((want - 650.0 / 450.0 * 0.5625 * 0.87 / (0.60 * 0.8)).abs() < 1e-12);
-    assert!((got - 1.444).abs() > 0.02, "constant QE and T∥ would give 650/450 = 1.444");
+    assert!(
+        (got - 1.444).abs() > 0.02,
+        "constant QE and T∥ would give 650/450 = 1.444"
+    );
     // with the extinction ratio as well: × (1 + 1/ER(650)) / (1 + 1/ER(450)), ER 180 and 60
     let want_er = want * (1.0 + 1.0 / 180.0) / (1.0 + 1.0 / 60.0);
     let got_er = rate(650.0, true) / rate(450.0, true);
-    assert!((got_er / want_er - 1.0).abs() < 1e-12, "{got_er} vs {want_er}");
+    assert!(
+        (got_er / want_er - 1.0).abs() < 1e-12,
+        "{got_er} vs {want_er}"
+    );
     // blue end: 400 nm has η 0.45, T∥ 0.68
     let want_400 = 400.0 / 450.0 * 0.45 * 0.68 / (0.60 * 0.8);
     assert!((rate(400.0, false) / rate(450.0, false) / want_400 - 1.0).abs() < 1e-12);

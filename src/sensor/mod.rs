@@ -40,10 +40,10 @@ use crate::image::{Image, StokesImage, StokesRows};
 use mosaic::MosaicLayout;
 use optics::RelativeIllumination;
 use polarizer::ErTable;
-use spectral::Spectral;
 pub use presets::{Preset, PsnsModel};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use spectral::Spectral;
 
 /// Exposure control.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -764,7 +764,12 @@ impl Sensor {
         let t = exposure_us * 1e-6;
         self.truth(
             stokes,
-            scale * kg * t * cfg.qe_at_filter() * self.photon_rate * cfg.pass_transmission_at_filter(),
+            scale
+                * kg
+                * t
+                * cfg.qe_at_filter()
+                * self.photon_rate
+                * cfg.pass_transmission_at_filter(),
         )
     }
 

@@ -167,7 +167,9 @@ mod tests {
         }
         let bad = Spectral::Table(vec![[500.0, 0.5], [400.0, 0.5]]);
         assert!(bad.validate("qe", 0.0, 1.0).is_err());
-        let e = Spectral::Constant(1.5).validate("qe", 0.0, 1.0).unwrap_err();
+        let e = Spectral::Constant(1.5)
+            .validate("qe", 0.0, 1.0)
+            .unwrap_err();
         assert!(e.to_string().contains("qe") && e.is_usage(), "{e}");
         assert!(Spectral::Table(vec![]).validate("qe", 0.0, 1.0).is_err());
     }
