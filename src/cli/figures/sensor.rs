@@ -848,8 +848,10 @@ mod tests {
 
     #[test]
     fn brightest_channel_is_the_superpixel_maximum() {
-        let mut cfg = SensorConfig::default();
-        cfg.stages = psns::sensor::Stages::none();
+        let cfg = SensorConfig {
+            stages: psns::sensor::Stages::none(),
+            ..Default::default()
+        };
         let intr = psns::camera::Intrinsics::with_size(8, 4);
         let s = Sensor::new(&cfg, &intr, 1).unwrap();
         // fully polarized at 45°: the 45° pixel (0,1) of every superpixel is the brightest
