@@ -143,7 +143,9 @@ pub fn auto_kappa(stokes: &StokesImage, full: f64) -> f64 {
         .zip(stokes.s1.data.par_iter())
         .zip(stokes.s2.data.par_iter())
         .map(|((&a, &b), &c)| {
-            let v = 0.5 * (a as f64 + (b as f64).hypot(c as f64));
+            // f32 squares are exact in f64, so this is hypot within an ulp, without libm's call
+            let (b, c) = (b as f64, c as f64);
+            let v = 0.5 * (a as f64 + (b * b + c * c).sqrt());
             if v.is_finite() {
                 v
             } else {
@@ -206,12 +208,17 @@ pub(crate) fn psns_frame(
             }
         }
     }
-    let mut saturated = [0u32; 4];
-    for (k, &v) in codes.iter().enumerate() {
-        if v == max {
-            saturated[(((k / w) & 1) << 1) | ((k % w) & 1)] += 1;
-        }
-    }
+    let saturated = codes
+        .par_chunks(w)
+        .enumerate()
+        .map(|(r, row)| {
+            let mut n = [0u32; 4];
+            for (c, &v) in row.iter().enumerate() {
+                n[((r & 1) << 1) | (c & 1)] += (v == max) as u32;
+            }
+            n
+        })
+        .reduce(|| [0; 4], |a, b| std::array::from_fn(|i| a[i] + b[i]));
     Ok(RawFrame {
         codes: Image::from_vec(w, h, codes),
         bit_depth: cfg.bit_depth,
