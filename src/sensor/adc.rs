@@ -65,10 +65,15 @@ mod tests {
                 v.round().min(max as f64) as u16
             }
         };
-        let mut vals = vec![0.5, 1.5, 254.5, 255.5, 4094.5, 4095.5, 65534.5, 65535.0, 70000.0];
+        let mut vals = vec![
+            0.5, 1.5, 254.5, 255.5, 4094.5, 4095.5, 65534.5, 65535.0, 70000.0,
+        ];
         for k in 0..5000u32 {
             let h = k as f64 + 0.5;
-            let (down, up) = (f64::from_bits(h.to_bits() - 1), f64::from_bits(h.to_bits() + 1));
+            let (down, up) = (
+                f64::from_bits(h.to_bits() - 1),
+                f64::from_bits(h.to_bits() + 1),
+            );
             vals.extend([h, down, up, k as f64]);
         }
         let mut x = 0x9e37_79b9_7f4a_7c15u64;

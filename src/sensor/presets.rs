@@ -175,19 +175,36 @@ pub(crate) fn psns_frame(
     let kappa = p.kappa.unwrap_or_else(|| auto_kappa(stokes, full));
     let sigma = p.noise_fraction * full;
     let mut codes = vec![0u16; w * h];
-    codes.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
-        let mut rng = noise::frame_rng(s.seed, frame_index, noise::STAGE_PSNS_NOISE, r as u64);
-        for (c, code) in row.iter_mut().enumerate() {
-            let k = r * w + c;
-            let (s0, s1, s2) = super::finite3(stokes, k);
-            let (co, si) = nominal_axis(&cfg.layout, r, c);
-            let mut v = kappa * s.ri_at(k) * 0.5 * (s0 + s1 * co + s2 * si);
+    // Gaussian noise from the fast path's counter-based generator (one keyed hash of the pixel
+    // index per draw, inverted exactly to f32 precision): the frame does not depend on rows,
+    // threads or blocks, and costs a few ns per pixel instead of ChaCha + ziggurat
+    let key = super::fast::NoiseKey::new(s.seed, frame_index, noise::STAGE_PSNS_NOISE);
+    let ri = s.ri_map();
+    codes
+        .par_chunks_mut(w)
+        .enumerate()
+        .for_each_init(Vec::new, |z, (r, row)| {
+            let span = r * w..(r + 1) * w;
+            z.resize(w, 0f32);
             if sigma > 0.0 {
-                v += sigma * noise::normal(&mut rng);
+                super::fast::normals_into(&key, (r * w) as u32, z);
             }
-            *code = adc::quantize(v, max);
-        }
-    });
+            let axes = [
+                nominal_axis(&cfg.layout, r, 0),
+                nominal_axis(&cfg.layout, r, 1),
+            ];
+            let s0 = &stokes.s0.data[span.clone()];
+            let s1 = &stokes.s1.data[span.clone()];
+            let s2 = &stokes.s2.data[span.clone()];
+            let ri = ri.map(|m| &m[span]);
+            let fin = |v: f32| if v.is_finite() { v as f64 } else { 0.0 };
+            for c in 0..w {
+                let (co, si) = axes[c & 1];
+                let g = kappa * 0.5 * ri.map_or(1.0, |m| m[c] as f64);
+                let v = g * (fin(s0[c]) + fin(s1[c]) * co + fin(s2[c]) * si) + sigma * z[c] as f64;
+                row[c] = adc::quantize(v, max);
+            }
+        });
     let mut truth = if want_truth {
         s.truth(stokes, kappa)
     } else {
