@@ -521,6 +521,11 @@ impl Sensor {
         self.photon_rate
     }
 
+    /// The relative-illumination map (row-major), if active.
+    pub fn ri_map(&self) -> Option<&[f32]> {
+        self.ri.as_deref()
+    }
+
     /// The PRNU gain map (row-major), if active.
     pub fn prnu_map(&self) -> Option<&[f32]> {
         self.prnu.as_deref()

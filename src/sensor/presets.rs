@@ -157,7 +157,9 @@ pub fn auto_kappa(stokes: &StokesImage, ri: Option<&[f32]>, full: f64) -> f64 {
         .enumerate()
         .map(|(k, ((&a, &b), &c))| {
             let g = ri.map_or(1.0, |m| m[k] as f64);
-            let v = g * 0.5 * (a as f64 + (b as f64).hypot(c as f64));
+            // f32 squares are exact in f64, so this is hypot within an ulp, without libm's call
+            let (b, c) = (b as f64, c as f64);
+            let v = g * 0.5 * (a as f64 + (b * b + c * c).sqrt());
             if v.is_finite() {
                 v
             } else {
@@ -189,19 +191,36 @@ pub(crate) fn psns_frame(
         .unwrap_or_else(|| auto_kappa(stokes, s.ri.as_deref(), full));
     let sigma = p.noise_fraction * full;
     let mut codes = vec![0u16; w * h];
-    codes.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
-        let mut rng = noise::frame_rng(s.seed, frame_index, noise::STAGE_PSNS_NOISE, r as u64);
-        for (c, code) in row.iter_mut().enumerate() {
-            let k = r * w + c;
-            let (s0, s1, s2) = super::finite3(stokes, k);
-            let (co, si) = nominal_axis(&cfg.layout, r, c);
-            let mut v = kappa * s.ri_at(k) * 0.5 * (s0 + s1 * co + s2 * si);
+    // Gaussian noise from the fast path's counter-based generator (one keyed hash of the pixel
+    // index per draw, inverted exactly to f32 precision): the frame does not depend on rows,
+    // threads or blocks, and costs a few ns per pixel instead of ChaCha + ziggurat
+    let key = super::fast::NoiseKey::new(s.seed, frame_index, noise::STAGE_PSNS_NOISE);
+    let ri = s.ri_map();
+    codes
+        .par_chunks_mut(w)
+        .enumerate()
+        .for_each_init(Vec::new, |z, (r, row)| {
+            let span = r * w..(r + 1) * w;
+            z.resize(w, 0f32);
             if sigma > 0.0 {
-                v += sigma * noise::normal(&mut rng);
+                super::fast::normals_into(&key, (r * w) as u32, z);
             }
-            *code = adc::quantize(v, max);
-        }
-    });
+            let axes = [
+                nominal_axis(&cfg.layout, r, 0),
+                nominal_axis(&cfg.layout, r, 1),
+            ];
+            let s0 = &stokes.s0.data[span.clone()];
+            let s1 = &stokes.s1.data[span.clone()];
+            let s2 = &stokes.s2.data[span.clone()];
+            let ri = ri.map(|m| &m[span]);
+            let fin = |v: f32| if v.is_finite() { v as f64 } else { 0.0 };
+            for c in 0..w {
+                let (co, si) = axes[c & 1];
+                let g = kappa * 0.5 * ri.map_or(1.0, |m| m[c] as f64);
+                let v = g * (fin(s0[c]) + fin(s1[c]) * co + fin(s2[c]) * si) + sigma * z[c] as f64;
+                row[c] = adc::quantize(v, max);
+            }
+        });
     let mut truth = if want_truth {
         s.truth(stokes, kappa)
     } else {
@@ -222,12 +241,17 @@ pub(crate) fn psns_frame(
             }
         }
     }
-    let mut saturated = [0u32; 4];
-    for (k, &v) in codes.iter().enumerate() {
-        if v == max {
-            saturated[(((k / w) & 1) << 1) | ((k % w) & 1)] += 1;
-        }
-    }
+    let saturated = codes
+        .par_chunks(w)
+        .enumerate()
+        .map(|(r, row)| {
+            let mut n = [0u32; 4];
+            for (c, &v) in row.iter().enumerate() {
+                n[((r & 1) << 1) | (c & 1)] += (v == max) as u32;
+            }
+            n
+        })
+        .reduce(|| [0; 4], |a, b| std::array::from_fn(|i| a[i] + b[i]));
     Ok(RawFrame {
         codes: Image::from_vec(w, h, codes),
         bit_depth: cfg.bit_depth,
