@@ -148,29 +148,109 @@ pub fn config(p: Preset) -> SensorConfig {
 /// with `ri` the relative-illumination map (`None` = 1): the brightest sample the sensor can
 /// read after the falloff is full scale.
 pub fn auto_kappa(stokes: &StokesImage, ri: Option<&[f32]>, full: f64) -> f64 {
+    let w = stokes.width().max(1);
     let m = stokes
         .s0
         .data
-        .par_iter()
-        .zip(stokes.s1.data.par_iter())
-        .zip(stokes.s2.data.par_iter())
+        .par_chunks(w)
+        .zip(stokes.s1.data.par_chunks(w))
+        .zip(stokes.s2.data.par_chunks(w))
         .enumerate()
-        .map(|(k, ((&a, &b), &c))| {
-            let g = ri.map_or(1.0, |m| m[k] as f64);
-            // f32 squares are exact in f64, so this is hypot within an ulp, without libm's call
-            let (b, c) = (b as f64, c as f64);
-            let v = g * 0.5 * (a as f64 + (b * b + c * c).sqrt());
-            if v.is_finite() {
-                v
-            } else {
-                0.0
-            }
-        })
+        .map(|(r, ((a, b), c))| kappa_row_dispatch(a, b, c, ri.map(|m| &m[r * w..r * w + a.len()])))
         .reduce(|| 0.0, f64::max);
     if m > 0.0 {
         full / m
     } else {
         1.0
+    }
+}
+
+/// Calls the `#[inline(always)]` row kernel `$body` with AVX2 and FMA enabled where the CPU has
+/// them (its loop then vectorises), plainly otherwise; the kernels use no `mul_add`, so both
+/// give the same bits.
+macro_rules! avx2_dispatch {
+    ($name:ident, $body:ident, ($($arg:ident: $ty:ty),*) -> $ret:ty) => {
+        fn $name($($arg: $ty),*) -> $ret {
+            #[cfg(target_arch = "x86_64")]
+            if super::fast::has_avx2_fma() {
+                #[target_feature(enable = "avx2,fma")]
+                unsafe fn avx2($($arg: $ty),*) -> $ret {
+                    $body($($arg),*)
+                }
+                // SAFETY: the CPU has AVX2 and FMA (checked above)
+                return unsafe { avx2($($arg),*) };
+            }
+            $body($($arg),*)
+        }
+    };
+}
+
+avx2_dispatch!(psns_row_dispatch, psns_row,
+    (row: &mut [u16], s: [&[f32]; 3], g: &[f64], axis: [&[f64]; 2], z: &[f32], sigma: f64, max: u16) -> ());
+avx2_dispatch!(kappa_row_dispatch, kappa_row,
+    (a: &[f32], b: &[f32], c: &[f32], g: Option<&[f32]>) -> f64);
+
+/// max over a row of RI·½(S0 + |S_lin|) (0 for none finite and positive), for [`auto_kappa`].
+#[inline(always)]
+fn kappa_row(a: &[f32], b: &[f32], c: &[f32], g: Option<&[f32]>) -> f64 {
+    let n = a.len();
+    let (b, c) = (&b[..n], &c[..n]);
+    let mut best = 0f64;
+    match g {
+        Some(g) => {
+            let g = &g[..n];
+            for k in 0..n {
+                let (bk, ck) = (b[k] as f64, c[k] as f64);
+                // f32 squares are exact in f64: hypot within an ulp, without libm's call
+                let v = g[k] as f64 * 0.5 * (a[k] as f64 + (bk * bk + ck * ck).sqrt());
+                best = if v.is_finite() && v > best { v } else { best };
+            }
+        }
+        None => {
+            for k in 0..n {
+                let (bk, ck) = (b[k] as f64, c[k] as f64);
+                let v = 1.0 * 0.5 * (a[k] as f64 + (bk * bk + ck * ck).sqrt());
+                best = if v.is_finite() && v > best { v } else { best };
+            }
+        }
+    }
+    best
+}
+
+/// One row of a PSNS-model frame: codes of g_c·(S0 + S1 cos 2θ_c + S2 sin 2θ_c) + σ z_c with
+/// g = κ·RI·½ (`g` holds it per column), non-finite Stokes read as 0, z empty for no noise; the
+/// same bits as [`adc::quantize`] of that value, without branches so the loop vectorises.
+#[inline(always)]
+fn psns_row(
+    row: &mut [u16],
+    s: [&[f32]; 3],
+    g: &[f64],
+    axis: [&[f64]; 2],
+    z: &[f32],
+    sigma: f64,
+    max: u16,
+) {
+    let n = row.len();
+    let (s0, s1, s2) = (&s[0][..n], &s[1][..n], &s[2][..n]);
+    let (g, co, si) = (&g[..n], &axis[0][..n], &axis[1][..n]);
+    let fin = |v: f32| if v.is_finite() { v as f64 } else { 0.0 };
+    let maxf = max as f64;
+    let q = |v: f64| {
+        // adc::quantize: NaN and v <= 0 give 0, v >= max gives max, else round half away
+        let v = v.max(0.0).min(maxf);
+        let t = v as u32;
+        (t + (v - t as f64 >= 0.5) as u32) as u16
+    };
+    if z.is_empty() {
+        for c in 0..n {
+            row[c] = q(g[c] * (fin(s0[c]) + fin(s1[c]) * co[c] + fin(s2[c]) * si[c]));
+        }
+    } else {
+        let z = &z[..n];
+        for c in 0..n {
+            let v = g[c] * (fin(s0[c]) + fin(s1[c]) * co[c] + fin(s2[c]) * si[c]);
+            row[c] = q(v + sigma * z[c] as f64);
+        }
     }
 }
 
@@ -196,31 +276,37 @@ pub(crate) fn psns_frame(
     // threads or blocks, and costs a few ns per pixel instead of ChaCha + ziggurat
     let key = super::fast::NoiseKey::new(s.seed, frame_index, noise::STAGE_PSNS_NOISE);
     let ri = s.ri_map();
-    codes
-        .par_chunks_mut(w)
-        .enumerate()
-        .for_each_init(Vec::new, |z, (r, row)| {
+    // per-column pass-axis terms of even and odd rows, and per-row gains κ·RI·½
+    let axis: [[Vec<f64>; 2]; 2] = std::array::from_fn(|r| {
+        let a: Vec<(f64, f64)> = (0..w).map(|c| nominal_axis(&cfg.layout, r, c)).collect();
+        [
+            a.iter().map(|x| x.0).collect(),
+            a.iter().map(|x| x.1).collect(),
+        ]
+    });
+    codes.par_chunks_mut(w).enumerate().for_each_init(
+        || (Vec::new(), Vec::new()),
+        |(z, g), (r, row)| {
             let span = r * w..(r + 1) * w;
             z.resize(w, 0f32);
             if sigma > 0.0 {
                 super::fast::normals_into(&key, (r * w) as u32, z);
             }
-            let axes = [
-                nominal_axis(&cfg.layout, r, 0),
-                nominal_axis(&cfg.layout, r, 1),
-            ];
-            let s0 = &stokes.s0.data[span.clone()];
-            let s1 = &stokes.s1.data[span.clone()];
-            let s2 = &stokes.s2.data[span.clone()];
-            let ri = ri.map(|m| &m[span]);
-            let fin = |v: f32| if v.is_finite() { v as f64 } else { 0.0 };
-            for c in 0..w {
-                let (co, si) = axes[c & 1];
-                let g = kappa * 0.5 * ri.map_or(1.0, |m| m[c] as f64);
-                let v = g * (fin(s0[c]) + fin(s1[c]) * co + fin(s2[c]) * si) + sigma * z[c] as f64;
-                row[c] = adc::quantize(v, max);
+            g.clear();
+            match ri {
+                Some(m) => g.extend(m[span.clone()].iter().map(|&x| kappa * 0.5 * x as f64)),
+                None => g.resize(w, kappa * 0.5),
             }
-        });
+            let st = [
+                &stokes.s0.data[span.clone()],
+                &stokes.s1.data[span.clone()],
+                &stokes.s2.data[span],
+            ];
+            let ax = [&axis[r & 1][0][..], &axis[r & 1][1][..]];
+            let zs = if sigma > 0.0 { &z[..] } else { &[][..] };
+            psns_row_dispatch(row, st, g, ax, zs, sigma, max);
+        },
+    );
     let mut truth = if want_truth {
         s.truth(stokes, kappa)
     } else {
