@@ -359,6 +359,11 @@ pub struct DatasetConfig {
     pub roll_deg: Dist,
     /// Focal length, mm.
     pub focal_length_mm: Dist,
+    /// Projection of every frame (`psns render --projection`; default rectilinear).
+    pub projection: crate::camera::Projection,
+    /// Lens of every frame (`psns render --lens`); absent = each preset's own (`camera.md`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lens: Option<crate::camera::Lens>,
     /// Sun altitude, degrees.
     pub sun_altitude_deg: Dist,
     /// Sun compass azimuth, degrees.
@@ -407,6 +412,8 @@ impl Default for DatasetConfig {
             pitch_deg: Dist::Fixed(0.0),
             roll_deg: Dist::Fixed(0.0),
             focal_length_mm: Dist::Fixed(4.0),
+            projection: crate::camera::Projection::Rectilinear,
+            lens: None,
             sun_altitude_deg: uniform(0.0, 90.0, 0.1),
             sun_azimuth_deg: uniform(0.0, 359.9, 0.1),
             sun_time: None,
@@ -635,6 +642,8 @@ impl DatasetConfig {
             pitch_deg: v[1],
             roll_deg: v[2],
             focal_length_mm: v[3],
+            projection: self.projection,
+            lens: self.lens,
             sun_altitude_deg: v[4],
             sun_azimuth_deg: v[5],
             turbidity: v[6],
@@ -788,6 +797,10 @@ pub struct Sample {
     pub roll_deg: f64,
     /// Focal length, mm.
     pub focal_length_mm: f64,
+    /// Projection.
+    pub projection: crate::camera::Projection,
+    /// Lens (`None`: the preset's).
+    pub lens: Option<crate::camera::Lens>,
     /// Sun altitude, degrees.
     pub sun_altitude_deg: f64,
     /// Sun compass azimuth, degrees.
@@ -872,6 +885,8 @@ impl Sample {
             focal_length_mm: self.focal_length_mm,
             pixel_pitch_um: self.pixel_pitch_um,
             principal_point: None,
+            projection: self.projection,
+            lens: self.lens,
         };
         c.camera.attitude = self.attitude();
         c.raw.preset = preset;

@@ -41,7 +41,7 @@ fn chain_error(
     );
     let p = full_chain(&codes, pipe.sensor_config().layout, Method::Bilinear).unwrap();
     let sun = SunPosition::new(50.0, 200.0);
-    let mut setup = HeadingSetup::new(cfg.camera.intrinsics, sun);
+    let mut setup = HeadingSetup::new(cfg.intrinsics(), sun);
     setup.pitch_deg = pitch;
     setup.roll_deg = roll;
     let (tdolp, taolp) = frame.truth_dolp_aolp();
@@ -437,7 +437,7 @@ fn failure_case(
             dolp: &p.dolp,
             s0: Some(&p.stokes.s0),
         };
-        let mut setup = HeadingSetup::new(cfg.camera.intrinsics, sun);
+        let mut setup = HeadingSetup::new(cfg.intrinsics(), sun);
         setup.pitch_deg = tilt.0;
         setup.roll_deg = tilt.1;
         for m in HeadingMethod::ALL {

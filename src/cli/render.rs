@@ -33,6 +33,8 @@ pub struct RenderArgs {
 pub fn run(a: RenderArgs) -> anyhow::Result<()> {
     let mut cfg = a.scene.scene()?;
     a.raw.apply(&mut cfg)?;
+    // the lens in force (the preset's unless --lens), so scene.json records it
+    cfg.camera.intrinsics = cfg.intrinsics();
     let raw = a.raw_frame || cfg.raw.scene == SceneKind::Flat;
     if let (false, Some(opt)) = (raw, a.raw.first_given()) {
         return Err(Error::Invalid(format!(

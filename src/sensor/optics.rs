@@ -8,7 +8,9 @@
 //!
 //! Relative illumination RI(ϕ) of the field angle ϕ: cos^n ϕ (default n = 1.5, corner ≈ 0.45 for
 //! the 4 mm lens on the 2/3" array; cos⁴ is the thin-lens limit), or the lensfun PA polynomial
-//! V(r) = 1 + k₁r² + k₂r⁴ + k₃r⁶ with r normalised to the half-diagonal.
+//! V(r) = 1 + k₁r² + k₂r⁴ + k₃r⁶ with r normalised to the half-diagonal. The field angle is the
+//! projection's ([`crate::camera::Projection`]): for a fisheye ϕ of a pixel at image radius r is
+//! the inverse of r(ϕ), not atan(r/f), and RI is 0 outside the image circle (`camera.md` §3).
 
 use crate::camera::Intrinsics;
 use crate::error::{check_range, Error, Result};
@@ -72,8 +74,13 @@ impl RelativeIllumination {
         let (x, y) = (col - c0, row - r0);
         match *self {
             RelativeIllumination::CosPower { n } => {
-                let f = intr.focal_px();
-                let c = f / (x * x + y * y + f * f).sqrt();
+                let c = if intr.projection == crate::camera::Projection::Rectilinear {
+                    let f = intr.focal_px();
+                    f / (x * x + y * y + f * f).sqrt()
+                } else {
+                    // the field angle of the projection; 0 outside a fisheye's image circle
+                    intr.field_angle(col, row).cos().max(0.0)
+                };
                 if n == 1.5 {
                     c * c.sqrt()
                 } else if n == 4.0 {
