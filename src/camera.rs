@@ -248,7 +248,9 @@ impl Projection {
     #[inline]
     pub fn radius(self, theta: f64) -> Option<f64> {
         let half_pi = std::f64::consts::FRAC_PI_2;
-        if !(theta >= 0.0) || theta > half_pi || (self == Projection::Rectilinear && theta >= half_pi)
+        if !(theta >= 0.0)
+            || theta > half_pi
+            || (self == Projection::Rectilinear && theta >= half_pi)
         {
             return None;
         }
@@ -449,7 +451,9 @@ impl std::str::FromStr for Lens {
         Lens::ALL
             .into_iter()
             .find(|p| p.name() == l)
-            .ok_or_else(|| Error::Invalid(format!("lens '{s}' is unknown (allowed pinhole, ideal)")))
+            .ok_or_else(|| {
+                Error::Invalid(format!("lens '{s}' is unknown (allowed pinhole, ideal)"))
+            })
     }
 }
 
@@ -471,7 +475,7 @@ pub struct Intrinsics {
     #[serde(default)]
     pub projection: Projection,
     /// Polarization transport; `None` = the sensor preset's (scene files: the camera preset's
-    /// `ideal`, the PSNS presets' `pinhole`, see [`crate::config::RawConfig::lens`]; a bare
+    /// `ideal`, the PSNS presets' `pinhole`, see `config::RawConfig::lens`; a bare
     /// library `Intrinsics` with `None` is a pinhole, [`Intrinsics::lens`]).
     #[serde(default)]
     pub lens: Option<Lens>,
@@ -728,14 +732,26 @@ mod tests {
         for p in Projection::ALL {
             let i = Intrinsics {
                 projection: p,
-                focal_length_mm: if p == Projection::Rectilinear { 4.0 } else { 1.8 },
+                focal_length_mm: if p == Projection::Rectilinear {
+                    4.0
+                } else {
+                    1.8
+                },
                 ..Intrinsics::default()
             };
             let cam = Camera::new(i, &Attitude::enu(12.0, -7.0, 3.0), 0.0).unwrap();
-            for &(c, r) in &[(1000.0, 900.0), (1223.5, 1023.5), (1500.25, 1200.5), (1100.0, 1400.0)] {
+            for &(c, r) in &[
+                (1000.0, 900.0),
+                (1223.5, 1023.5),
+                (1500.25, 1200.5),
+                (1100.0, 1400.0),
+            ] {
                 let d = cam.pixel_direction(c, r).unwrap();
                 let (c2, r2) = i.project(cam.enu_to_camera * d).unwrap();
-                assert!((c - c2).abs() < 1e-7 && (r - r2).abs() < 1e-7, "{p}: {c},{r}");
+                assert!(
+                    (c - c2).abs() < 1e-7 && (r - r2).abs() < 1e-7,
+                    "{p}: {c},{r}"
+                );
             }
         }
     }
@@ -762,7 +778,10 @@ mod tests {
             let (c0, r0) = i.principal();
             let (z, a) = zenith_azimuth_deg(cam.pixel_direction(c0 + 300.0, r0).unwrap());
             assert!((z - deg).abs() < 1e-5, "{p}: zenith {z}, want {deg}");
-            assert!((a - 90.0).abs() < 1e-9, "{p}: +x is east at zero ENU attitude ({a})");
+            assert!(
+                (a - 90.0).abs() < 1e-9,
+                "{p}: +x is east at zero ENU attitude ({a})"
+            );
             assert!((i.field_angle(c0 + 300.0, r0).to_degrees() - deg).abs() < 1e-5);
         }
     }
@@ -789,7 +808,10 @@ mod tests {
             let inside = i.ray(c0, r0 + rim - 0.01).unwrap();
             assert!(inside.z >= 0.0 && inside.z < 1e-2, "{p}: {inside}");
             assert!(i.ray(c0, r0 + rim + 0.01).is_none(), "{p}");
-            assert!(i.project(DVec3::new(0.0, 1.0, -1e-3)).is_none(), "{p}: behind the rim");
+            assert!(
+                i.project(DVec3::new(0.0, 1.0, -1e-3)).is_none(),
+                "{p}: behind the rim"
+            );
         }
         let i = Intrinsics::default();
         assert!(i.ray(-1e5, -1e5).is_some());
@@ -815,7 +837,10 @@ mod tests {
         for l in Lens::ALL {
             for deg in [0.0f64, 30.0, 95.0, 150.0] {
                 let e = l.e_vector(d, deg.to_radians());
-                assert!(e.dot(d).abs() < 1e-12, "{l}: e not perpendicular to the ray");
+                assert!(
+                    e.dot(d).abs() < 1e-12,
+                    "{l}: e not perpendicular to the ray"
+                );
                 let back = l.sensor_angle(d, e).to_degrees();
                 let diff = (back - deg).rem_euclid(180.0);
                 assert!(diff.min(180.0 - diff) < 1e-9, "{l}: {deg} -> {back}");

@@ -315,11 +315,7 @@ impl SceneConfig {
         let sun = self.sun.resolve()?;
         self.sun.check_up(sun)?;
         let sky = Sky::new(sun, &self.sky)?;
-        let cam = Camera::new(
-            self.intrinsics(),
-            &self.camera.attitude,
-            sun.azimuth_deg,
-        )?;
+        let cam = Camera::new(self.intrinsics(), &self.camera.attitude, sun.azimuth_deg)?;
         Ok((sky, cam))
     }
 

@@ -675,7 +675,8 @@ pub fn intensity_side(view: &PolarView, setup: &HeadingSetup, s_c: DVec3) -> Opt
             }
             let k = row * i.width + col;
             let km = rm as usize * i.width + cm as usize;
-            let (Some(l), Some(lm)) = (usable(k, ray), i.ray(cm, rm).and_then(|r| usable(km, r))) else {
+            let (Some(l), Some(lm)) = (usable(k, ray), i.ray(cm, rm).and_then(|r| usable(km, r)))
+            else {
                 continue;
             };
             num += (l - lm) * x;

@@ -189,7 +189,10 @@ fn sun_disc_pixels(sky: &Sky, cam: &Camera) -> Vec<(usize, f32)> {
         (SUN_RADIUS_RAD * f + 2.0) / (cos_phi * cos_phi) + 1.0
     } else {
         let th = cos_phi.clamp(-1.0, 1.0).acos();
-        let mag = proj.radial_scale(th).max(proj.tangential_scale(th)).max(1.0);
+        let mag = proj
+            .radial_scale(th)
+            .max(proj.tangential_scale(th))
+            .max(1.0);
         (SUN_RADIUS_RAD * f + 2.0) * mag + 1.0
     };
     let (wu, hu) = (cam.intrinsics.width, cam.intrinsics.height);
@@ -436,7 +439,10 @@ fn clear_of_edges(cam: &Camera, col: usize, row: usize, span: usize) -> bool {
     let p = i.projection;
     let per_px = 1.0 / (i.focal_px() * p.radial_scale(theta).min(p.tangential_scale(theta)));
     let margin = 1.5 * std::f64::consts::SQRT_2 * span as f64 * per_px;
-    let up = (cam.enu_to_camera.transpose() * ray).z.clamp(-1.0, 1.0).asin();
+    let up = (cam.enu_to_camera.transpose() * ray)
+        .z
+        .clamp(-1.0, 1.0)
+        .asin();
     std::f64::consts::FRAC_PI_2 - theta > margin && up > margin
 }
 
@@ -851,7 +857,10 @@ mod tests {
                 let px = pixel_sky(&sky, &cam, c0, r0 + intr.focal_px() * rho);
                 assert!(px.valid && px.dop > 0.1, "{p} {lens}");
                 let got = px.aop_deg();
-                assert!((got - want).abs() < 1e-6, "{p} {lens}: AOP {got}, by hand {want}");
+                assert!(
+                    (got - want).abs() < 1e-6,
+                    "{p} {lens}: AOP {got}, by hand {want}"
+                );
             }
         }
         // on the axis the two lenses agree
@@ -905,7 +914,10 @@ mod tests {
             for k in 0..exact.s0.data.len() {
                 let (a, b) = (grid.s0.data[k], exact.s0.data[k]);
                 assert_eq!(a == 0.0, b == 0.0, "{p}: pixel {k}: grid {a}, exact {b}");
-                assert!((a - b).abs() <= 2e-3 * b.abs().max(1e-6), "{p}: pixel {k}: {a} {b}");
+                assert!(
+                    (a - b).abs() <= 2e-3 * b.abs().max(1e-6),
+                    "{p}: pixel {k}: {a} {b}"
+                );
             }
         }
     }

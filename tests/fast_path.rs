@@ -178,7 +178,10 @@ fn fast_means_match_the_exact_path() {
                 let sun_c = cam.enu_to_camera * sun.vector();
                 for r in 0..intr.height {
                     for c in 0..intr.width {
-                        let d = cam.intrinsics.ray(c as f64, r as f64).normalize();
+                        let Some(d) = cam.intrinsics.ray(c as f64, r as f64) else {
+                            continue;
+                        };
+                        let d = d.normalize();
                         // the solar disc and the 2 IFOV it is spread over
                         if d.dot(sun_c).clamp(-1.0, 1.0).acos().to_degrees() < 0.27 + 0.11 {
                             continue;

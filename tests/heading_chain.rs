@@ -399,6 +399,12 @@ fn failure_case(
     let mut cfg = SceneConfig::default();
     cfg.camera.intrinsics = Intrinsics {
         pixel_pitch_um: 3.45 * 8.0,
+        // The failure map's confidences were calibrated on the pinhole lens (psns's only lens
+        // before issue 10). Through the camera preset's ideal lens the Hough method reads
+        // "sun 70 tilted cloudy" 7.9 deg off at confidence 0.52 (pinhole: 8.0 deg at 0.44): its
+        // vote share rises with the cleaner E-vectors while the Berry bias stays. Open for the
+        // heading estimators; the lens itself is tested in src/render.rs.
+        lens: Some(psns::camera::Lens::Pinhole),
         ..Intrinsics::with_size(304, 256)
     };
     cfg.sun.zenith_deg = Some(90.0 - sun_elevation);

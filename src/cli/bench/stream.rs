@@ -398,7 +398,12 @@ pub fn accuracy(cfg: &SceneConfig, steps: &[usize]) -> Result<Vec<Accuracy>> {
                 let Some(d) = intr.ray((i % intr.width) as f64, (i / intr.width) as f64) else {
                     return false;
                 };
-                d.normalize().dot(sun_c).clamp(-1.0, 1.0).acos().to_degrees() > 0.27 + 2.0 * ifov
+                d.normalize()
+                    .dot(sun_c)
+                    .clamp(-1.0, 1.0)
+                    .acos()
+                    .to_degrees()
+                    > 0.27 + 2.0 * ifov
                     && exact.s0.data[i] > 0.0
             })
             .collect();
