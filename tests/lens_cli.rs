@@ -1,0 +1,173 @@
+//! `--lens` and `--projection` on the command line (issue 10 part 2): bad names, what scene.json
+//! and a stream's header record, and `psns heading` mapping pixels through the camera model the
+//! frames were rendered with (from the options or the stream's record).
+
+mod common;
+
+use common::{psns, stderr};
+
+fn s(p: &std::path::Path) -> &str {
+    p.to_str().unwrap()
+}
+
+/// A bad name: exit code 2, a short message naming the value and the allowed ones, nothing
+/// written; for render, heading and a scene file alike.
+#[test]
+fn bad_lens_or_projection_names_the_value_and_the_allowed_ones() {
+    let d = tempfile::tempdir().unwrap();
+    let out = d.path().join("o");
+    for (args, value, allowed) in [
+        (
+            vec!["render", "--lens", "thin", "--out", s(&out)],
+            "thin",
+            "pinhole, ideal",
+        ),
+        (
+            vec!["render", "--projection", "fisheye", "--out", s(&out)],
+            "fisheye",
+            "rectilinear, equidistant, equisolid, stereographic, orthographic",
+        ),
+        (
+            vec!["heading", "x.png", "--projection", "polar"],
+            "polar",
+            "rectilinear, equidistant",
+        ),
+    ] {
+        let o = psns(&args);
+        assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
+        let e = stderr(&o);
+        assert!(e.contains(value) && e.contains(allowed), "{args:?}: {e}");
+        assert!(e.lines().count() <= 4, "short: {e}");
+        assert!(!out.exists());
+    }
+    let cfg = d.path().join("s.toml");
+    std::fs::write(
+        &cfg,
+        "[camera.intrinsics]\nwidth = 64\nheight = 48\nfocal_length_mm = 4\npixel_pitch_um = 130\nprojection = \"fish\"\n",
+    )
+    .unwrap();
+    let o = psns(&["render", "--config", s(&cfg), "--out", s(&out)]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let e = stderr(&o);
+    assert!(e.contains("fish") && e.contains("equidistant"), "{e}");
+    assert!(!out.exists());
+}
+
+fn scene_json(dir: &std::path::Path) -> serde_json::Value {
+    serde_json::from_str(&std::fs::read_to_string(dir.join("scene.json")).unwrap()).unwrap()
+}
+
+/// scene.json records the lens in force (the camera preset's ideal, the PSNS presets' pinhole, or
+/// the one given) and the projection, and re-rendering from it gives the same images.
+#[test]
+fn scene_json_records_lens_and_projection() {
+    let d = tempfile::tempdir().unwrap();
+    let small = ["--width", "64", "--height", "48", "--pixel-pitch", "130"];
+    let cases: [(&[&str], &str, &str); 4] = [
+        (&[], "ideal", "rectilinear"),
+        (&["--raw", "--preset", "nfpi"], "pinhole", "rectilinear"),
+        (
+            &[
+                "--lens",
+                "pinhole",
+                "--projection",
+                "stereographic",
+                "--focal-length",
+                "1.8",
+            ],
+            "pinhole",
+            "stereographic",
+        ),
+        (
+            &["--raw", "--preset", "gniipi", "--lens", "ideal"],
+            "ideal",
+            "rectilinear",
+        ),
+    ];
+    for (k, (extra, lens, projection)) in cases.iter().enumerate() {
+        let out = d.path().join(format!("r{k}"));
+        let mut a = vec!["render", "--out", s(&out)];
+        a.extend(small);
+        a.extend(extra.iter());
+        let o = psns(&a);
+        assert!(o.status.success(), "{a:?}: {}", stderr(&o));
+        let j = scene_json(&out);
+        let i = &j["camera"]["intrinsics"];
+        assert_eq!(i["lens"], *lens, "{a:?}");
+        assert_eq!(i["projection"], *projection, "{a:?}");
+        if !extra.contains(&"--raw") {
+            let again = d.path().join(format!("again{k}"));
+            let o = psns(&[
+                "render",
+                "--config",
+                s(&out.join("scene.json")),
+                "--out",
+                s(&again),
+            ]);
+            assert!(o.status.success(), "{}", stderr(&o));
+            assert_eq!(
+                std::fs::read(out.join("aop.npy")).unwrap(),
+                std::fs::read(again.join("aop.npy")).unwrap()
+            );
+        }
+    }
+}
+
+/// A whole-sky fisheye stream (1.8 mm equidistant, the image circle inside 96 x 96 pixels of
+/// 60 µm) records its optics in the header; `psns heading STREAM` reads them and recovers the
+/// yaw, while forcing the wrong projection moves it off.
+#[test]
+fn heading_uses_the_streams_projection_and_lens() {
+    let d = tempfile::tempdir().unwrap();
+    let f = d.path().join("fish.psns");
+    let o = psns(&[
+        "stream",
+        "--width",
+        "96",
+        "--height",
+        "96",
+        "--pixel-pitch",
+        "60",
+        "--focal-length",
+        "1.8",
+        "--projection",
+        "equidistant",
+        "--sun-zenith",
+        "40",
+        "--frames",
+        "2",
+        "--auto-exposure",
+        "--out",
+        s(&f),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let bytes = std::fs::read(&f).unwrap();
+    let text = String::from_utf8_lossy(&bytes);
+    assert!(
+        text.contains(r#""optics":{"lens":"ideal","projection":"equidistant"}"#),
+        "the header records the optics"
+    );
+    let errors = |extra: &[&str]| -> Vec<f64> {
+        let mut a = vec!["heading", s(&f)];
+        a.extend(extra);
+        let o = psns(&a);
+        assert!(o.status.success(), "{a:?}: {}", stderr(&o));
+        let out = String::from_utf8(o.stdout).unwrap();
+        let mut lines = out.lines();
+        let head: Vec<&str> = lines.next().unwrap().split(',').collect();
+        let col = head.iter().position(|h| *h == "error_deg").unwrap();
+        lines
+            .map(|l| l.split(',').nth(col).unwrap().parse::<f64>().unwrap().abs())
+            .collect()
+    };
+    let good = errors(&[]);
+    assert_eq!(good.len(), 2);
+    assert!(good.iter().all(|e| *e < 1.0), "recorded optics: {good:?}");
+    let explicit = errors(&["--projection", "equidistant", "--lens", "ideal"]);
+    assert_eq!(good, explicit);
+    let wrong = errors(&["--projection", "rectilinear", "--lens", "pinhole"]);
+    assert!(
+        wrong.iter().zip(&good).all(|(w, g)| w > g),
+        "wrong model {wrong:?}, recorded {good:?}"
+    );
+}
