@@ -1031,6 +1031,31 @@ mod tests {
         .unwrap()
     }
 
+    /// The `projection` and `lens` keys reach every sample's scene (and so its render); absent,
+    /// the projection is rectilinear and the lens each preset's; a bad name is refused by name.
+    #[test]
+    fn projection_and_lens_keys_reach_the_samples() {
+        use crate::camera::{Lens, Projection};
+        let t = tiny();
+        let s = t.sample(Split::Nfpi, 1).unwrap().scene(Preset::Nfpi);
+        assert_eq!(s.camera.intrinsics.projection, Projection::Rectilinear);
+        assert_eq!(s.intrinsics().lens, Some(Lens::Pinhole));
+        let d = DatasetConfig::from_toml(
+            "seed = 7\nwidth = 64\nheight = 48\nprojection = \"equisolid\"\nlens = \"ideal\"\n[splits]\nNFPI = 1\n",
+            "test",
+        )
+        .unwrap();
+        let s = d.sample(Split::Nfpi, 1).unwrap().scene(Preset::Nfpi);
+        assert_eq!(s.camera.intrinsics.projection, Projection::Equisolid);
+        assert_eq!(s.intrinsics().lens, Some(Lens::Ideal));
+        let back = DatasetConfig::from_toml(&d.to_toml(), "round trip").unwrap();
+        assert_eq!(back, d);
+        let e = DatasetConfig::from_toml("projection = \"fish\"\n", "bad")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("fish") && e.contains("equisolid"), "{e}");
+    }
+
     #[test]
     fn default_is_psns_at_full_size_and_round_trips() {
         let d = DatasetConfig::default();
