@@ -248,7 +248,8 @@ impl Projection {
     #[inline]
     pub fn radius(self, theta: f64) -> Option<f64> {
         let half_pi = std::f64::consts::FRAC_PI_2;
-        if !(theta >= 0.0)
+        if theta.is_nan()
+            || theta < 0.0
             || theta > half_pi
             || (self == Projection::Rectilinear && theta >= half_pi)
         {
@@ -267,7 +268,7 @@ impl Projection {
     /// circle (θ > 90°; never for rectilinear).
     #[inline]
     pub fn field_angle(self, rho: f64) -> Option<f64> {
-        if !(rho >= 0.0) {
+        if rho.is_nan() || rho < 0.0 {
             return None;
         }
         if let Some(rim) = self.rim_radius() {
