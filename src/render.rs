@@ -922,6 +922,66 @@ mod tests {
         }
     }
 
+    /// The solar disc through fisheyes, 50° off axis in a 64 × 64 window around it (1.8 mm lens,
+    /// 1 µm pixels so the disc spans about 17 px across): the same flux as the rectilinear camera
+    /// on axis, with each projection's pixel solid angle by hand, Ω = sin θ/(ρ ρ′ f²):
+    /// sin θ/(θ f²) equidistant, cos⁴(θ/2)/f² stereographic, 1/f² equisolid.
+    #[test]
+    fn sun_disc_flux_through_fisheyes() {
+        use crate::camera::Projection;
+        let (on, _) = disc_flux(0.0);
+        let sun = SunPosition::new(50.0, 200.0);
+        let sky = Sky::new(sun, &SkyParams::default()).unwrap();
+        let att = Attitude::enu(0.0, 0.0, 0.0);
+        for p in [
+            Projection::Equidistant,
+            Projection::Stereographic,
+            Projection::Equisolid,
+        ] {
+            let big = Intrinsics {
+                projection: p,
+                focal_length_mm: 1.8,
+                pixel_pitch_um: 1.0,
+                ..Intrinsics::default()
+            };
+            let probe = Camera::new(big, &att, 200.0).unwrap();
+            let (sc, sr) = big.project(probe.enu_to_camera * sun.vector()).unwrap();
+            let (pc, pr) = big.principal();
+            let win = Intrinsics {
+                width: 64,
+                height: 64,
+                principal_point: Some([pc - (sc - 32.0).round(), pr - (sr - 32.0).round()]),
+                ..big
+            };
+            let cam = Camera::new(win, &att, 200.0).unwrap();
+            let (with, n) = render_stokes(&sky, &cam, StokesOptions { sun_disc: true });
+            let (without, _) = render_stokes(&sky, &cam, StokesOptions { sun_disc: false });
+            let f = win.focal_px();
+            let (c0, r0) = win.principal();
+            let mut flux = 0.0;
+            for r in 0..64 {
+                for c in 0..64 {
+                    let rho = (c as f64 - c0).hypot(r as f64 - r0) / f;
+                    let omega = match p {
+                        Projection::Equidistant => rho.sin() / rho,
+                        Projection::Stereographic => {
+                            let t = 2.0 * (rho / 2.0).atan();
+                            (t / 2.0).cos().powi(4)
+                        }
+                        _ => 1.0,
+                    } / (f * f);
+                    let k = r * 64 + c;
+                    flux += (with.s0.data[k] - without.s0.data[k]) as f64 * omega;
+                }
+            }
+            assert!(n > 100, "{p}: {n} pixels");
+            assert!(
+                (flux / on - 1.0).abs() < 0.005,
+                "{p}: flux {flux:e}, rectilinear on axis {on:e}"
+            );
+        }
+    }
+
     #[test]
     fn sun_disc_flux_is_the_same_on_and_off_axis() {
         let (on, n_on) = disc_flux(0.0);
