@@ -66,21 +66,8 @@ fn run(cli: Cli) -> anyhow::Result<()> {
     }
 }
 
-/// Lets every option that takes a value accept a negative number, so `--frames -1` gets a
-/// message about the value instead of clap's "unexpected argument '-1'".
-fn negative_numbers(cmd: clap::Command) -> clap::Command {
-    cmd.mut_args(|a| {
-        if a.get_action().takes_values() && !a.is_positional() {
-            a.allow_negative_numbers(true)
-        } else {
-            a
-        }
-    })
-    .mut_subcommands(negative_numbers)
-}
-
 fn main() -> ExitCode {
-    let matches = negative_numbers(Cli::command()).get_matches();
+    let matches = cli::negative_numbers(Cli::command()).get_matches();
     // usage errors exit with code 2
     let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     cli::exit_code(run(cli))
@@ -93,6 +80,6 @@ mod tests {
     #[test]
     fn command_line_is_consistent() {
         use clap::CommandFactory;
-        super::negative_numbers(super::Cli::command()).debug_assert();
+        crate::cli::negative_numbers(super::Cli::command()).debug_assert();
     }
 }

@@ -374,9 +374,41 @@ struct Worker<'a> {
     cfg: &'a DatasetConfig,
     dir: &'a Path,
     staging: &'a Path,
-    /// The last pipeline built (PSNS preset) and its key; likewise for the camera preset.
-    psns: Option<(SceneConfig, RawPipeline)>,
-    camera: Option<(SceneConfig, RawPipeline)>,
+    /// The pipelines built so far, shared by the workers.
+    cache: &'a PipelineCache,
+}
+
+/// The last few pipelines built, by key ([`pipeline_key`]), shared by every worker: rayon starts
+/// a fresh worker state for each piece of the sample list it splits off, so a per-worker slot
+/// rebuilt the sensor (its relative-illumination map, the camera's fixed patterns) for most
+/// samples. A miss builds outside the lock (two workers may both build the same key once).
+#[derive(Default)]
+struct PipelineCache(Mutex<Vec<(SceneConfig, std::sync::Arc<RawPipeline>)>>);
+
+impl PipelineCache {
+    /// Pipelines kept: a few presets and focal lengths at once (a camera pipeline with its maps
+    /// is ~100 MB at full size, a PSNS one 20 MB).
+    const KEEP: usize = 4;
+
+    fn get(&self, scene: &SceneConfig) -> Result<std::sync::Arc<RawPipeline>> {
+        let key = pipeline_key(scene);
+        {
+            let mut v = self.0.lock().unwrap();
+            if let Some(i) = v.iter().position(|(k, _)| *k == key) {
+                let e = v.remove(i);
+                let p = e.1.clone();
+                v.push(e); // most recently used last
+                return Ok(p);
+            }
+        }
+        let p = std::sync::Arc::new(RawPipeline::new(&key)?);
+        let mut v = self.0.lock().unwrap();
+        if v.len() >= Self::KEEP {
+            v.remove(0);
+        }
+        v.push((key, p.clone()));
+        Ok(p)
+    }
 }
 
 /// What decides a pipeline: the scene without the sun, the attitude and the frame index, which
@@ -389,28 +421,17 @@ fn pipeline_key(scene: &SceneConfig) -> SceneConfig {
     k
 }
 
-fn pipeline<'p>(
-    slot: &'p mut Option<(SceneConfig, RawPipeline)>,
-    scene: &SceneConfig,
-) -> Result<&'p RawPipeline> {
-    let key = pipeline_key(scene);
-    if slot.as_ref().is_none_or(|(k, _)| *k != key) {
-        *slot = Some((key.clone(), RawPipeline::new(&key)?));
-    }
-    Ok(&slot.as_ref().expect("just built").1)
-}
-
 /// The raw frame of `scene` as `psns render --raw` renders it (same sun, attitude, frame).
 ///
 /// The camera preset keys its pipeline on the whole scene but the sun, attitude and frame index.
 /// For the PSNS presets the sensor's costly part (the relative-illumination map of gniipi and
 /// gniicpi) depends on the frame size, optics, preset and seed but not on the sky, which changes
-/// from sample to sample: that sensor is kept in `slot` keyed also without the sky, and the
+/// from sample to sample: that sensor is kept in the cache keyed also without the sky, and the
 /// Stokes image comes from a pipeline of the same scene with the nfpi preset, which builds no
 /// maps and draws the same scene (no PSNS preset draws the sun disc). The test that renders
 /// every sample again through `psns render` holds this to the same bytes.
 fn render(
-    slot: &mut Option<(SceneConfig, RawPipeline)>,
+    cache: &PipelineCache,
     scene: &SceneConfig,
     truth: bool,
 ) -> Result<(psns::sensor::RawFrame, psns::sensor::mosaic::MosaicLayout)> {
@@ -424,9 +445,9 @@ fn render(
     };
     match scene.raw.preset {
         Preset::Camera => {
-            let pipe = pipeline(slot, scene)?;
+            let pipe = cache.get(scene)?;
             let (st, _) = pipe.stokes(sun, &scene.camera.attitude)?;
-            frame(pipe, &st)
+            frame(&pipe, &st)
         }
         preset => {
             let mut sky_scene = scene.clone();
@@ -438,7 +459,7 @@ fn render(
             }
             let mut key = scene.clone();
             key.sky = Default::default();
-            frame(pipeline(slot, &key)?, &st)
+            frame(&*cache.get(&key)?, &st)
         }
     }
 }
@@ -463,7 +484,7 @@ impl Worker<'_> {
         let mut it = files.iter();
         let mut lines = String::new();
         let scene = s.scene(s.split.preset());
-        let (frame, layout) = render(&mut self.psns, &scene, o.truth)?;
+        let (frame, layout) = render(self.cache, &scene, o.truth)?;
         let c = &frame.codes;
         let g = Image::from_vec(c.width, c.height, c.data.iter().map(|&v| v as u8).collect());
         lines += &self.put(it.next().expect("mosaic"), |p| io::write_png_gray8(p, &g))?;
@@ -486,7 +507,7 @@ impl Worker<'_> {
         }
         if o.raw12 {
             let scene12 = s.scene(psns::sensor::Preset::Camera);
-            let (f12, _) = render(&mut self.camera, &scene12, false)?;
+            let (f12, _) = render(self.cache, &scene12, false)?;
             lines += &self.put(it.next().expect("raw12"), |p| {
                 io::write_png_gray16(p, &f12.codes)
             })?;
@@ -608,6 +629,7 @@ fn build(a: BuildArgs) -> anyhow::Result<()> {
             "psns dataset: --resume: {skipped} samples already complete"
         ));
     }
+    let cache = PipelineCache::default();
     let t1 = Instant::now();
     let result: Result<()> = pool.install(|| {
         todo.par_iter().try_for_each_init(
@@ -615,8 +637,7 @@ fn build(a: BuildArgs) -> anyhow::Result<()> {
                 cfg: &cfg,
                 dir: &dir,
                 staging: &staging,
-                psns: None,
-                camera: None,
+                cache: &cache,
             },
             |w, s| {
                 let lines = w.sample(s)?;

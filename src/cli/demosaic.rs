@@ -25,23 +25,23 @@ fn parse_layout(s: &str) -> std::result::Result<MosaicLayout, String> {
 #[derive(Args)]
 pub struct DemosaicArgs {
     /// Raw PNG/TIFF or psns stream file.
-    input: PathBuf,
+    pub(crate) input: PathBuf,
     /// Method: superpixel, bilinear, bicubic, ppid, newton, eari.
     #[arg(long, default_value = "bilinear", value_parser = parse_method)]
-    method: Method,
+    pub(crate) method: Method,
     /// Output directory: new, empty, or a previous psns run's (replaced whole when this run
     /// has written everything).
     #[arg(long, default_value = "out")]
-    out: PathBuf,
+    pub(crate) out: PathBuf,
     /// Frame index (stream input).
     #[arg(long, value_parser = super::args::whole)]
-    frame: Option<u64>,
+    pub(crate) frame: Option<u64>,
     /// Mosaic layout of a PNG/TIFF input, e.g. "90,45/135,0".
     #[arg(long, default_value = "90,45/135,0", value_parser = parse_layout)]
-    layout: MosaicLayout,
+    pub(crate) layout: MosaicLayout,
     /// Also write dolp_debiased.npy, corrected for the Rice bias with this noise σ of S1/S2 (DN).
     #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "SIGMA_DN")]
-    dolp_debias: Option<f64>,
+    pub(crate) dolp_debias: Option<f64>,
 }
 
 /// Runs `psns demosaic`.

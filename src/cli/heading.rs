@@ -8,7 +8,7 @@
 //! and roll, as an IMU would supply them.
 
 use super::args::SceneArgs;
-use super::demosaic::{demosaic_codes, load_raw};
+use super::demosaic::{demosaic_codes, load_raw, LoadedRaw};
 use clap::Args;
 use psns::camera::{Attitude, Intrinsics, Lens, Projection};
 use psns::demosaic::Method;
@@ -29,34 +29,34 @@ use std::time::Instant;
 #[derive(Args)]
 pub struct HeadingArgs {
     /// Raw PNG/TIFF mosaic (codes), or a psns frame stream (file, FIFO, or - for stdin).
-    input: PathBuf,
+    pub(crate) input: PathBuf,
     /// Sun position (--sun-zenith/--sun-azimuth or --time/--lat/--lon), intrinsics
     /// (--width/--height/--focal-length/--pixel-pitch) and the known tilt (--pitch/--roll, ENU).
     /// A stream gives the sun per frame and the intrinsics in its header (options override them).
     #[command(flatten)]
-    scene: SceneArgs,
+    pub(crate) scene: SceneArgs,
     /// Demosaic method.
     #[arg(long, default_value = "bilinear", value_parser = |s: &str| s.parse::<Method>().map_err(|e| e.to_string()))]
-    demosaic: Method,
+    pub(crate) demosaic: Method,
     /// Estimator: model-fit (Berry field fitted from the eigenvector answer; default, the most
     /// accurate), eigen (sun vector), hough (solar meridian).
     #[arg(long, default_value = "model-fit", value_parser = |s: &str| s.parse::<HeadingMethod>().map_err(|e| e.to_string()))]
-    method: HeadingMethod,
+    pub(crate) method: HeadingMethod,
     /// Model fit: also fit the sun's elevation (one neutral-point distance), starting from the
     /// given or the stream's sun; for a sun position known only roughly.
     #[arg(long)]
-    fit_sun_elevation: bool,
+    pub(crate) fit_sun_elevation: bool,
     /// Significant bits of the codes in a PNG/TIFF (saturation is the top code); a stream says.
     #[arg(long, value_parser = super::args::whole)]
-    bits: Option<u64>,
+    pub(crate) bits: Option<u64>,
     /// Stream input: only the frame with this index (`--frame` is the attitude frame of the
     /// scene options).
     #[arg(long, value_parser = super::args::whole, value_name = "N")]
-    index: Option<u64>,
+    pub(crate) index: Option<u64>,
     /// Stream input: take each frame's pitch and roll (never its yaw) from the frame's attitude,
     /// as an IMU would supply them; otherwise --pitch/--roll (default level).
     #[arg(long, conflicts_with_all = ["pitch", "roll"])]
-    imu_tilt: bool,
+    pub(crate) imu_tilt: bool,
 }
 
 /// Runs `psns heading`: one row `yaw_deg,confidence,pixels,saturated_pixels` for an image, or a
@@ -167,16 +167,45 @@ fn estimate_codes(
 }
 
 fn heading_row(a: &HeadingArgs) -> Result<String> {
+    let setup = image_setup(a)?; // option problems before reading the file
+    let raw = load_raw(&a.input, MosaicLayout::default(), a.index)?;
+    let (e, saturated) = estimate_loaded(a, &setup, &raw, &a.input.display().to_string())?;
+    Ok(match e {
+        Some(e) => format!(
+            "{:.4},{:.4},{},{saturated}",
+            e.yaw_deg, e.confidence, e.pixels
+        ),
+        None => format!("nan,0,0,{saturated}"),
+    })
+}
+
+/// The estimator's setup for one image: the options' sun (up), intrinsics and tilt.
+pub(crate) fn image_setup(a: &HeadingArgs) -> Result<HeadingSetup> {
     let (pitch, roll) = given_tilt(a)?;
     let cfg = a.scene.scene()?;
     let sun = cfg.sun.resolve()?;
     cfg.sun.check_up(sun)?;
-    let raw = load_raw(&a.input, MosaicLayout::default(), a.index)?;
-    let i = cfg.intrinsics(); // lens: --lens, or the camera preset's (as psns render)
+    // lens: --lens, or the camera preset's (as psns render)
+    let mut setup = HeadingSetup::new(cfg.intrinsics(), sun);
+    setup.pitch_deg = pitch;
+    setup.roll_deg = roll;
+    setup.fit_elevation = a.fit_sun_elevation;
+    Ok(setup)
+}
+
+/// The estimate from one mosaic (not a stream) with the [`image_setup`] of the options, and the
+/// number of masked pixels; `name` names the input in messages. The image path of
+/// `psns heading`, and `psns.heading` in Python.
+pub(crate) fn estimate_loaded(
+    a: &HeadingArgs,
+    setup: &HeadingSetup,
+    raw: &LoadedRaw,
+    name: &str,
+) -> Result<(Option<HeadingEstimate>, usize)> {
+    let i = setup.intrinsics;
     if (raw.codes.width, raw.codes.height) != (i.width, i.height) {
         return Err(Error::Invalid(format!(
-            "{} is {} x {} pixels but the intrinsics say {} x {}: give --width/--height (and --pixel-pitch, --focal-length) of the camera",
-            a.input.display(),
+            "{name} is {} x {} pixels but the intrinsics say {} x {}: give --width/--height (and --pixel-pitch, --focal-length) of the camera",
             raw.codes.width,
             raw.codes.height,
             i.width,
@@ -189,26 +218,15 @@ fn heading_row(a: &HeadingArgs) -> Result<String> {
         None if raw.bits == 8 => 8,
         None => 12, // the IMX250MZR's deepest mode, in a 16-bit file
     };
-    let mut setup = HeadingSetup::new(i, sun);
-    setup.pitch_deg = pitch;
-    setup.roll_deg = roll;
-    setup.fit_elevation = a.fit_sun_elevation;
-    let (e, saturated) = estimate_codes(
+    estimate_codes(
         &raw.codes,
         raw.black_level,
         raw.layout,
         bits,
         a.demosaic,
         a.method,
-        &setup,
-    )?;
-    Ok(match e {
-        Some(e) => format!(
-            "{:.4},{:.4},{},{saturated}",
-            e.yaw_deg, e.confidence, e.pixels
-        ),
-        None => format!("nan,0,0,{saturated}"),
-    })
+        setup,
+    )
 }
 
 /// Columns of the per-frame CSV of a stream.

@@ -21,6 +21,19 @@ use psns::{Error, Result};
 use std::path::Path;
 use std::process::ExitCode;
 
+/// Lets every option that takes a value accept a negative number, so `--frames -1` gets a
+/// message about the value instead of clap's "unexpected argument '-1'".
+pub fn negative_numbers(cmd: clap::Command) -> clap::Command {
+    cmd.mut_args(|a| {
+        if a.get_action().takes_values() && !a.is_positional() {
+            a.allow_negative_numbers(true)
+        } else {
+            a
+        }
+    })
+    .mut_subcommands(negative_numbers)
+}
+
 /// Creates a directory and its parents.
 pub fn create_dir(dir: &Path) -> Result<()> {
     std::fs::create_dir_all(dir).map_err(|e| Error::io(format!("creating {}", dir.display()), e))

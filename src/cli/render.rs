@@ -17,12 +17,12 @@ use std::time::Instant;
 #[derive(Args)]
 pub struct RenderArgs {
     #[command(flatten)]
-    scene: SceneArgs,
+    pub(crate) scene: SceneArgs,
     #[command(flatten)]
-    raw: RawArgs,
+    pub(crate) raw: RawArgs,
     /// Also emulate the sensor: raw.png, raw.tiff, raw.bin, truth_*.npy.
     #[arg(long = "raw")]
-    raw_frame: bool,
+    pub(crate) raw_frame: bool,
     /// Output directory: new, empty, or a previous psns run's (replaced whole when this run
     /// has written everything; a failed or killed run leaves it as it was).
     #[arg(long, default_value = "out")]
@@ -31,25 +31,7 @@ pub struct RenderArgs {
 
 /// Runs `psns render`.
 pub fn run(a: RenderArgs) -> anyhow::Result<()> {
-    let mut cfg = a.scene.scene()?;
-    a.raw.apply(&mut cfg)?;
-    // the lens in force (the preset's unless --lens), so scene.json records it
-    cfg.camera.intrinsics = cfg.intrinsics();
-    let raw = a.raw_frame || cfg.raw.scene == SceneKind::Flat;
-    if let (false, Some(opt)) = (raw, a.raw.first_given()) {
-        return Err(Error::Invalid(format!(
-            "--{opt} applies to the raw frame: add --raw (without it psns render writes the ideal images only)"
-        ))
-        .into());
-    }
-    if cfg.sun.time.is_none() {
-        if let Some(opt) = a.scene.place_given() {
-            return Err(Error::Invalid(format!(
-                "--{opt} places the observer for --time; the sun is given directly here, so it would be ignored (add --time, or leave --{opt} out)"
-            ))
-            .into());
-        }
-    }
+    let (cfg, raw) = a.config()?;
     let out = a.out;
     if raw {
         let s = render_raw_to_dir(&cfg, &out)?;
@@ -75,6 +57,32 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         out.display()
     );
     Ok(())
+}
+
+impl RenderArgs {
+    /// The scene these options describe, checked as `psns render` checks it, and whether a raw
+    /// frame is asked for (`--raw`, or a flat-field scene). The Python package parses its keyword
+    /// arguments into these options too, so both front-ends accept and refuse the same things.
+    pub(crate) fn config(&self) -> Result<(SceneConfig, bool)> {
+        let mut cfg = self.scene.scene()?;
+        self.raw.apply(&mut cfg)?;
+        // the lens in force (the preset's unless --lens), so scene.json records it
+        cfg.camera.intrinsics = cfg.intrinsics();
+        let raw = self.raw_frame || cfg.raw.scene == SceneKind::Flat;
+        if let (false, Some(opt)) = (raw, self.raw.first_given()) {
+            return Err(Error::Invalid(format!(
+                "--{opt} applies to the raw frame: add --raw (without it psns render writes the ideal images only)"
+            )));
+        }
+        if cfg.sun.time.is_none() {
+            if let Some(opt) = self.scene.place_given() {
+                return Err(Error::Invalid(format!(
+                    "--{opt} places the observer for --time; the sun is given directly here, so it would be ignored (add --time, or leave --{opt} out)"
+                )));
+            }
+        }
+        Ok((cfg, raw))
+    }
 }
 
 #[derive(Clone, Debug)]

@@ -15,12 +15,12 @@ use std::path::{Path, PathBuf};
 #[derive(Args)]
 pub struct SkyArgs {
     #[command(flatten)]
-    scene: SceneArgs,
+    pub(crate) scene: SceneArgs,
     /// Instead of reading directions: write the DOP stability map of both DOP models
     /// (dop_stability.csv, .svg and a small .png) over turbidity 1..10 x sun zenith 0..90 x
     /// wavelength 380..720 nm; the scene's other sky settings (albedo, neutral points, norm) apply.
     #[arg(long)]
-    stability: bool,
+    pub(crate) stability: bool,
     /// Output directory of --stability (regenerate the docs' map with `--out docs/img`).
     #[arg(long, requires = "stability", value_name = "DIR")]
     out: Option<PathBuf>,
@@ -120,27 +120,31 @@ pub fn sky_csv(cfg: &SceneConfig, input: impl BufRead, mut output: impl Write) -
                 "line {ln}: zenith_deg = {z} is out of range (allowed 0..180)"
             )));
         }
-        let v = direction(z, a);
-        let s = sky.sample(v);
-        let (am, an) = if s.valid && s.dop > 0.0 {
-            (aop_meridian_deg(v, s.e), aop_chart_deg(v, s.e))
-        } else {
-            (0.0, 0.0)
-        };
-        writeln!(
-            output,
-            "{z},{a},{:.9},{:.9e},{:.9},{:.6},{:.6}",
-            v.dot(sun.vector()).clamp(-1.0, 1.0).acos().to_degrees(),
-            s.radiance,
-            s.dop,
-            am,
-            an
-        )
-        .map_err(werr)?;
+        let [g, rad, dop, am, an] = sky_values(&sky, z, a);
+        writeln!(output, "{z},{a},{g:.9},{rad:.9e},{dop:.9},{am:.6},{an:.6}").map_err(werr)?;
         n += 1;
     }
     output.flush().map_err(werr)?;
     Ok(n)
+}
+
+/// The values `psns sky` prints for a direction (zenith, compass azimuth, degrees): angle from
+/// the sun, radiance, DOP, AOP from the meridian and from north (degrees); zero below the horizon
+/// and where the sky is unpolarized. Shared with `psns.sky` in Python.
+pub fn sky_values(sky: &psns::sky::Sky, zenith_deg: f64, azimuth_deg: f64) -> [f64; 5] {
+    let v = direction(zenith_deg, azimuth_deg);
+    let s = sky.sample(v);
+    let (am, an) = if s.valid && s.dop > 0.0 {
+        (aop_meridian_deg(v, s.e), aop_chart_deg(v, s.e))
+    } else {
+        (0.0, 0.0)
+    };
+    let gamma = v
+        .dot(sky.sun().vector())
+        .clamp(-1.0, 1.0)
+        .acos()
+        .to_degrees();
+    [gamma, s.radiance, s.dop, am, an]
 }
 
 /// Turbidities of the stability map: 1..10 every 0.5, plus 1.7 (the bounded model's lowest).

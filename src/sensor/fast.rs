@@ -670,6 +670,29 @@ fn row_kernel(
     row_body(fc, folded, mu_hi, s, st, k0, r, mu, row, sat)
 }
 
+/// [`normal_from_bits`] of `key.bits(idx0 + i)` for every i of `z` (any length), vectorised
+/// with AVX2 where the CPU has it; the same bits either way.
+pub(crate) fn normals_into(key: &NoiseKey, idx0: u32, z: &mut [f32]) {
+    #[inline(always)] // into the AVX2 wrapper, which then vectorises it
+    fn body(key: &NoiseKey, idx0: u32, z: &mut [f32]) {
+        for (b, chunk) in z.chunks_mut(BLOCK).enumerate() {
+            normals(key, idx0.wrapping_add((b * BLOCK) as u32), chunk);
+        }
+    }
+    #[cfg(target_arch = "x86_64")]
+    if has_avx2_fma() {
+        #[target_feature(enable = "avx2,fma")]
+        unsafe fn avx2(key: &NoiseKey, idx0: u32, z: &mut [f32]) {
+            body(key, idx0, z)
+        }
+        // SAFETY: the CPU has AVX2 and FMA (checked above); `mul_add` is exactly rounded with or
+        // without the instruction, so both give the same bits.
+        unsafe { avx2(key, idx0, z) };
+        return;
+    }
+    body(key, idx0, z)
+}
+
 #[cfg(target_arch = "x86_64")]
 fn has_avx2_fma() -> bool {
     std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")

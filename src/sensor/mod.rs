@@ -32,6 +32,7 @@ pub mod optics;
 pub mod packing;
 pub mod polarizer;
 pub mod presets;
+pub mod spectral;
 
 use crate::camera::Intrinsics;
 use crate::error::{check_range, Error, Result};
@@ -42,6 +43,7 @@ use polarizer::ErTable;
 pub use presets::{Preset, PsnsModel};
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
+use spectral::Spectral;
 
 /// Exposure control.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
@@ -171,10 +173,12 @@ pub struct SensorConfig {
     pub filter_width_nm: f64,
     /// In-band filter transmission T_F, 0..1 (default 0.9).
     pub filter_transmission: f64,
-    /// Quantum efficiency η(λ_c) of the bare (mono) pixel, 0..1 (default 0.60).
-    pub qe: f64,
-    /// Pass-axis transmission T∥ of the wire grid, 0..1 (default 0.8).
-    pub pass_transmission: f64,
+    /// Quantum efficiency η(λ) of the bare (mono) pixel, evaluated at λ_c, 0..1: a number or a
+    /// `[λ_nm, η]` table (default the IMX250 curve [`spectral::QE_IMX250`], 0.60 at 450 nm).
+    pub qe: Spectral,
+    /// Pass-axis transmission T∥(λ) of the wire grid, evaluated at λ_c, 0..1: a number or a table
+    /// (default [`spectral::PASS_TRANSMISSION_IMX250MZR`], 0.8 at 450 nm).
+    pub pass_transmission: Spectral,
     /// Extinction ratio table (default `sensor.md` §4).
     pub er_table: ErTable,
     /// Standard deviation of the fixed orientation error δ_k, degrees, 0..2 (default 0.5).
@@ -225,8 +229,8 @@ impl Default for SensorConfig {
             filter_center_nm: 450.0,
             filter_width_nm: 40.0,
             filter_transmission: 0.9,
-            qe: 0.60,
-            pass_transmission: 0.8,
+            qe: Spectral::imx250_qe(),
+            pass_transmission: Spectral::imx250mzr_pass_transmission(),
             er_table: ErTable::default(),
             orientation_sigma_deg: 0.5,
             prnu: 0.005,
@@ -298,8 +302,9 @@ impl SensorConfig {
         check_range("filter-center-nm", self.filter_center_nm, 380.0, 720.0)?;
         check_range("filter-width-nm", self.filter_width_nm, 1.0, 400.0)?;
         check_range("filter-transmission", self.filter_transmission, 0.0, 1.0)?;
-        check_range("qe", self.qe, 0.0, 1.0)?;
-        check_range("pass-transmission", self.pass_transmission, 0.0, 1.0)?;
+        self.qe.validate("qe", 0.0, 1.0)?;
+        self.pass_transmission
+            .validate("pass-transmission", 0.0, 1.0)?;
         self.er_table.validate()?;
         check_range(
             "orientation-sigma-deg",
@@ -323,6 +328,16 @@ impl SensorConfig {
             p.validate()?;
         }
         Ok(())
+    }
+
+    /// η(λ_c): the quantum efficiency at the band-pass centre.
+    pub fn qe_at_filter(&self) -> f64 {
+        self.qe.at(self.filter_center_nm)
+    }
+
+    /// T∥(λ_c): the wire grid's pass-axis transmission at the band-pass centre.
+    pub fn pass_transmission_at_filter(&self) -> f64 {
+        self.pass_transmission.at(self.filter_center_nm)
     }
 
     /// Dark current at the configured temperature, e⁻/s: I_d(25 °C) · 2^((T − 25)/ΔT).
@@ -506,6 +521,11 @@ impl Sensor {
         self.photon_rate
     }
 
+    /// The relative-illumination map (row-major), if active.
+    pub fn ri_map(&self) -> Option<&[f32]> {
+        self.ri.as_deref()
+    }
+
     /// The PRNU gain map (row-major), if active.
     pub fn prnu_map(&self) -> Option<&[f32]> {
         self.prnu.as_deref()
@@ -592,8 +612,8 @@ impl Sensor {
         } else {
             f64::INFINITY
         };
-        let (a, b) = polarizer::coefficients(cfg.pass_transmission, er);
-        (a, b, cfg.qe * self.photon_rate)
+        let (a, b) = polarizer::coefficients(cfg.pass_transmission_at_filter(), er);
+        (a, b, cfg.qe_at_filter() * self.photon_rate)
     }
 
     /// Electron rate of pixel (r, c); the one formula behind [`Sensor::electron_rate`] and the
@@ -749,7 +769,12 @@ impl Sensor {
         let t = exposure_us * 1e-6;
         self.truth(
             stokes,
-            scale * kg * t * cfg.qe * self.photon_rate * cfg.pass_transmission,
+            scale
+                * kg
+                * t
+                * cfg.qe_at_filter()
+                * self.photon_rate
+                * cfg.pass_transmission_at_filter(),
         )
     }
 

@@ -60,17 +60,7 @@ impl ErTable {
     /// assert_eq!(t.at(300.0), 15.0);
     /// ```
     pub fn at(&self, wavelength_nm: f64) -> f64 {
-        let p = &self.0;
-        if wavelength_nm <= p[0][0] {
-            return p[0][1];
-        }
-        for w in p.windows(2) {
-            if wavelength_nm <= w[1][0] {
-                let t = (wavelength_nm - w[0][0]) / (w[1][0] - w[0][0]);
-                return w[0][1] + t * (w[1][1] - w[0][1]);
-            }
-        }
-        p[p.len() - 1][1]
+        super::spectral::interpolate(&self.0, wavelength_nm)
     }
 }
 

@@ -2,15 +2,19 @@
 //!
 //! PSNS (Liang & Bai) eq. (24): I_k = κ · ½ LI [1 + DOP cos 2(AOP_s − θ_k)]
 //! = κ · ½ (S0 + S1 cos 2θ_k + S2 sin 2θ_k), rounded and clipped to the output depth. κ is fixed
-//! if configured, otherwise per frame κ = (2^bits − 1) / max over the frame of ½ (S0 + |S_lin|),
-//! so the brightest sample reads full scale.
+//! if configured, otherwise per frame κ = (2^bits − 1) / max over the frame of ½ RI (S0 + |S_lin|),
+//! taken **after** the relative illumination RI (1 for `nfpi`), so the brightest sample of the
+//! frame the network sees reads full scale and the 2 % noise is 2 % of that brightest signal.
 //!
 //! * `nfpi`: ideal, 8 bit, no optics and no noise;
-//! * `gniipi`: plus relative-illumination falloff (the configured RI model, default cos^1.5 of the
-//!   field angle) and additive Gaussian white noise σ = 2 % of full scale;
+//! * `gniipi`: plus relative-illumination falloff and additive Gaussian white noise σ = 2 % of
+//!   full scale. The falloff is cos⁴ of the field angle (corner 0.12 on the full 4 mm frame), the
+//!   textbook law the paper cites for its "insufficient illumination" (`docs/sensor.md`); the
+//!   camera preset keeps cos^1.5. Any other model through `SensorConfig::ri`;
 //! * `gniicpi`: plus 3–8 filled ellipses set to full scale, applied last (ground truth there:
 //!   unpolarized with S0 = 2 × full scale, consistent with every channel reading full scale).
 
+use super::optics::RelativeIllumination;
 use super::{adc, noise, nominal_axis, RawFrame, Sensor, SensorConfig, Stages};
 use crate::error::{check_range, Error, Result};
 use crate::image::{Image, StokesImage};
@@ -78,7 +82,8 @@ impl FromStr for Preset {
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(default, deny_unknown_fields)]
 pub struct PsnsModel {
-    /// Fixed κ (DN per radiance unit); `None` = per frame, brightest sample at full scale.
+    /// Fixed κ (DN per radiance unit); `None` = per frame, brightest sample (after the relative
+    /// illumination) at full scale.
     pub kappa: Option<f64>,
     /// Multiply by the relative illumination ("insufficient illumination at the edge").
     pub relative_illumination: bool,
@@ -110,10 +115,15 @@ impl PsnsModel {
     }
 }
 
+/// Relative illumination of the PSNS presets: cos⁴ of the field angle, the optics-textbook law
+/// the paper cites for "insufficient illumination at the edge".
+pub const PSNS_RI: RelativeIllumination = RelativeIllumination::CosPower { n: 4.0 };
+
 /// The configuration of preset `p`.
 pub fn config(p: Preset) -> SensorConfig {
     let psns = |ri: bool, noise: f64, clouds: bool| SensorConfig {
         bit_depth: 8,
+        ri: PSNS_RI,
         stages: Stages {
             ri,
             ..Stages::none()
@@ -134,16 +144,22 @@ pub fn config(p: Preset) -> SensorConfig {
     }
 }
 
-/// Per-frame κ: full / max ½(S0 + |S_lin|) over finite pixels (1 if the frame is dark).
-pub fn auto_kappa(stokes: &StokesImage, full: f64) -> f64 {
+/// Per-frame κ: full / max RI_k · ½(S0 + |S_lin|) over finite pixels (1 if the frame is dark),
+/// with `ri` the relative-illumination map (`None` = 1): the brightest sample the sensor can
+/// read after the falloff is full scale.
+pub fn auto_kappa(stokes: &StokesImage, ri: Option<&[f32]>, full: f64) -> f64 {
     let m = stokes
         .s0
         .data
         .par_iter()
         .zip(stokes.s1.data.par_iter())
         .zip(stokes.s2.data.par_iter())
-        .map(|((&a, &b), &c)| {
-            let v = 0.5 * (a as f64 + (b as f64).hypot(c as f64));
+        .enumerate()
+        .map(|(k, ((&a, &b), &c))| {
+            let g = ri.map_or(1.0, |m| m[k] as f64);
+            // f32 squares are exact in f64, so this is hypot within an ulp, without libm's call
+            let (b, c) = (b as f64, c as f64);
+            let v = g * 0.5 * (a as f64 + (b * b + c * c).sqrt());
             if v.is_finite() {
                 v
             } else {
@@ -170,22 +186,41 @@ pub(crate) fn psns_frame(
     let (w, h) = (s.intrinsics.width, s.intrinsics.height);
     let max = adc::max_code(cfg.bit_depth);
     let full = max as f64;
-    let kappa = p.kappa.unwrap_or_else(|| auto_kappa(stokes, full));
+    let kappa = p
+        .kappa
+        .unwrap_or_else(|| auto_kappa(stokes, s.ri.as_deref(), full));
     let sigma = p.noise_fraction * full;
     let mut codes = vec![0u16; w * h];
-    codes.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
-        let mut rng = noise::frame_rng(s.seed, frame_index, noise::STAGE_PSNS_NOISE, r as u64);
-        for (c, code) in row.iter_mut().enumerate() {
-            let k = r * w + c;
-            let (s0, s1, s2) = super::finite3(stokes, k);
-            let (co, si) = nominal_axis(&cfg.layout, r, c);
-            let mut v = kappa * s.ri_at(k) * 0.5 * (s0 + s1 * co + s2 * si);
+    // Gaussian noise from the fast path's counter-based generator (one keyed hash of the pixel
+    // index per draw, inverted exactly to f32 precision): the frame does not depend on rows,
+    // threads or blocks, and costs a few ns per pixel instead of ChaCha + ziggurat
+    let key = super::fast::NoiseKey::new(s.seed, frame_index, noise::STAGE_PSNS_NOISE);
+    let ri = s.ri_map();
+    codes
+        .par_chunks_mut(w)
+        .enumerate()
+        .for_each_init(Vec::new, |z, (r, row)| {
+            let span = r * w..(r + 1) * w;
+            z.resize(w, 0f32);
             if sigma > 0.0 {
-                v += sigma * noise::normal(&mut rng);
+                super::fast::normals_into(&key, (r * w) as u32, z);
             }
-            *code = adc::quantize(v, max);
-        }
-    });
+            let axes = [
+                nominal_axis(&cfg.layout, r, 0),
+                nominal_axis(&cfg.layout, r, 1),
+            ];
+            let s0 = &stokes.s0.data[span.clone()];
+            let s1 = &stokes.s1.data[span.clone()];
+            let s2 = &stokes.s2.data[span.clone()];
+            let ri = ri.map(|m| &m[span]);
+            let fin = |v: f32| if v.is_finite() { v as f64 } else { 0.0 };
+            for c in 0..w {
+                let (co, si) = axes[c & 1];
+                let g = kappa * 0.5 * ri.map_or(1.0, |m| m[c] as f64);
+                let v = g * (fin(s0[c]) + fin(s1[c]) * co + fin(s2[c]) * si) + sigma * z[c] as f64;
+                row[c] = adc::quantize(v, max);
+            }
+        });
     let mut truth = if want_truth {
         s.truth(stokes, kappa)
     } else {
@@ -206,12 +241,17 @@ pub(crate) fn psns_frame(
             }
         }
     }
-    let mut saturated = [0u32; 4];
-    for (k, &v) in codes.iter().enumerate() {
-        if v == max {
-            saturated[(((k / w) & 1) << 1) | ((k % w) & 1)] += 1;
-        }
-    }
+    let saturated = codes
+        .par_chunks(w)
+        .enumerate()
+        .map(|(r, row)| {
+            let mut n = [0u32; 4];
+            for (c, &v) in row.iter().enumerate() {
+                n[((r & 1) << 1) | (c & 1)] += (v == max) as u32;
+            }
+            n
+        })
+        .reduce(|| [0; 4], |a, b| std::array::from_fn(|i| a[i] + b[i]));
     Ok(RawFrame {
         codes: Image::from_vec(w, h, codes),
         bit_depth: cfg.bit_depth,

@@ -1161,40 +1161,67 @@ pub fn verify_with<R: Read>(r: R, recover: Option<&RecoverHint>) -> Result<Verif
         Some(h) => StreamReader::new_recovering(r, h)?,
         None => (StreamReader::new(r)?, None),
     };
-    let mut rep = VerifyReport {
-        status: VerifyStatus::Damaged,
-        header: rd.header().clone(),
-        frames: 0,
-        first_index: None,
-        last_index: None,
-        dropped: 0,
-        gaps: Vec::new(),
-        corrupt: Vec::new(),
-        truncated: Vec::new(),
-        skipped_bytes: 0,
-        restarts: 0,
-        restart_offsets: Vec::new(),
-        count_mismatch: None,
-        finished: false,
-        recovered,
-    };
-    let mut records = 0u64;
-    let mut last_flag = false;
+    let mut tally = VerifyTally::new(rd.header().clone(), recovered);
     while let Some(ev) = rd.next_event()? {
+        tally.record(&ev);
+    }
+    Ok(tally.finish(rd.restart_offsets()))
+}
+
+/// The [`VerifyReport`] of a stream built event by event, for a reader that also uses the
+/// frames (the Python package's stream iterator) and still reports damage as `psns verify` does.
+#[derive(Clone, Debug)]
+pub struct VerifyTally {
+    rep: VerifyReport,
+    records: u64,
+    last_flag: bool,
+}
+
+impl VerifyTally {
+    /// An empty tally for a stream with this (first) file header.
+    pub fn new(header: FileHeader, recovered: Option<Recovery>) -> Self {
+        VerifyTally {
+            rep: VerifyReport {
+                status: VerifyStatus::Damaged,
+                header,
+                frames: 0,
+                first_index: None,
+                last_index: None,
+                dropped: 0,
+                gaps: Vec::new(),
+                corrupt: Vec::new(),
+                truncated: Vec::new(),
+                skipped_bytes: 0,
+                restarts: 0,
+                restart_offsets: Vec::new(),
+                count_mismatch: None,
+                finished: false,
+                recovered,
+            },
+            records: 0,
+            last_flag: false,
+        }
+    }
+
+    /// Counts one event of [`StreamReader::next_event`]; returns the damage it records, if any.
+    pub fn record(&mut self, ev: &Event) -> Option<Damage> {
+        let rep = &mut self.rep;
         match ev {
             Event::Frame(fr) => {
-                records += 1;
-                last_flag = fr.meta.flags & FLAG_LAST != 0;
+                self.records += 1;
+                self.last_flag = fr.meta.flags & FLAG_LAST != 0;
                 rep.first_index.get_or_insert(fr.meta.index);
                 rep.last_index = Some(fr.meta.index);
                 if fr.payload_crc_ok {
                     rep.frames += 1;
                 } else {
-                    rep.corrupt.push(Damage {
+                    let d = Damage {
                         index: Some(fr.meta.index),
                         offset: fr.offset,
                         reason: "payload CRC mismatch".into(),
-                    });
+                    };
+                    rep.corrupt.push(d.clone());
+                    return Some(d);
                 }
             }
             Event::Corrupt {
@@ -1202,17 +1229,19 @@ pub fn verify_with<R: Read>(r: R, recover: Option<&RecoverHint>) -> Result<Verif
                 offset,
                 reason,
             } => {
-                records += 1;
-                last_flag = false;
-                rep.corrupt.push(Damage {
-                    index,
-                    offset,
-                    reason,
-                })
+                self.records += 1;
+                self.last_flag = false;
+                let d = Damage {
+                    index: *index,
+                    offset: *offset,
+                    reason: reason.clone(),
+                };
+                rep.corrupt.push(d.clone());
+                return Some(d);
             }
             Event::Gap { from, to } => {
                 rep.dropped += to - from;
-                rep.gaps.push((from, to));
+                rep.gaps.push((*from, *to));
             }
             Event::Truncated {
                 index,
@@ -1220,29 +1249,39 @@ pub fn verify_with<R: Read>(r: R, recover: Option<&RecoverHint>) -> Result<Verif
                 have,
                 need,
             } => {
-                records += 1;
-                last_flag = false;
-                rep.truncated.push(Damage {
-                    index,
-                    offset,
+                self.records += 1;
+                self.last_flag = false;
+                let d = Damage {
+                    index: *index,
+                    offset: *offset,
                     reason: format!("{have} of {need} bytes"),
-                })
+                };
+                rep.truncated.push(d.clone());
+                return Some(d);
             }
             Event::Skipped { bytes, .. } => rep.skipped_bytes += bytes,
             Event::Restart(_) => {
                 rep.restarts += 1;
-                last_flag = false;
+                self.last_flag = false;
             }
         }
+        None
     }
-    rep.restart_offsets = rd.restart_offsets().to_vec();
-    let declared = rep.header.frame_count;
-    if declared != 0 && rep.restarts == 0 && declared != records {
-        rep.count_mismatch = Some((declared, records));
+
+    /// The report so far, as if the stream ended here (`restart_offsets` from the reader).
+    pub fn finish(&self, restart_offsets: &[u64]) -> VerifyReport {
+        let mut rep = self.rep.clone();
+        rep.restart_offsets = restart_offsets.to_vec();
+        let declared = rep.header.frame_count;
+        let records = self.records;
+        if declared != 0 && rep.restarts == 0 && declared != records {
+            rep.count_mismatch = Some((declared, records));
+        }
+        rep.finished =
+            self.last_flag || (declared != 0 && rep.restarts == 0 && declared == records);
+        rep.status = rep.compute_status();
+        rep
     }
-    rep.finished = last_flag || (declared != 0 && rep.restarts == 0 && declared == records);
-    rep.status = rep.compute_status();
-    Ok(rep)
 }
 
 /// One frame pulled out of a stream by [`extract_frame`].

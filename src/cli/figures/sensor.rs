@@ -463,6 +463,37 @@ fn superpixel_dolp(
     [est, tru]
 }
 
+/// Noise-free electron rate (e⁻/s) of the brightest of the four channels of every 2 × 2
+/// superpixel, row-major over superpixels: the quantity `sensor.md` §5 sizes the default exposure
+/// by (PRNU, orientation error, ER and RI included, as the sensor configures them).
+pub fn brightest_channel_rates(sensor: &Sensor, st: &psns::image::StokesImage) -> Result<Vec<f64>> {
+    let rate = sensor.electron_rate(st)?;
+    let (w, h) = (st.width(), st.height());
+    let mut out = Vec::with_capacity(w * h / 4);
+    for r in (0..h - 1).step_by(2) {
+        for c in (0..w - 1).step_by(2) {
+            let k = r * w + c;
+            out.push(
+                rate[k]
+                    .max(rate[k + 1])
+                    .max(rate[k + w])
+                    .max(rate[k + w + 1]),
+            );
+        }
+    }
+    Ok(out)
+}
+
+/// Nearest-rank percentile p (0..100] of `v` (the rule auto-exposure uses).
+fn percentile(mut v: Vec<f64>, p: f64) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    let n = v.len();
+    let i = ((p / 100.0 * n as f64).ceil() as usize).clamp(1, n) - 1;
+    *v.select_nth_unstable_by(i, |a, b| a.total_cmp(b)).1
+}
+
 fn median(mut v: Vec<f64>) -> f64 {
     if v.is_empty() {
         return 0.0;
@@ -488,8 +519,11 @@ pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>
     };
 
     progress.set_message("sensor: raw frame");
-    // 1. the default camera frame of the default sky
-    let cfg = SceneConfig::default();
+    // 1. the default camera frame of the default sky, on the exact (reference) path the pipeline
+    // section describes: every pixel's sky evaluated, the reference noise (the pictures then do
+    // not move when the fast path is tuned)
+    let mut cfg = SceneConfig::default();
+    cfg.raw.exact = true;
     let pipe = RawPipeline::new(&cfg)?;
     let layout = pipe.sensor_config().layout;
     let (frame, _) = pipe.render_configured()?;
@@ -505,6 +539,22 @@ pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>
             "median_code": median(frame.codes.data.iter().map(|&v| v as f64).collect()),
             "max_code": frame.codes.data.iter().copied().max().unwrap_or(0),
             "saturated_pixels": frame.saturated,
+        }),
+    );
+    // brightest-channel electron rate of the default sky (sensor.md §5 sizes the 1 ms exposure by it)
+    let sun = cfg.sun.resolve()?;
+    let (st, _) = pipe.stokes(sun, &cfg.camera.attitude)?;
+    let bright = brightest_channel_rates(pipe.sensor(), &st)?;
+    let radiance: Vec<f64> = st.s0.data.iter().map(|&v| v as f64).collect();
+    numbers.insert(
+        "brightest_channel_rate".into(),
+        serde_json::json!({
+            "superpixels": bright.len(),
+            "median_e_per_ms": median(bright.clone()) * 1e-3,
+            "p99_e_per_ms": percentile(bright, 99.0) * 1e-3,
+            "radiance_min": percentile(radiance.clone(), 0.0),
+            "radiance_median": median(radiance.clone()),
+            "radiance_max": percentile(radiance, 100.0),
         }),
     );
 
@@ -662,6 +712,7 @@ pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>
     // 4. PSNS presets and the camera, same sky: full frames /8 and a 152 × 128 corner crop ×2
     let mut top = Vec::new();
     let mut bottom = Vec::new();
+    let mut preset_numbers = serde_json::Map::new();
     for p in [
         Preset::Nfpi,
         Preset::Gniipi,
@@ -675,6 +726,16 @@ pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>
             c.raw.preset = p;
             RawPipeline::new(&c)?.render_configured()?.0
         };
+        let fmax = psns::sensor::adc::max_code(f.bit_depth);
+        preset_numbers.insert(
+            p.to_string(),
+            serde_json::json!({
+                "max_code": f.codes.data.iter().copied().max().unwrap_or(0),
+                "full_scale": fmax,
+                "pixels_at_full_scale": f.codes.data.iter().filter(|&&v| v == fmax).count(),
+                "median_code": median(f.codes.data.iter().map(|&v| v as f64).collect()),
+            }),
+        );
         let g = codes_gray(&f.codes, f.bit_depth);
         top.push(vis::gray_rgb(&vis::gray8(&vis::downsample(&g, 8), 255.0)));
         bottom.push(vis::gray_rgb(&enlarge(&crop(&g, 0, 0, 128, 152), 2)));
@@ -686,6 +747,7 @@ pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>
         &put("psns_presets.png"),
         &rgb_to_gray(&vis::vstack(&[&a, &b], 6)),
     )?;
+    numbers.insert("presets".into(), serde_json::Value::Object(preset_numbers));
 
     progress.inc(1);
     progress.set_message("sensor: photon transfer");
@@ -782,6 +844,25 @@ mod tests {
         assert_eq!(again.fit, d.fit);
         let svg = photon_transfer_svg(&d).unwrap();
         assert!(svg.starts_with("<svg") && svg.contains("mean above dark"));
+    }
+
+    #[test]
+    fn brightest_channel_is_the_superpixel_maximum() {
+        let cfg = SensorConfig {
+            stages: psns::sensor::Stages::none(),
+            ..Default::default()
+        };
+        let intr = psns::camera::Intrinsics::with_size(8, 4);
+        let s = Sensor::new(&cfg, &intr, 1).unwrap();
+        // fully polarized at 45°: the 45° pixel (0,1) of every superpixel is the brightest
+        let st = flat_field(8, 4, 0.1, 1.0, 45.0).unwrap();
+        let rate = s.electron_rate(&st).unwrap();
+        let b = brightest_channel_rates(&s, &st).unwrap();
+        assert_eq!(b.len(), 8);
+        assert!(b.iter().all(|&v| v == rate[1]), "{b:?} vs {}", rate[1]);
+        assert!(rate[1] > rate[0] && rate[1] > rate[8] && rate[1] > rate[9]);
+        assert_eq!(percentile(vec![3.0, 1.0, 2.0, 4.0], 50.0), 2.0);
+        assert_eq!(percentile(vec![3.0, 1.0, 2.0, 4.0], 99.0), 4.0);
     }
 
     #[test]
