@@ -1,4 +1,6 @@
-//! Pinhole camera: pixel rays, attitude and the projection of the sky's E-vector onto the sensor.
+//! Camera: pixel rays (rectilinear or one of four fisheye projections), attitude, and how the sky's
+//! E-vector reaches the sensor (the paper's pinhole projection, or an ideal rotationally
+//! symmetric lens); `camera.md`.
 //!
 //! Frames (`sky.md` §1, §7): world ENU n (x east, y north, z up); solar-azimuth frame a (y toward
 //! the sun's azimuth, z up); camera frame c with +z the optical axis, +x increasing column, +y
@@ -189,7 +191,274 @@ pub fn camera_to_enu_quaternion(enu_to_camera: &DMat3) -> [f64; 4] {
     [q.w, q.x, q.y, q.z]
 }
 
-/// Pinhole intrinsics. Pixel (col, row) are 0-based; the pixel centre of column c is at c.
+/// How a field angle θ (between a ray and the optical axis) maps to the image radius r, with
+/// f the focal length (`camera.md` §1). Rectilinear is the pinhole r = f tan θ; the four fisheyes
+/// image a 180° field whose rim (θ = 90°) is the image circle, outside which pixels get no light.
+///
+/// ```
+/// use psns::camera::Projection;
+/// let p: Projection = "equidistant".parse().unwrap();
+/// assert_eq!(p, Projection::Equidistant);
+/// // r/f = θ: 90° lands at π/2 focal lengths, and back
+/// assert!((p.radius(90f64.to_radians()).unwrap() - std::f64::consts::FRAC_PI_2).abs() < 1e-12);
+/// assert!((p.field_angle(0.5).unwrap() - 0.5).abs() < 1e-12);
+/// assert_eq!(p.field_angle(1.6), None); // outside the image circle
+/// assert_eq!(Projection::Rectilinear.radius(90f64.to_radians()), None);
+/// assert!("fisheye".parse::<Projection>().unwrap_err().to_string().contains("rectilinear, equidistant"));
+/// ```
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Projection {
+    /// r = f tan θ (pinhole, distortion-free; the default). Field below 90°.
+    #[default]
+    Rectilinear,
+    /// r = f θ (equal angles, equal radii).
+    Equidistant,
+    /// r = 2 f sin(θ/2) (equal solid angles, equal areas).
+    Equisolid,
+    /// r = 2 f tan(θ/2) (conformal).
+    Stereographic,
+    /// r = f sin θ.
+    Orthographic,
+}
+
+impl Projection {
+    /// Every projection, in the order of the CLI's list.
+    pub const ALL: [Projection; 5] = [
+        Projection::Rectilinear,
+        Projection::Equidistant,
+        Projection::Equisolid,
+        Projection::Stereographic,
+        Projection::Orthographic,
+    ];
+
+    /// The name used on the command line and in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Projection::Rectilinear => "rectilinear",
+            Projection::Equidistant => "equidistant",
+            Projection::Equisolid => "equisolid",
+            Projection::Stereographic => "stereographic",
+            Projection::Orthographic => "orthographic",
+        }
+    }
+
+    /// Normalised image radius ρ = r/f of the field angle θ (radians), `None` outside the field
+    /// (rectilinear: θ ≥ 90°; fisheyes: θ > 90°, outside the image circle).
+    #[inline]
+    pub fn radius(self, theta: f64) -> Option<f64> {
+        let half_pi = std::f64::consts::FRAC_PI_2;
+        if theta.is_nan()
+            || theta < 0.0
+            || theta > half_pi
+            || (self == Projection::Rectilinear && theta >= half_pi)
+        {
+            return None;
+        }
+        Some(match self {
+            Projection::Rectilinear => theta.tan(),
+            Projection::Equidistant => theta,
+            Projection::Equisolid => 2.0 * (0.5 * theta).sin(),
+            Projection::Stereographic => 2.0 * (0.5 * theta).tan(),
+            Projection::Orthographic => theta.sin(),
+        })
+    }
+
+    /// Field angle θ (radians) of the normalised image radius ρ = r/f, `None` outside the image
+    /// circle (θ > 90°; never for rectilinear).
+    #[inline]
+    pub fn field_angle(self, rho: f64) -> Option<f64> {
+        if rho.is_nan() || rho < 0.0 {
+            return None;
+        }
+        if let Some(rim) = self.rim_radius() {
+            if rho > rim {
+                return None;
+            }
+        }
+        Some(match self {
+            Projection::Rectilinear => rho.atan(),
+            Projection::Equidistant => rho,
+            Projection::Equisolid => 2.0 * (0.5 * rho).min(1.0).asin(),
+            Projection::Stereographic => 2.0 * (0.5 * rho).atan(),
+            Projection::Orthographic => rho.min(1.0).asin(),
+        })
+    }
+
+    /// Normalised radius r/f of the image circle (θ = 90°); `None` for rectilinear (no circle).
+    pub fn rim_radius(self) -> Option<f64> {
+        match self {
+            Projection::Rectilinear => None,
+            Projection::Equidistant => Some(std::f64::consts::FRAC_PI_2),
+            Projection::Equisolid => Some(std::f64::consts::SQRT_2),
+            Projection::Stereographic => Some(2.0),
+            Projection::Orthographic => Some(1.0),
+        }
+    }
+
+    /// dρ/dθ, the radial magnification relative to f at field angle θ (radians, below 90°).
+    pub fn radial_scale(self, theta: f64) -> f64 {
+        match self {
+            Projection::Rectilinear => 1.0 / (theta.cos() * theta.cos()),
+            Projection::Equidistant => 1.0,
+            Projection::Equisolid => (0.5 * theta).cos(),
+            Projection::Stereographic => 1.0 / ((0.5 * theta).cos() * (0.5 * theta).cos()),
+            Projection::Orthographic => theta.cos(),
+        }
+    }
+
+    /// ρ/sin θ, the tangential (sagittal) magnification relative to f (1 on the axis).
+    pub fn tangential_scale(self, theta: f64) -> f64 {
+        if theta < 1e-9 {
+            return 1.0;
+        }
+        match self {
+            Projection::Rectilinear => 1.0 / theta.cos(),
+            _ => self.radius(theta).unwrap_or(0.0) / theta.sin(),
+        }
+    }
+}
+
+impl std::fmt::Display for Projection {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Projection {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        let l = s.trim().to_ascii_lowercase();
+        Projection::ALL
+            .into_iter()
+            .find(|p| p.name() == l)
+            .ok_or_else(|| {
+                Error::Invalid(format!(
+                    "projection '{s}' is unknown (allowed rectilinear, equidistant, equisolid, stereographic, orthographic)"
+                ))
+            })
+    }
+}
+
+/// Which polarization reaches the sensor (`camera.md` §2). Write the ray's unit direction d at
+/// field angle θ, its meridional unit vector m (in the plane of d and the optical axis,
+/// ⟂ d, pointing away from the axis) and sagittal unit vector s = ẑ × d/|ẑ × d|, and the
+/// E-vector e = a m + b s. On the sensor, ρ̂ is the radial and φ̂ the tangential image
+/// direction of the pixel.
+///
+/// - `Pinhole`: the paper's eqs. (19)–(20), e projected along the optical axis onto the focal
+///   plane: (e_x, e_y) = a cos θ ρ̂ + b φ̂.
+/// - `Ideal`: a rotationally symmetric, non-polarizing lens keeps each ray's meridional and
+///   sagittal components and delivers them along ρ̂ and φ̂ at normal incidence:
+///   a ρ̂ + b φ̂ (Richards & Wolf 1959; Chipman, Lam & Young 2018, ch. 11).
+///
+/// The two agree on the axis; off axis the ideal lens's radial component is larger by 1/cos θ.
+///
+/// ```
+/// use glam::DVec3;
+/// use psns::camera::Lens;
+/// // a ray 60° off axis toward +x, E-vector at 45° between meridional and sagittal
+/// let (s, c) = 60f64.to_radians().sin_cos();
+/// let d = DVec3::new(s, 0.0, c);
+/// let m = DVec3::new(c, 0.0, -s);
+/// let e = (m + DVec3::Y) / 2f64.sqrt();
+/// let deg = |l: Lens| l.sensor_angle(d, e).to_degrees();
+/// assert!((deg(Lens::Ideal) - 45.0).abs() < 1e-9);
+/// assert!((deg(Lens::Pinhole) - 2f64.atan().to_degrees()).abs() < 1e-9); // atan(1 / cos 60°)
+/// assert_eq!("ideal".parse::<Lens>().unwrap(), Lens::Ideal);
+/// ```
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Lens {
+    /// E-vector projected onto the focal plane (PSNS eqs. (19)–(20)).
+    Pinhole,
+    /// Meridional → radial, sagittal → tangential (a rotationally symmetric lens).
+    Ideal,
+}
+
+impl Lens {
+    /// Both lens models, in the CLI's order.
+    pub const ALL: [Lens; 2] = [Lens::Pinhole, Lens::Ideal];
+
+    /// The name used on the command line and in scene files.
+    pub fn name(self) -> &'static str {
+        match self {
+            Lens::Pinhole => "pinhole",
+            Lens::Ideal => "ideal",
+        }
+    }
+
+    /// Sensor-plane vector (x, y) of the camera-frame E-vector `e` of a ray with unit
+    /// camera-frame direction `d` (its angle is the sensor AOP; its length is not normalised).
+    #[inline]
+    pub fn sensor_vector(self, d: DVec3, e: DVec3) -> (f64, f64) {
+        match self {
+            Lens::Pinhole => (e.x, e.y),
+            Lens::Ideal => {
+                let h = d.x.hypot(d.y);
+                if h < 1e-12 {
+                    return (e.x, e.y);
+                }
+                let (ux, uy) = (d.x / h, d.y / h); // ρ̂; φ̂ = (−uy, ux)
+                let a = e.x * d.z * ux + e.y * d.z * uy - e.z * h; // e · m
+                let b = -e.x * uy + e.y * ux; // e · s
+                (a * ux - b * uy, a * uy + b * ux)
+            }
+        }
+    }
+
+    /// Sensor AOP (radians, from +x toward +y, in (−π, π]) of the E-vector `e` of unit ray `d`.
+    #[inline]
+    pub fn sensor_angle(self, d: DVec3, e: DVec3) -> f64 {
+        let (x, y) = self.sensor_vector(d, e);
+        y.atan2(x)
+    }
+
+    /// The unit camera-frame E-vector, perpendicular to the ray `d` (any length, z > 0 for the
+    /// pinhole), whose sensor AOP is `aop_rad`: the inverse of [`Lens::sensor_angle`].
+    pub fn e_vector(self, d: DVec3, aop_rad: f64) -> DVec3 {
+        let (s, c) = aop_rad.sin_cos();
+        match self {
+            Lens::Pinhole => {
+                let t = -(d.x * c + d.y * s) / d.z;
+                DVec3::new(c, s, t).normalize()
+            }
+            Lens::Ideal => {
+                let d = d.normalize();
+                let h = d.x.hypot(d.y);
+                if h < 1e-12 {
+                    return DVec3::new(c, s, 0.0);
+                }
+                let (ux, uy) = (d.x / h, d.y / h);
+                let (a, b) = (c * ux + s * uy, -c * uy + s * ux);
+                let m = DVec3::new(d.z * ux, d.z * uy, -h);
+                let sg = DVec3::new(-uy, ux, 0.0);
+                a * m + b * sg
+            }
+        }
+    }
+}
+
+impl std::fmt::Display for Lens {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for Lens {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        let l = s.trim().to_ascii_lowercase();
+        Lens::ALL
+            .into_iter()
+            .find(|p| p.name() == l)
+            .ok_or_else(|| {
+                Error::Invalid(format!("lens '{s}' is unknown (allowed pinhole, ideal)"))
+            })
+    }
+}
+
+/// Intrinsics. Pixel (col, row) are 0-based; the pixel centre of column c is at c.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct Intrinsics {
@@ -203,6 +472,14 @@ pub struct Intrinsics {
     pub pixel_pitch_um: f64,
     /// Principal point (column, row), 0-based pixels; `None` = exact image centre ((n − 1)/2).
     pub principal_point: Option<[f64; 2]>,
+    /// Projection (default rectilinear).
+    #[serde(default)]
+    pub projection: Projection,
+    /// Polarization transport; `None` = the sensor preset's (scene files: the camera preset's
+    /// `ideal`, the PSNS presets' `pinhole`, see `config::RawConfig::lens`; a bare
+    /// library `Intrinsics` with `None` is a pinhole, [`Intrinsics::lens`]).
+    #[serde(default)]
+    pub lens: Option<Lens>,
 }
 
 impl Default for Intrinsics {
@@ -213,6 +490,8 @@ impl Default for Intrinsics {
             focal_length_mm: 4.0,
             pixel_pitch_um: 3.45,
             principal_point: None,
+            projection: Projection::Rectilinear,
+            lens: None,
         }
     }
 }
@@ -276,28 +555,64 @@ impl Intrinsics {
         self.focal_length_mm * 1000.0 / self.pixel_pitch_um
     }
 
-    /// Unnormalised ray in the camera frame through the 0-based sub-pixel position (col, row),
-    /// in pixel units: (col − c0, row − r0, f/pitch).
+    /// The lens in force: the configured one, or the pinhole when none is set.
     #[inline]
-    pub fn ray(&self, col: f64, row: f64) -> DVec3 {
+    pub fn lens(&self) -> Lens {
+        self.lens.unwrap_or(Lens::Pinhole)
+    }
+
+    /// Ray in the camera frame through the 0-based sub-pixel position (col, row), or `None`
+    /// outside a fisheye's image circle. Rectilinear: (col − c0, row − r0, f/pitch), in pixel
+    /// units (not normalised); fisheyes: the unit direction at the projection's field angle.
+    #[inline]
+    pub fn ray(&self, col: f64, row: f64) -> Option<DVec3> {
         let (c0, r0) = self.principal();
-        DVec3::new(col - c0, row - r0, self.focal_px())
-    }
-
-    /// Field angle ϕ (radians) between the optical axis and the ray of (col, row).
-    pub fn field_angle(&self, col: f64, row: f64) -> f64 {
-        let d = self.ray(col, row);
-        (d.x.hypot(d.y)).atan2(d.z)
-    }
-
-    /// Pixel position (col, row) of a camera-frame direction, or `None` if it points backward.
-    pub fn project(&self, d_c: DVec3) -> Option<(f64, f64)> {
-        if d_c.z <= 0.0 {
-            return None;
+        let (x, y) = (col - c0, row - r0);
+        let f = self.focal_px();
+        if self.projection == Projection::Rectilinear {
+            return Some(DVec3::new(x, y, f));
         }
+        let r = x.hypot(y);
+        let theta = self.projection.field_angle(r / f)?;
+        if r == 0.0 {
+            return Some(DVec3::Z);
+        }
+        let (s, c) = theta.sin_cos();
+        Some(DVec3::new(s * x / r, s * y / r, c))
+    }
+
+    /// Whether the pixel (col, row) receives light (inside the image circle of a fisheye; always
+    /// for rectilinear).
+    pub fn in_image_circle(&self, col: f64, row: f64) -> bool {
+        self.ray(col, row).is_some()
+    }
+
+    /// Field angle ϕ (radians) between the optical axis and the ray of (col, row); π/2 outside a
+    /// fisheye's image circle.
+    pub fn field_angle(&self, col: f64, row: f64) -> f64 {
+        match self.ray(col, row) {
+            Some(d) => (d.x.hypot(d.y)).atan2(d.z),
+            None => std::f64::consts::FRAC_PI_2,
+        }
+    }
+
+    /// Pixel position (col, row) of a camera-frame direction, or `None` if it is outside the
+    /// field (backward for rectilinear, beyond 90° for fisheyes).
+    pub fn project(&self, d_c: DVec3) -> Option<(f64, f64)> {
         let (c0, r0) = self.principal();
         let f = self.focal_px();
-        Some((c0 + f * d_c.x / d_c.z, r0 + f * d_c.y / d_c.z))
+        if self.projection == Projection::Rectilinear {
+            if d_c.z <= 0.0 {
+                return None;
+            }
+            return Some((c0 + f * d_c.x / d_c.z, r0 + f * d_c.y / d_c.z));
+        }
+        let h = d_c.x.hypot(d_c.y);
+        let rho = self.projection.radius(h.atan2(d_c.z))?;
+        if h == 0.0 {
+            return Some((c0, r0));
+        }
+        Some((c0 + f * rho * d_c.x / h, r0 + f * rho * d_c.y / h))
     }
 }
 
@@ -321,17 +636,22 @@ impl Camera {
         })
     }
 
-    /// Unit ENU view direction of the 0-based sub-pixel position (col, row).
+    /// Unit ENU view direction of the 0-based sub-pixel position (col, row); `None` outside a
+    /// fisheye's image circle.
     #[inline]
-    pub fn pixel_direction(&self, col: f64, row: f64) -> DVec3 {
-        (self.enu_to_camera.transpose() * self.intrinsics.ray(col, row)).normalize()
+    pub fn pixel_direction(&self, col: f64, row: f64) -> Option<DVec3> {
+        Some((self.enu_to_camera.transpose() * self.intrinsics.ray(col, row)?).normalize())
     }
 
-    /// Sensor AOP (degrees, [0, 180), from +x toward +y) of an ENU E-vector.
+    /// Sensor AOP (degrees, [0, 180), from +x toward +y) of an ENU E-vector seen along the ENU
+    /// view direction `d_enu`, through the camera's lens.
     #[inline]
-    pub fn sensor_aop_deg(&self, e_enu: DVec3) -> f64 {
-        let e = self.enu_to_camera * e_enu;
-        crate::angle::SensorAngle::from_deg(e.y.atan2(e.x).to_degrees()).deg()
+    pub fn sensor_aop_deg(&self, d_enu: DVec3, e_enu: DVec3) -> f64 {
+        let a = self
+            .intrinsics
+            .lens()
+            .sensor_angle(self.enu_to_camera * d_enu, self.enu_to_camera * e_enu);
+        crate::angle::SensorAngle::from_deg(a.to_degrees()).deg()
     }
 }
 
@@ -343,15 +663,15 @@ mod tests {
     #[test]
     fn centre_pixel_looks_at_zenith_and_corners_match_spec() {
         let cam = Camera::new(Intrinsics::default(), &Attitude::enu(0.0, 0.0, 0.0), 200.0).unwrap();
-        let (z, _) = zenith_azimuth_deg(cam.pixel_direction(1223.5, 1023.5));
+        let (z, _) = zenith_azimuth_deg(cam.pixel_direction(1223.5, 1023.5).unwrap());
         assert!(z.abs() < 1e-9);
         // sky.md §9 camera table
-        let (z, a) = zenith_azimuth_deg(cam.pixel_direction(0.0, 0.0));
+        let (z, a) = zenith_azimuth_deg(cam.pixel_direction(0.0, 0.0).unwrap());
         assert!(
             (z - 53.989).abs() < 1e-3 && (a - 230.086).abs() < 1e-3,
             "{z} {a}"
         );
-        let (z, a) = zenith_azimuth_deg(cam.pixel_direction(2447.0, 2047.0));
+        let (z, a) = zenith_azimuth_deg(cam.pixel_direction(2447.0, 2047.0).unwrap());
         assert!(
             (z - 53.989).abs() < 1e-3 && (a - 50.086).abs() < 1e-3,
             "{z} {a}"
@@ -362,12 +682,12 @@ mod tests {
             200.0,
         )
         .unwrap();
-        let (z, a) = zenith_azimuth_deg(cam.pixel_direction(1223.5, 1023.5));
+        let (z, a) = zenith_azimuth_deg(cam.pixel_direction(1223.5, 1023.5).unwrap());
         assert!(
             (z - 11.169).abs() < 1e-3 && (a - 236.740).abs() < 1e-3,
             "{z} {a}"
         );
-        let (z, a) = zenith_azimuth_deg(cam.pixel_direction(0.0, 0.0));
+        let (z, a) = zenith_azimuth_deg(cam.pixel_direction(0.0, 0.0).unwrap());
         assert!(
             (z - 64.315).abs() < 1e-3 && (a - 257.963).abs() < 1e-3,
             "{z} {a}"
@@ -410,12 +730,122 @@ mod tests {
 
     #[test]
     fn project_inverts_ray() {
+        for p in Projection::ALL {
+            let i = Intrinsics {
+                projection: p,
+                focal_length_mm: if p == Projection::Rectilinear {
+                    4.0
+                } else {
+                    1.8
+                },
+                ..Intrinsics::default()
+            };
+            let cam = Camera::new(i, &Attitude::enu(12.0, -7.0, 3.0), 0.0).unwrap();
+            for &(c, r) in &[
+                (1000.0, 900.0),
+                (1223.5, 1023.5),
+                (1500.25, 1200.5),
+                (1100.0, 1400.0),
+            ] {
+                let d = cam.pixel_direction(c, r).unwrap();
+                let (c2, r2) = i.project(cam.enu_to_camera * d).unwrap();
+                assert!(
+                    (c - c2).abs() < 1e-7 && (r - r2).abs() < 1e-7,
+                    "{p}: {c},{r}"
+                );
+            }
+        }
+    }
+
+    /// A pixel 300 px right of the principal point of a 1.8 mm, 3.45 µm camera looking at the
+    /// zenith: its zenith angle by each projection, computed by hand (ρ = 300 / 521.739 =
+    /// 0.57500: atan ρ, ρ, 2 asin(ρ/2), 2 atan(ρ/2), asin ρ).
+    #[test]
+    fn field_angles_by_hand() {
+        let want = [
+            (Projection::Rectilinear, 29.898_902),
+            (Projection::Equidistant, 32.945_073),
+            (Projection::Equisolid, 33.416_687),
+            (Projection::Stereographic, 32.079_887),
+            (Projection::Orthographic, 35.099_632),
+        ];
+        for (p, deg) in want {
+            let i = Intrinsics {
+                projection: p,
+                focal_length_mm: 1.8,
+                ..Intrinsics::default()
+            };
+            let cam = Camera::new(i, &Attitude::enu(0.0, 0.0, 0.0), 0.0).unwrap();
+            let (c0, r0) = i.principal();
+            let (z, a) = zenith_azimuth_deg(cam.pixel_direction(c0 + 300.0, r0).unwrap());
+            assert!((z - deg).abs() < 1e-5, "{p}: zenith {z}, want {deg}");
+            assert!(
+                (a - 90.0).abs() < 1e-9,
+                "{p}: +x is east at zero ENU attitude ({a})"
+            );
+            assert!((i.field_angle(c0 + 300.0, r0).to_degrees() - deg).abs() < 1e-5);
+        }
+    }
+
+    /// The image circle of a 1.8 mm fisheye: θ = 90° at r = f·ρ(90°) (equidistant π/2 f =
+    /// 819.5 px, equisolid √2 f = 737.8 px, stereographic 2f = 1043.5 px, orthographic f =
+    /// 521.7 px); a pixel just inside has a ray, one just outside none, and the rectilinear camera
+    /// has no circle.
+    #[test]
+    fn image_circle_rim() {
+        let f = 1800.0 / 3.45;
+        for (p, rim) in [
+            (Projection::Equidistant, std::f64::consts::FRAC_PI_2 * f),
+            (Projection::Equisolid, std::f64::consts::SQRT_2 * f),
+            (Projection::Stereographic, 2.0 * f),
+            (Projection::Orthographic, f),
+        ] {
+            let i = Intrinsics {
+                projection: p,
+                focal_length_mm: 1.8,
+                ..Intrinsics::default()
+            };
+            let (c0, r0) = i.principal();
+            let inside = i.ray(c0, r0 + rim - 0.01).unwrap();
+            assert!(inside.z >= 0.0 && inside.z < 1e-2, "{p}: {inside}");
+            assert!(i.ray(c0, r0 + rim + 0.01).is_none(), "{p}");
+            assert!(
+                i.project(DVec3::new(0.0, 1.0, -1e-3)).is_none(),
+                "{p}: behind the rim"
+            );
+        }
         let i = Intrinsics::default();
-        let cam = Camera::new(i, &Attitude::enu(12.0, -7.0, 3.0), 0.0).unwrap();
-        for &(c, r) in &[(0.0, 0.0), (100.25, 2000.5), (2447.0, 3.0)] {
-            let d = cam.pixel_direction(c, r);
-            let (c2, r2) = i.project(cam.enu_to_camera * d).unwrap();
-            assert!((c - c2).abs() < 1e-8 && (r - r2).abs() < 1e-8);
+        assert!(i.ray(-1e5, -1e5).is_some());
+    }
+
+    #[test]
+    fn names_parse_and_bad_names_list_the_allowed_ones() {
+        for p in Projection::ALL {
+            assert_eq!(p.name().parse::<Projection>().unwrap(), p);
+            assert_eq!(serde_json::to_string(&p).unwrap(), format!("\"{p}\""));
+        }
+        for l in Lens::ALL {
+            assert_eq!(l.to_string().parse::<Lens>().unwrap(), l);
+        }
+        let e = "thin".parse::<Lens>().unwrap_err().to_string();
+        assert!(e.contains("'thin'") && e.contains("pinhole, ideal"), "{e}");
+    }
+
+    /// Lens::e_vector inverts Lens::sensor_angle for both lenses, off axis.
+    #[test]
+    fn lens_e_vector_inverts_sensor_angle() {
+        let d = DVec3::new(0.4, -0.7, 0.5).normalize();
+        for l in Lens::ALL {
+            for deg in [0.0f64, 30.0, 95.0, 150.0] {
+                let e = l.e_vector(d, deg.to_radians());
+                assert!(
+                    e.dot(d).abs() < 1e-12,
+                    "{l}: e not perpendicular to the ray"
+                );
+                let back = l.sensor_angle(d, e).to_degrees();
+                let diff = (back - deg).rem_euclid(180.0);
+                assert!(diff.min(180.0 - diff) < 1e-9, "{l}: {deg} -> {back}");
+            }
         }
     }
 

@@ -5,7 +5,7 @@
 //! Fields under `derived` are outputs (resolved sun position, timings, counts); they are ignored on
 //! input.
 
-use crate::camera::{Attitude, Camera, Intrinsics};
+use crate::camera::{Attitude, Camera, Intrinsics, Lens};
 use crate::error::{check_range, Error, Result};
 use crate::sensor::packing::PixelFormat;
 use crate::sensor::{Preset, SensorConfig};
@@ -107,7 +107,7 @@ impl SunConfig {
 #[derive(Clone, Debug, Default, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct CameraConfig {
-    /// Pinhole intrinsics.
+    /// Intrinsics, projection and lens.
     pub intrinsics: Intrinsics,
     /// Attitude (default: zenith-looking, zero yaw in the solar frame).
     pub attitude: Attitude,
@@ -227,6 +227,16 @@ impl RawConfig {
         s
     }
 
+    /// The lens when the scene sets none (`camera.md` §2): `ideal` for the camera preset (a real
+    /// rotationally symmetric lens), `pinhole` for the PSNS presets (the paper's eqs. (19)–(20)).
+    pub fn lens(&self) -> Lens {
+        if self.preset == Preset::Camera {
+            Lens::Ideal
+        } else {
+            Lens::Pinhole
+        }
+    }
+
     /// Whether the solar disc is drawn.
     pub fn sun_disc_on(&self) -> bool {
         self.sun_disc.unwrap_or(self.preset == Preset::Camera)
@@ -291,16 +301,21 @@ impl SceneConfig {
         Ok(cfg)
     }
 
-    /// Resolves the sun, validates everything and builds the sky and the posed camera.
+    /// The intrinsics with the lens resolved: the configured one, or the preset's
+    /// ([`RawConfig::lens`]).
+    pub fn intrinsics(&self) -> Intrinsics {
+        let mut i = self.camera.intrinsics;
+        i.lens = Some(i.lens.unwrap_or(self.raw.lens()));
+        i
+    }
+
+    /// Resolves the sun, validates everything and builds the sky and the posed camera (lens
+    /// resolved, [`Self::intrinsics`]).
     pub fn build(&self) -> Result<(Sky, Camera)> {
         let sun = self.sun.resolve()?;
         self.sun.check_up(sun)?;
         let sky = Sky::new(sun, &self.sky)?;
-        let cam = Camera::new(
-            self.camera.intrinsics,
-            &self.camera.attitude,
-            sun.azimuth_deg,
-        )?;
+        let cam = Camera::new(self.intrinsics(), &self.camera.attitude, sun.azimuth_deg)?;
         Ok((sky, cam))
     }
 

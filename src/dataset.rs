@@ -359,6 +359,11 @@ pub struct DatasetConfig {
     pub roll_deg: Dist,
     /// Focal length, mm.
     pub focal_length_mm: Dist,
+    /// Projection of every frame (`psns render --projection`; default rectilinear).
+    pub projection: crate::camera::Projection,
+    /// Lens of every frame (`psns render --lens`); absent = each preset's own (`camera.md`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub lens: Option<crate::camera::Lens>,
     /// Sun altitude, degrees.
     pub sun_altitude_deg: Dist,
     /// Sun compass azimuth, degrees.
@@ -407,6 +412,8 @@ impl Default for DatasetConfig {
             pitch_deg: Dist::Fixed(0.0),
             roll_deg: Dist::Fixed(0.0),
             focal_length_mm: Dist::Fixed(4.0),
+            projection: crate::camera::Projection::Rectilinear,
+            lens: None,
             sun_altitude_deg: uniform(0.0, 90.0, 0.1),
             sun_azimuth_deg: uniform(0.0, 359.9, 0.1),
             sun_time: None,
@@ -635,6 +642,8 @@ impl DatasetConfig {
             pitch_deg: v[1],
             roll_deg: v[2],
             focal_length_mm: v[3],
+            projection: self.projection,
+            lens: self.lens,
             sun_altitude_deg: v[4],
             sun_azimuth_deg: v[5],
             turbidity: v[6],
@@ -788,6 +797,10 @@ pub struct Sample {
     pub roll_deg: f64,
     /// Focal length, mm.
     pub focal_length_mm: f64,
+    /// Projection.
+    pub projection: crate::camera::Projection,
+    /// Lens (`None`: the preset's).
+    pub lens: Option<crate::camera::Lens>,
     /// Sun altitude, degrees.
     pub sun_altitude_deg: f64,
     /// Sun compass azimuth, degrees.
@@ -872,6 +885,8 @@ impl Sample {
             focal_length_mm: self.focal_length_mm,
             pixel_pitch_um: self.pixel_pitch_um,
             principal_point: None,
+            projection: self.projection,
+            lens: self.lens,
         };
         c.camera.attitude = self.attitude();
         c.raw.preset = preset;
@@ -1014,6 +1029,31 @@ mod tests {
             "test",
         )
         .unwrap()
+    }
+
+    /// The `projection` and `lens` keys reach every sample's scene (and so its render); absent,
+    /// the projection is rectilinear and the lens each preset's; a bad name is refused by name.
+    #[test]
+    fn projection_and_lens_keys_reach_the_samples() {
+        use crate::camera::{Lens, Projection};
+        let t = tiny();
+        let s = t.sample(Split::Nfpi, 1).unwrap().scene(Preset::Nfpi);
+        assert_eq!(s.camera.intrinsics.projection, Projection::Rectilinear);
+        assert_eq!(s.intrinsics().lens, Some(Lens::Pinhole));
+        let d = DatasetConfig::from_toml(
+            "seed = 7\nwidth = 64\nheight = 48\nprojection = \"equisolid\"\nlens = \"ideal\"\n[splits]\nNFPI = 1\n",
+            "test",
+        )
+        .unwrap();
+        let s = d.sample(Split::Nfpi, 1).unwrap().scene(Preset::Nfpi);
+        assert_eq!(s.camera.intrinsics.projection, Projection::Equisolid);
+        assert_eq!(s.intrinsics().lens, Some(Lens::Ideal));
+        let back = DatasetConfig::from_toml(&d.to_toml(), "round trip").unwrap();
+        assert_eq!(back, d);
+        let e = DatasetConfig::from_toml("projection = \"fish\"\n", "bad")
+            .unwrap_err()
+            .to_string();
+        assert!(e.contains("fish") && e.contains("equisolid"), "{e}");
     }
 
     #[test]

@@ -123,11 +123,10 @@ pub fn symmetric_eigen(m: DMat3) -> ([f64; 3], [DVec3; 3]) {
     (vals, vecs)
 }
 
-/// The camera-frame E-vector of a pixel with sensor AoLP `aolp_deg`, seen along camera ray `ray`.
+/// The camera-frame E-vector of a pixel with sensor AoLP `aolp_deg`, seen along camera ray `ray`
+/// through a pinhole ([`crate::camera::Lens::e_vector`] for either lens).
 pub fn e_vector(ray: DVec3, aolp_deg: f64) -> DVec3 {
-    let (s, c) = aolp_deg.to_radians().sin_cos();
-    let t = -(ray.x * c + ray.y * s) / ray.z;
-    DVec3::new(c, s, t).normalize()
+    crate::camera::Lens::Pinhole.e_vector(ray, aolp_deg.to_radians())
 }
 
 /// Yaw (degrees, [0, 360)) that turns the ENU sun `sun_enu` into the level-frame sun `u`
@@ -176,11 +175,13 @@ pub fn eigenvector_heading(
             if !(a.is_finite() && d.is_finite()) || d < setup.min_dolp || d > 1.0 {
                 continue;
             }
-            let ray = i.ray(col as f64, row as f64);
+            let Some(ray) = i.ray(col as f64, row as f64) else {
+                continue;
+            };
             if ray.z <= 1e-6 {
                 continue;
             }
-            samples.push((e_vector(ray, a), d));
+            samples.push((i.lens().e_vector(ray, a.to_radians()), d));
         }
     }
     if samples.len() < 10 {
@@ -374,7 +375,9 @@ fn fit_samples(
             if !(a.is_finite() && d.is_finite()) || d < setup.min_dolp || d > 1.0 {
                 continue;
             }
-            let ray = i.ray(col as f64, row as f64);
+            let Some(ray) = i.ray(col as f64, row as f64) else {
+                continue;
+            };
             if ray.z <= 1e-6 {
                 continue;
             }
@@ -443,6 +446,7 @@ pub fn model_fit_heading(
             p[3].clamp(0.0, 90.0),
         ]
     };
+    let lens = i.lens();
     let residuals = |p: [f64; 4], out: &mut Vec<f64>| {
         let c = tilt * crate::camera::rot_z(p[0].to_radians());
         let ct = c.transpose();
@@ -456,7 +460,7 @@ pub fn model_fit_heading(
                     return 0.0;
                 }
                 let e = c * f.eval(v).e;
-                wrap_half_pi(phi - e.y.atan2(e.x))
+                wrap_half_pi(phi - lens.sensor_angle(r, e))
             })
             .collect_into_vec(out);
     };
@@ -654,7 +658,9 @@ pub fn intensity_side(view: &PolarView, setup: &HeadingSetup, s_c: DVec3) -> Opt
     let (mut num, mut den, mut pairs) = (0.0, 0.0, 0usize);
     for row in (0..i.height).step_by(step) {
         for col in (0..i.width).step_by(step) {
-            let ray = i.ray(col as f64, row as f64);
+            let Some(ray) = i.ray(col as f64, row as f64) else {
+                continue;
+            };
             let v = tilt.transpose() * ray.normalize();
             let x = v.dot(h);
             if x <= 0.0 {
@@ -669,7 +675,8 @@ pub fn intensity_side(view: &PolarView, setup: &HeadingSetup, s_c: DVec3) -> Opt
             }
             let k = row * i.width + col;
             let km = rm as usize * i.width + cm as usize;
-            let (Some(l), Some(lm)) = (usable(k, ray), usable(km, i.ray(cm, rm))) else {
+            let (Some(l), Some(lm)) = (usable(k, ray), i.ray(cm, rm).and_then(|r| usable(km, r)))
+            else {
                 continue;
             };
             num += (l - lm) * x;
@@ -746,18 +753,21 @@ pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEs
             if !(a.is_finite() && d.is_finite()) || d < setup.min_dolp || d > 1.0 {
                 continue;
             }
-            let ray = i.ray(col as f64, row as f64);
+            let Some(ray) = i.ray(col as f64, row as f64) else {
+                continue;
+            };
             if ray.z <= 1e-6 {
                 continue;
             }
             usable += 1;
-            evecs.push((e_vector(ray, a), d));
+            let e_c = i.lens().e_vector(ray, a.to_radians());
+            evecs.push((e_c, d));
             let v = tt * ray.normalize();
             let hz = v.x.hypot(v.y);
             if hz < 0.26 {
                 continue; // within 15° of the zenith the azimuth of a pixel is imprecise
             }
-            let e = tt * e_vector(ray, a);
+            let e = tt * e_c;
             let n = DVec3::new(-v.y / hz, v.x / hz, 0.0);
             let c = e.dot(n).abs();
             if c < tol {
@@ -789,12 +799,13 @@ pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEs
     // whose mirror image across the candidate meridian plane is also inside the image (the image
     // boundary would otherwise cut the band of votes asymmetrically); three passes, recentred.
     let win = 1.5f64.to_radians();
-    let (c0, r0) = i.principal();
+    let rectilinear = i.projection == crate::camera::Projection::Rectilinear;
     let inside = |v: DVec3| {
         let r = tilt * v;
-        r.z > 1e-6 && {
-            let (x, y) = (c0 + i.focal_px() * r.x / r.z, r0 + i.focal_px() * r.y / r.z);
-            x >= 0.0 && y >= 0.0 && x <= (i.width - 1) as f64 && y <= (i.height - 1) as f64
+        (!rectilinear || r.z > 1e-6) && {
+            i.project(r).is_some_and(|(x, y)| {
+                x >= 0.0 && y >= 0.0 && x <= (i.width - 1) as f64 && y <= (i.height - 1) as f64
+            })
         }
     };
     let mut wn = 0.0;

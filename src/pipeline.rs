@@ -62,8 +62,10 @@ impl RawPipeline {
             raw.flat.validate()?;
         }
         let sensor = Sensor::new(&sensor_cfg, i, raw.seed)?;
+        let mut cfg = cfg.clone();
+        cfg.camera.intrinsics = cfg.intrinsics(); // the preset's lens unless one is set
         Ok(RawPipeline {
-            cfg: cfg.clone(),
+            cfg,
             sensor_cfg,
             sensor,
         })

@@ -1,10 +1,12 @@
 //! Ideal images in the sensor frame (the PSNS paper's Fig. 10 a–g): LI, DOP and AOP per pixel, the
 //! sensor-frame Stokes planes, and the four polarizer-direction images of eq. (24).
 //!
-//! Each pixel samples the sky along its own ray (`sky.md` §7): d_n = (C_n^c)ᵀ d_c/|d_c|; the
-//! E-vector is rotated into the camera frame and projected on the focal plane,
-//! AOP_s = atan2(e_c,y, e_c,x) mod 180° (from +x = columns toward +y = rows, down). Pixels that look
-//! at or below the horizon are invalid: LI = DOP = AOP = 0 and mask 0 (never NaN).
+//! Each pixel samples the sky along its own ray (`sky.md` §7, `camera.md`): d_n = (C_n^c)ᵀ d_c/|d_c|
+//! with d_c from the projection; the E-vector is rotated into the camera frame and delivered to the
+//! sensor by the lens ([`crate::camera::Lens`]: projected on the focal plane for the pinhole,
+//! AOP_s = atan2(e_c,y, e_c,x) mod 180°, from +x = columns toward +y = rows, down). Pixels that
+//! look at or below the horizon, or lie outside a fisheye's image circle, are invalid:
+//! LI = DOP = AOP = 0 (ground: the ground radiance) and mask 0 (never NaN).
 
 use crate::camera::Camera;
 use crate::image::{Image, StokesImage, StokesRows};
@@ -44,10 +46,14 @@ impl PixelSky {
     }
 }
 
-/// Samples the sky for the ray through the 0-based sub-pixel position (col, row).
+/// Samples the sky for the ray through the 0-based sub-pixel position (col, row). Outside a
+/// fisheye's image circle no light arrives: all zero and invalid.
 #[inline]
 pub fn pixel_sky(sky: &Sky, cam: &Camera, col: f64, row: f64) -> PixelSky {
-    let d = cam.pixel_direction(col, row);
+    let Some(ray) = cam.intrinsics.ray(col, row) else {
+        return PixelSky::default();
+    };
+    let d = (cam.enu_to_camera.transpose() * ray).normalize();
     let s = sky.sample(d);
     if !s.valid {
         // ground: zero, or the configured uniform unpolarized ground radiance (sky.md §8)
@@ -57,9 +63,13 @@ pub fn pixel_sky(sky: &Sky, cam: &Camera, col: f64, row: f64) -> PixelSky {
         };
     }
     let e = cam.enu_to_camera * s.e;
-    let n2 = e.x * e.x + e.y * e.y;
+    let (ex, ey) = match cam.intrinsics.lens() {
+        crate::camera::Lens::Pinhole => (e.x, e.y),
+        l => l.sensor_vector(ray.normalize(), e),
+    };
+    let n2 = ex * ex + ey * ey;
     let (cos2, sin2) = if s.dop > 0.0 && n2 > 0.0 {
-        ((e.x * e.x - e.y * e.y) / n2, 2.0 * e.x * e.y / n2)
+        ((ex * ex - ey * ey) / n2, 2.0 * ex * ey / n2)
     } else {
         (0.0, 0.0)
     };
@@ -169,11 +179,22 @@ fn sun_disc_pixels(sky: &Sky, cam: &Camera) -> Vec<(usize, f32)> {
     let Some((sc, sr)) = cam.intrinsics.project(s_c) else {
         return Vec::new();
     };
-    // A pixel subtends less angle off axis (radially by cos²ϕ), so the disc spans more pixels:
-    // radial extent of r_sun + 2 IFOV is (r_sun f + 2) / cos²ϕ pixels, plus one for rounding.
+    // A pixel subtends less angle off axis (rectilinear: radially by cos²ϕ), so the disc spans
+    // more pixels: radial extent of r_sun + 2 IFOV is (r_sun f + 2) / cos²ϕ pixels, plus one for
+    // rounding; a fisheye's magnification is the larger of its radial and tangential scales.
     let f = cam.intrinsics.focal_px();
     let cos_phi = s_c.normalize().z;
-    let reach = (SUN_RADIUS_RAD * f + 2.0) / (cos_phi * cos_phi) + 1.0;
+    let proj = cam.intrinsics.projection;
+    let reach = if proj == crate::camera::Projection::Rectilinear {
+        (SUN_RADIUS_RAD * f + 2.0) / (cos_phi * cos_phi) + 1.0
+    } else {
+        let th = cos_phi.clamp(-1.0, 1.0).acos();
+        let mag = proj
+            .radial_scale(th)
+            .max(proj.tangential_scale(th))
+            .max(1.0);
+        (SUN_RADIUS_RAD * f + 2.0) * mag + 1.0
+    };
     let (wu, hu) = (cam.intrinsics.width, cam.intrinsics.height);
     let (w, h) = (wu as f64, hu as f64);
     let c0 = (sc - reach).floor().max(0.0);
@@ -189,10 +210,12 @@ fn sun_disc_pixels(sky: &Sky, cam: &Camera) -> Vec<(usize, f32)> {
             let mut acc = 0.0;
             for sy in 0..4 {
                 for sx in 0..4 {
-                    let d: DVec3 = cam.pixel_direction(
+                    let Some(d): Option<DVec3> = cam.pixel_direction(
                         c as f64 - 0.375 + 0.25 * sx as f64,
                         r as f64 - 0.375 + 0.25 * sy as f64,
-                    );
+                    ) else {
+                        continue; // outside a fisheye's image circle
+                    };
                     let g = d.dot(s_enu).clamp(-1.0, 1.0).acos();
                     acc += hw.sun_radiance(g);
                 }
@@ -247,11 +270,25 @@ pub fn quantize_polarizer_images(
     (kappa, q)
 }
 
-/// Pixels whose ray points at or below the horizon. In a pinhole camera the ray's ENU up
-/// component is linear along a row, so each row is counted from where it changes sign.
+/// Pixels whose ray points at or below the horizon (inside the image circle of a fisheye). In a
+/// rectilinear camera the ray's ENU up component is linear along a row, so each row is counted
+/// from where it changes sign; fisheyes are counted pixel by pixel.
 pub fn ground_pixel_count(cam: &Camera) -> usize {
     let i = &cam.intrinsics;
     let (w, h) = (i.width, i.height);
+    if i.projection != crate::camera::Projection::Rectilinear {
+        return (0..h)
+            .into_par_iter()
+            .map(|r| {
+                (0..w)
+                    .filter(|&c| {
+                        cam.pixel_direction(c as f64, r as f64)
+                            .is_some_and(|d| d.z <= 0.0)
+                    })
+                    .count()
+            })
+            .sum();
+    }
     // up component of the ENU direction of ray(c, r) = m · (c − c0, r − r0, f)
     let m = cam.enu_to_camera.transpose().row(2);
     let (c0, r0) = i.principal();
@@ -387,6 +424,28 @@ fn curvature(nodes: &[[f32; 3]], gw: usize, gh: usize) -> Vec<f32> {
     out
 }
 
+/// Whether the sky seen within `span` pixels of (col, row) is certainly free of the horizon and of
+/// a fisheye's image-circle rim, judged by angle: the pixel's angular distance from either must
+/// exceed the angle `span` pixels can cover there (√2 span times the larger of the radial and
+/// tangential angle per pixel, with a factor 1.5 for its change across the cell). Only for
+/// fisheyes: in a rectilinear camera the horizon is a straight line and a cell whose corners see
+/// sky sees only sky.
+fn clear_of_edges(cam: &Camera, col: usize, row: usize, span: usize) -> bool {
+    let i = &cam.intrinsics;
+    let Some(ray) = i.ray(col as f64, row as f64) else {
+        return false;
+    };
+    let theta = ray.x.hypot(ray.y).atan2(ray.z);
+    let p = i.projection;
+    let per_px = 1.0 / (i.focal_px() * p.radial_scale(theta).min(p.tangential_scale(theta)));
+    let margin = 1.5 * std::f64::consts::SQRT_2 * span as f64 * per_px;
+    let up = (cam.enu_to_camera.transpose() * ray)
+        .z
+        .clamp(-1.0, 1.0)
+        .asin();
+    std::f64::consts::FRAC_PI_2 - theta > margin && up > margin
+}
+
 /// Whether the cell (i, j) of a node grid needs more than bilinear interpolation.
 fn cell_needs_more(
     nodes: &[[f32; 3]],
@@ -418,11 +477,18 @@ impl<'a> SkyGrid<'a> {
         let step = step.max(2);
         let (cols, rows) = (grid_nodes(0, w - 1, step), grid_nodes(0, h - 1, step));
         let (gw, gh) = (cols.len(), rows.len());
-        let eval = |c: usize, r: usize| -> ([f32; 3], bool) {
+        let sub_step = (step / 4).max(1);
+        // fisheyes: a node near the horizon or the image-circle rim counts as invalid, so the
+        // cells around it are refined and evaluated exactly (`clear_of_edges`)
+        let fisheye = cam.intrinsics.projection != crate::camera::Projection::Rectilinear;
+        let eval_at = |c: usize, r: usize, span: usize| -> ([f32; 3], bool) {
             let p = pixel_sky(sky, cam, c as f64, r as f64);
             let [a, b, d] = p.stokes();
-            ([a as f32, b as f32, d as f32], p.valid)
+            let ok = p.valid && (!fisheye || clear_of_edges(cam, c, r, span));
+            ([a as f32, b as f32, d as f32], ok)
         };
+        let eval = |c: usize, r: usize| eval_at(c, r, step);
+        let eval_sub = |c: usize, r: usize| eval_at(c, r, sub_step);
         let evaluated: Vec<([f32; 3], bool)> = rows
             .par_iter()
             .flat_map_iter(|&r| cols.iter().map(move |&c| eval(c, r)))
@@ -443,7 +509,6 @@ impl<'a> SkyGrid<'a> {
                 }
             }
         }
-        let sub_step = (step / 4).max(1);
         let subs: Vec<SubGrid> = flagged
             .par_iter()
             .map(|&(i, j)| {
@@ -452,7 +517,7 @@ impl<'a> SkyGrid<'a> {
                 let (sw, sh) = (sc.len(), sr.len());
                 let ev: Vec<([f32; 3], bool)> = sr
                     .iter()
-                    .flat_map(|&r| sc.iter().map(move |&c| eval(c, r)))
+                    .flat_map(|&r| sc.iter().map(move |&c| eval_sub(c, r)))
                     .collect();
                 let sn: Vec<[f32; 3]> = ev.iter().map(|e| e.0).collect();
                 let sv: Vec<bool> = ev.iter().map(|e| e.1).collect();
@@ -692,7 +757,7 @@ mod tests {
         let mut flux = 0.0;
         for r in 0..64 {
             for c in 0..64 {
-                let d = win.ray(c as f64, r as f64);
+                let d = win.ray(c as f64, r as f64).unwrap();
                 let cos_phi = d.z / d.length();
                 let omega = cos_phi.powi(3) / (f * f); // solid angle of one pixel
                 let k = r * 64 + c;
@@ -748,6 +813,172 @@ mod tests {
                     "{k}: {a} {b}"
                 );
             }
+        }
+    }
+
+    /// Off axis, by hand: a Rayleigh sky (E ∝ s × v) with the sun at zenith angle θs = 60° due
+    /// east, seen by a zenith-looking camera (image +x east, +y north) at the pixel whose ray is
+    /// θ = 40° off axis toward north, placed by each projection's own radius formula. With
+    /// s = (sin θs, 0, cos θs) and v = (0, sin θ, cos θ), s × v has components −sin θs cos θ
+    /// along north, −cos θs sin θ along east, and, resolved on the ray's meridional
+    /// (north-down) and sagittal (−east) unit vectors, −sin θs and cos θs sin θ. So the pinhole
+    /// (E on the focal plane) reads AOP = atan(tan θs cos θ / sin θ) = 64.152°, the ideal lens
+    /// (meridional along the image's radial +y, sagittal along its tangential −x)
+    /// atan(tan θs / sin θ) = 69.639°, whatever the projection.
+    #[test]
+    fn lens_aop_off_axis_by_hand() {
+        use crate::camera::{Lens, Projection};
+        use crate::sky::PolarizationModel;
+        let (ts, t) = (60f64.to_radians(), 40f64.to_radians());
+        let pinhole = (ts.tan() * t.cos() / t.sin()).atan().to_degrees();
+        let ideal = (ts.tan() / t.sin()).atan().to_degrees();
+        assert!((pinhole - 64.152).abs() < 1e-3 && (ideal - 69.639).abs() < 1e-3);
+        let params = SkyParams {
+            model: PolarizationModel::Rayleigh,
+            ..SkyParams::default()
+        };
+        let sky = Sky::new(SunPosition::new(60.0, 90.0), &params).unwrap();
+        for (p, rho) in [
+            (Projection::Rectilinear, t.tan()),
+            (Projection::Equidistant, t),
+            (Projection::Equisolid, 2.0 * (t / 2.0).sin()),
+            (Projection::Stereographic, 2.0 * (t / 2.0).tan()),
+            (Projection::Orthographic, t.sin()),
+        ] {
+            for (lens, want) in [(Lens::Pinhole, pinhole), (Lens::Ideal, ideal)] {
+                let intr = Intrinsics {
+                    projection: p,
+                    lens: Some(lens),
+                    focal_length_mm: 1.8,
+                    ..Intrinsics::with_size(64, 48)
+                };
+                let cam = Camera::new(intr, &Attitude::enu(0.0, 0.0, 0.0), 90.0).unwrap();
+                let (c0, r0) = intr.principal();
+                let px = pixel_sky(&sky, &cam, c0, r0 + intr.focal_px() * rho);
+                assert!(px.valid && px.dop > 0.1, "{p} {lens}");
+                let got = px.aop_deg();
+                assert!(
+                    (got - want).abs() < 1e-6,
+                    "{p} {lens}: AOP {got}, by hand {want}"
+                );
+            }
+        }
+        // on the axis the two lenses agree
+        let cams = Lens::ALL.map(|l| {
+            let intr = Intrinsics {
+                lens: Some(l),
+                ..Intrinsics::with_size(64, 48)
+            };
+            Camera::new(intr, &Attitude::enu(0.0, 0.0, 0.0), 90.0).unwrap()
+        });
+        let (c0, r0) = cams[0].intrinsics.principal();
+        let a = cams.map(|c| pixel_sky(&sky, &c, c0, r0).aop_deg());
+        assert!((a[0] - a[1]).abs() < 1e-9, "{a:?}");
+    }
+
+    /// A whole-sky fisheye looking at the zenith: pixels outside the image circle are dark and
+    /// invalid, those inside valid, and the grid (fast path) reproduces the mask exactly.
+    #[test]
+    fn fisheye_image_circle_is_masked_and_the_grid_keeps_it() {
+        use crate::camera::Projection;
+        let sun = SunPosition::new(40.0, 100.0);
+        let sky = Sky::new(sun, &SkyParams::default()).unwrap();
+        for p in [Projection::Equidistant, Projection::Orthographic] {
+            let intr = Intrinsics {
+                projection: p,
+                focal_length_mm: 1.8,
+                pixel_pitch_um: 3.45 * 16.0,
+                ..Intrinsics::with_size(153, 128)
+            };
+            let cam = Camera::new(intr, &Attitude::enu(30.0, 10.0, 0.0), 100.0).unwrap();
+            let ideal = render_ideal(&sky, &cam);
+            let (c0, r0) = intr.principal();
+            let rim = p.rim_radius().unwrap() * intr.focal_px();
+            let mut inside = 0;
+            for r in 0..intr.height {
+                for c in 0..intr.width {
+                    let k = r * intr.width + c;
+                    let rr = (c as f64 - c0).hypot(r as f64 - r0);
+                    if rr > rim {
+                        assert_eq!(ideal.valid.data[k], 0, "{p} {c},{r}");
+                        assert_eq!(ideal.li.data[k], 0.0);
+                    } else {
+                        inside += 1;
+                    }
+                }
+            }
+            assert!(inside > 1000, "{p}: {inside}");
+            let opts = StokesOptions { sun_disc: true };
+            let (exact, _) = render_stokes(&sky, &cam, opts);
+            let grid = SkyGrid::new(&sky, &cam, opts, 16, GRID_TOLERANCE).to_image();
+            for k in 0..exact.s0.data.len() {
+                let (a, b) = (grid.s0.data[k], exact.s0.data[k]);
+                assert_eq!(a == 0.0, b == 0.0, "{p}: pixel {k}: grid {a}, exact {b}");
+                assert!(
+                    (a - b).abs() <= 2e-3 * b.abs().max(1e-6),
+                    "{p}: pixel {k}: {a} {b}"
+                );
+            }
+        }
+    }
+
+    /// The solar disc through fisheyes, 50° off axis in a 64 × 64 window around it (1.8 mm lens,
+    /// 1 µm pixels so the disc spans about 17 px across): the same flux as the rectilinear camera
+    /// on axis, with each projection's pixel solid angle by hand, Ω = sin θ/(ρ ρ′ f²):
+    /// sin θ/(θ f²) equidistant, cos⁴(θ/2)/f² stereographic, 1/f² equisolid.
+    #[test]
+    fn sun_disc_flux_through_fisheyes() {
+        use crate::camera::Projection;
+        let (on, _) = disc_flux(0.0);
+        let sun = SunPosition::new(50.0, 200.0);
+        let sky = Sky::new(sun, &SkyParams::default()).unwrap();
+        let att = Attitude::enu(0.0, 0.0, 0.0);
+        for p in [
+            Projection::Equidistant,
+            Projection::Stereographic,
+            Projection::Equisolid,
+        ] {
+            let big = Intrinsics {
+                projection: p,
+                focal_length_mm: 1.8,
+                pixel_pitch_um: 1.0,
+                ..Intrinsics::default()
+            };
+            let probe = Camera::new(big, &att, 200.0).unwrap();
+            let (sc, sr) = big.project(probe.enu_to_camera * sun.vector()).unwrap();
+            let (pc, pr) = big.principal();
+            let win = Intrinsics {
+                width: 64,
+                height: 64,
+                principal_point: Some([pc - (sc - 32.0).round(), pr - (sr - 32.0).round()]),
+                ..big
+            };
+            let cam = Camera::new(win, &att, 200.0).unwrap();
+            let (with, n) = render_stokes(&sky, &cam, StokesOptions { sun_disc: true });
+            let (without, _) = render_stokes(&sky, &cam, StokesOptions { sun_disc: false });
+            let f = win.focal_px();
+            let (c0, r0) = win.principal();
+            let mut flux = 0.0;
+            for r in 0..64 {
+                for c in 0..64 {
+                    let rho = (c as f64 - c0).hypot(r as f64 - r0) / f;
+                    let omega = match p {
+                        Projection::Equidistant => rho.sin() / rho,
+                        Projection::Stereographic => {
+                            let t = 2.0 * (rho / 2.0).atan();
+                            (t / 2.0).cos().powi(4)
+                        }
+                        _ => 1.0,
+                    } / (f * f);
+                    let k = r * 64 + c;
+                    flux += (with.s0.data[k] - without.s0.data[k]) as f64 * omega;
+                }
+            }
+            assert!(n > 100, "{p}: {n} pixels");
+            assert!(
+                (flux / on - 1.0).abs() < 0.005,
+                "{p}: flux {flux:e}, rectilinear on axis {on:e}"
+            );
         }
     }
 

@@ -97,7 +97,7 @@ proptest! {
         let p = SkyParams { model: PolarizationModel::Rayleigh, ..SkyParams::default() };
         let sky = Sky::new(sun, &p).unwrap();
         let cm = cam(Attitude::enu(yaw, pitch, roll), sa);
-        let v = cm.pixel_direction(col, row);
+        let v = cm.pixel_direction(col, row).unwrap();
         let px = pixel_sky(&sky, &cm, col, row);
         if v.z > 1e-6 && px.dop > 1e-6 {
             let e = sun.vector().cross(v);

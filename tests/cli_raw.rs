@@ -523,23 +523,41 @@ fn killed_rerender_leaves_the_previous_output_whole() {
     );
 }
 
-/// `--exact` is the reference path: the same bytes as psns before the fast path (902d52f with
-/// `--sky-grid 1`, recorded from that build). A change here changes every reference run.
+/// `--exact` is the reference path: through the pinhole lens, the same bytes as psns before the
+/// fast path (902d52f with `--sky-grid 1`, recorded from that build) and before the lens option.
+/// The camera preset's default lens is the ideal one since issue 10 (docs/camera.md §2): its
+/// hash was recorded when that default changed (the AOP off axis changes, nothing else). A
+/// change here changes every reference run.
 #[test]
 fn exact_raw_is_bit_identical_to_the_reference() {
     use sha2::{Digest, Sha256};
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("r");
-    let mut args = vec!["render", "--raw", "--exact", "--out", out.to_str().unwrap()];
-    args.extend(SMALL);
-    let o = psns(&args);
-    assert!(o.status.success(), "{}", err(&o));
-    let hex: String = Sha256::digest(std::fs::read(out.join("raw.bin")).unwrap())
-        .iter()
-        .map(|b| format!("{b:02x}"))
-        .collect();
-    assert_eq!(
-        hex,
-        "ae4d4b1e75fafd1a178a5fcb875b70da3ee952d7178245cac4dba0264ac1a15e"
-    );
+    for (lens, want) in [
+        (
+            Some("pinhole"),
+            "ae4d4b1e75fafd1a178a5fcb875b70da3ee952d7178245cac4dba0264ac1a15e",
+        ),
+        (
+            None,
+            "f374bbfc25d0e9fd232420c241fde309e6db7fcb994463c7a3a14a18a0292110",
+        ),
+        (
+            Some("ideal"),
+            "f374bbfc25d0e9fd232420c241fde309e6db7fcb994463c7a3a14a18a0292110",
+        ),
+    ] {
+        let out = dir.path().join(format!("r-{lens:?}"));
+        let mut args = vec!["render", "--raw", "--exact", "--out", out.to_str().unwrap()];
+        args.extend(SMALL);
+        if let Some(l) = lens {
+            args.extend(["--lens", l]);
+        }
+        let o = psns(&args);
+        assert!(o.status.success(), "{}", err(&o));
+        let hex: String = Sha256::digest(std::fs::read(out.join("raw.bin")).unwrap())
+            .iter()
+            .map(|b| format!("{b:02x}"))
+            .collect();
+        assert_eq!(hex, want, "--lens {lens:?}");
+    }
 }

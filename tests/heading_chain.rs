@@ -41,7 +41,7 @@ fn chain_error(
     );
     let p = full_chain(&codes, pipe.sensor_config().layout, Method::Bilinear).unwrap();
     let sun = SunPosition::new(50.0, 200.0);
-    let mut setup = HeadingSetup::new(cfg.camera.intrinsics, sun);
+    let mut setup = HeadingSetup::new(cfg.intrinsics(), sun);
     setup.pitch_deg = pitch;
     setup.roll_deg = roll;
     let (tdolp, taolp) = frame.truth_dolp_aolp();
@@ -399,6 +399,12 @@ fn failure_case(
     let mut cfg = SceneConfig::default();
     cfg.camera.intrinsics = Intrinsics {
         pixel_pitch_um: 3.45 * 8.0,
+        // The failure map's confidences were calibrated on the pinhole lens (psns's only lens
+        // before issue 10). Through the camera preset's ideal lens the Hough method reads
+        // "sun 70 tilted cloudy" 7.9 deg off at confidence 0.52 (pinhole: 8.0 deg at 0.44): its
+        // vote share rises with the cleaner E-vectors while the Berry bias stays. Open for the
+        // heading estimators; the lens itself is tested in src/render.rs.
+        lens: Some(psns::camera::Lens::Pinhole),
         ..Intrinsics::with_size(304, 256)
     };
     cfg.sun.zenith_deg = Some(90.0 - sun_elevation);
@@ -437,7 +443,7 @@ fn failure_case(
             dolp: &p.dolp,
             s0: Some(&p.stokes.s0),
         };
-        let mut setup = HeadingSetup::new(cfg.camera.intrinsics, sun);
+        let mut setup = HeadingSetup::new(cfg.intrinsics(), sun);
         setup.pitch_deg = tilt.0;
         setup.roll_deg = tilt.1;
         for m in HeadingMethod::ALL {

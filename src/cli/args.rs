@@ -2,7 +2,7 @@
 //! the sensor and raw frame, and SPA settings; each applies itself onto a [`SceneConfig`].
 
 use clap::{Args, ValueEnum};
-use psns::camera::{Attitude, AttitudeFrame};
+use psns::camera::{Attitude, AttitudeFrame, Lens, Projection};
 use psns::config::{SceneConfig, SceneKind};
 use psns::sensor::packing::PixelFormat;
 use psns::sensor::{Exposure, Preset, SensorConfig};
@@ -176,6 +176,23 @@ pub(crate) struct SceneArgs {
     /// Principal point X,Y: 0-based column and row of the optical axis.
     #[arg(long, value_parser = finite_list::<2>, allow_negative_numbers = true, value_name = "X,Y")]
     pub(crate) principal_point: Option<[f64; 2]>,
+    /// Projection: rectilinear (default), or a 180-degree fisheye (equidistant, equisolid,
+    /// stereographic, orthographic) with the image circle masked (docs/camera.md).
+    #[arg(long, value_parser = parse_projection, value_name = "NAME")]
+    pub(crate) projection: Option<Projection>,
+    /// Polarization transport of the lens: ideal (meridional and sagittal components along the
+    /// image's radial and tangential directions; the camera preset's default) or pinhole (the E-vector
+    /// projected on the focal plane, PSNS eqs. 19-20; the PSNS presets' default).
+    #[arg(long, value_parser = parse_lens, value_name = "NAME")]
+    pub(crate) lens: Option<Lens>,
+}
+
+pub(crate) fn parse_projection(s: &str) -> Result<Projection, String> {
+    s.parse().map_err(|e: psns::Error| e.to_string())
+}
+
+pub(crate) fn parse_lens(s: &str) -> Result<Lens, String> {
+    s.parse().map_err(|e: psns::Error| e.to_string())
 }
 
 pub(crate) fn size(name: &str, v: i64) -> psns::Result<usize> {
@@ -346,6 +363,12 @@ impl SceneArgs {
         }
         if self.principal_point.is_some() {
             i.principal_point = self.principal_point;
+        }
+        if let Some(p) = self.projection {
+            i.projection = p;
+        }
+        if self.lens.is_some() {
+            i.lens = self.lens;
         }
         Ok(c)
     }

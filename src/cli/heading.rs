@@ -10,7 +10,7 @@
 use super::args::SceneArgs;
 use super::demosaic::{demosaic_codes, load_raw, LoadedRaw};
 use clap::Args;
-use psns::camera::{Attitude, Intrinsics};
+use psns::camera::{Attitude, Intrinsics, Lens, Projection};
 use psns::demosaic::Method;
 use psns::heading::{
     attitude_tilt_deg, attitude_yaw_deg, error_stats, estimate_heading, mask_saturated, wrap180,
@@ -185,7 +185,8 @@ pub(crate) fn image_setup(a: &HeadingArgs) -> Result<HeadingSetup> {
     let cfg = a.scene.scene()?;
     let sun = cfg.sun.resolve()?;
     cfg.sun.check_up(sun)?;
-    let mut setup = HeadingSetup::new(cfg.camera.intrinsics, sun);
+    // lens: --lens, or the camera preset's (as psns render)
+    let mut setup = HeadingSetup::new(cfg.intrinsics(), sun);
     setup.pitch_deg = pitch;
     setup.roll_deg = roll;
     setup.fit_elevation = a.fit_sun_elevation;
@@ -236,6 +237,28 @@ pub const STREAM_HEADER: &str =
 fn stream_intrinsics(a: &HeadingArgs, h: &psns::stream::FileHeader) -> Result<Intrinsics> {
     let s = &a.scene;
     let c = &h.camera;
+    // the stream's record of its optics; a stream without one was rendered rectilinear through
+    // the pinhole (psns before the lens option)
+    let optics: Option<serde_json::Value> = serde_json::from_str::<serde_json::Value>(&h.json)
+        .ok()
+        .and_then(|v| v.get("optics").cloned());
+    let recorded = |key: &str| -> Option<String> {
+        optics
+            .as_ref()
+            .and_then(|o| o.get(key))
+            .and_then(|v| v.as_str())
+            .map(str::to_string)
+    };
+    let projection = match (s.projection, recorded("projection")) {
+        (Some(p), _) => p,
+        (None, Some(p)) => p.parse()?,
+        (None, None) => Projection::Rectilinear,
+    };
+    let lens = match (s.lens, recorded("lens")) {
+        (Some(l), _) => l,
+        (None, Some(l)) => l.parse()?,
+        (None, None) => Lens::Pinhole,
+    };
     let i = Intrinsics {
         width: h.width as usize,
         height: h.height as usize,
@@ -245,6 +268,8 @@ fn stream_intrinsics(a: &HeadingArgs, h: &psns::stream::FileHeader) -> Result<In
             s.principal_point
                 .unwrap_or([c.principal_col, c.principal_row]),
         ),
+        projection,
+        lens: Some(lens),
     };
     for (name, v, have) in [("width", s.width, i.width), ("height", s.height, i.height)] {
         if let Some(v) = v {

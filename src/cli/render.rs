@@ -66,6 +66,8 @@ impl RenderArgs {
     pub(crate) fn config(&self) -> Result<(SceneConfig, bool)> {
         let mut cfg = self.scene.scene()?;
         self.raw.apply(&mut cfg)?;
+        // the lens in force (the preset's unless --lens), so scene.json records it
+        cfg.camera.intrinsics = cfg.intrinsics();
         let raw = self.raw_frame || cfg.raw.scene == SceneKind::Flat;
         if let (false, Some(opt)) = (raw, self.raw.first_given()) {
             return Err(Error::Invalid(format!(

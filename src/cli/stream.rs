@@ -369,12 +369,20 @@ fn sun_in_view(intr: &psns::camera::Intrinsics, sun_c: glam::DVec3, elevation_de
 
 /// Some pixel looks below the horizon. The up component of a ray is linear over the image plane,
 /// so its minimum over the image is at a corner.
+/// A fisheye's horizon is curved: its pixels are checked every 4 pixels and along the border.
 fn ground_in_view(intr: &psns::camera::Intrinsics, enu_to_camera: &DMat3) -> bool {
     let cam_to_enu = enu_to_camera.transpose();
+    let below = |c: f64, r: f64| intr.ray(c, r).is_some_and(|d| (cam_to_enu * d).z < 0.0);
     let (w, h) = (intr.width as f64 - 0.5, intr.height as f64 - 0.5);
-    [(-0.5, -0.5), (w, -0.5), (-0.5, h), (w, h)]
-        .iter()
-        .any(|&(c, r)| (cam_to_enu * intr.ray(c, r)).z < 0.0)
+    if intr.projection == psns::camera::Projection::Rectilinear {
+        return [(-0.5, -0.5), (w, -0.5), (-0.5, h), (w, h)]
+            .iter()
+            .any(|&(c, r)| below(c, r));
+    }
+    let (wu, hu) = (intr.width, intr.height);
+    let cols = (0..wu).step_by(4).chain([wu - 1]);
+    cols.flat_map(|c| (0..hu).step_by(4).chain([hu - 1]).map(move |r| (c, r)))
+        .any(|(c, r)| below(c as f64, r as f64))
 }
 
 /// The file header for a scene: sensor description, camera constants, seed and the scene as JSON.
@@ -420,10 +428,19 @@ pub fn stream_header(
 }
 
 /// Compact JSON of the scene (with the sensor in force) and the stream settings, shortened to fit
-/// the header: first without the full sensor configuration, then the stream settings alone.
+/// the header: first without the full sensor configuration, then the stream settings alone. The
+/// projection and lens the frames were rendered with are always there, as
+/// `"optics": {"projection": "rectilinear", "lens": "ideal"}` (`psns heading` reads them).
 fn header_json(cfg: &SceneConfig, pipe: &RawPipeline, extra: serde_json::Value) -> String {
     let mut scene = cfg.clone();
     scene.derived = None;
+    // the lens in force (the preset's unless one was set), recorded in the scene and on its own
+    let intr = pipe.config().camera.intrinsics;
+    scene.camera.intrinsics = intr;
+    let optics = serde_json::json!({
+        "projection": intr.projection,
+        "lens": intr.lens(),
+    });
     let with_sensor = {
         let mut s = scene.clone();
         s.raw.sensor = Some(pipe.sensor_config().clone());
@@ -438,6 +455,7 @@ fn header_json(cfg: &SceneConfig, pipe: &RawPipeline, extra: serde_json::Value) 
             );
         }
         m.insert("stream".into(), extra.clone());
+        m.insert("optics".into(), optics.clone());
         serde_json::to_string(&serde_json::Value::Object(m)).unwrap_or_default()
     };
     [doc(Some(&with_sensor)), doc(Some(&scene)), doc(None)]

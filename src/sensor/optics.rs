@@ -8,7 +8,9 @@
 //!
 //! Relative illumination RI(ϕ) of the field angle ϕ: cos^n ϕ (default n = 1.5, corner ≈ 0.45 for
 //! the 4 mm lens on the 2/3" array; cos⁴ is the thin-lens limit), or the lensfun PA polynomial
-//! V(r) = 1 + k₁r² + k₂r⁴ + k₃r⁶ with r normalised to the half-diagonal.
+//! V(r) = 1 + k₁r² + k₂r⁴ + k₃r⁶ with r normalised to the half-diagonal. The field angle is the
+//! projection's ([`crate::camera::Projection`]): for a fisheye ϕ of a pixel at image radius r is
+//! the inverse of r(ϕ), not atan(r/f), and RI is 0 outside the image circle (`camera.md` §3).
 
 use crate::camera::Intrinsics;
 use crate::error::{check_range, Error, Result};
@@ -72,8 +74,16 @@ impl RelativeIllumination {
         let (x, y) = (col - c0, row - r0);
         match *self {
             RelativeIllumination::CosPower { n } => {
-                let f = intr.focal_px();
-                let c = f / (x * x + y * y + f * f).sqrt();
+                let c = if intr.projection == crate::camera::Projection::Rectilinear {
+                    let f = intr.focal_px();
+                    f / (x * x + y * y + f * f).sqrt()
+                } else {
+                    // the field angle of the projection; 0 outside a fisheye's image circle
+                    match intr.ray(col, row) {
+                        Some(d) => (d.z / d.length()).max(0.0),
+                        None => return 0.0,
+                    }
+                };
                 if n == 1.5 {
                     c * c.sqrt()
                 } else if n == 4.0 {
@@ -166,5 +176,32 @@ mod tests {
         assert!(RelativeIllumination::CosPower { n: 9.0 }
             .validate()
             .is_err());
+    }
+
+    /// RI takes the projection's field angle: 300 px off axis behind a 1.8 mm lens (ρ = 0.575)
+    /// the field angle is 29.899° rectilinear, 32.945° equidistant, 35.100° orthographic (by
+    /// hand: atan ρ, ρ, asin ρ), so cos^1.5 is 0.80716, 0.76876, 0.74003; outside a fisheye's
+    /// image circle RI is 0.
+    #[test]
+    fn ri_uses_the_projections_field_angle() {
+        use crate::camera::Projection;
+        for (p, want) in [
+            (Projection::Rectilinear, 0.807_157),
+            (Projection::Equidistant, 0.768_763),
+            (Projection::Orthographic, 0.740_035),
+        ] {
+            let intr = Intrinsics {
+                projection: p,
+                focal_length_mm: 1.8,
+                ..Intrinsics::default()
+            };
+            let (c0, r0) = intr.principal();
+            let ri = RelativeIllumination::default().factor(&intr, c0 + 300.0, r0);
+            assert!((ri - want).abs() < 1e-5, "{p}: {ri}, by hand {want}");
+            if p != Projection::Rectilinear {
+                let outside = RelativeIllumination::default().factor(&intr, 0.0, 0.0);
+                assert_eq!(outside, 0.0, "{p}");
+            }
+        }
     }
 }

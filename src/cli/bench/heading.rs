@@ -275,7 +275,7 @@ fn cloud_cover(cfg: &SceneConfig) -> Result<f64> {
     let Some(c) = &cfg.raw.soft_clouds else {
         return Ok(0.0);
     };
-    let i = cfg.camera.intrinsics;
+    let i = cfg.intrinsics();
     let mut st = StokesImage::zeros(i.width, i.height);
     st.s0.data.fill(1.0); // clouds are drawn only over sky (S0 > 0)
     let op = psns::sky::clouds::apply_soft_clouds(&mut st, c, cfg.raw.seed ^ 0x636c_6f75_6473)?;
@@ -346,7 +346,7 @@ pub fn run_sweep(
                     dolp: &p.dolp,
                     s0: Some(&p.stokes.s0),
                 };
-                let mut setup = HeadingSetup::new(intr, sun);
+                let mut setup = HeadingSetup::new(pipe.config().camera.intrinsics, sun);
                 setup.pitch_deg = case.tilt.0;
                 setup.roll_deg = case.tilt.1;
                 for m in HeadingMethod::ALL {

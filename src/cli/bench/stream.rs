@@ -95,7 +95,7 @@ pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Res
     // one warm-up frame builds the fast path's per-pixel coefficients
     for k in 0..frames + 1 {
         let att = attitude(k);
-        let cam = Camera::new(c.camera.intrinsics, &att, sun.azimuth_deg)?;
+        let cam = Camera::new(c.intrinsics(), &att, sun.azimuth_deg)?;
         let t0 = Instant::now();
         let frame = match step {
             Some(s) => {
@@ -377,7 +377,7 @@ pub fn accuracy(cfg: &SceneConfig, steps: &[usize]) -> Result<Vec<Accuracy>> {
         psns::sensor::Exposure::Auto { .. } => 1e-3,
     };
     let tol = pipe.grid_tolerance();
-    let intr = cfg.camera.intrinsics;
+    let intr = cfg.intrinsics();
     let mut acc: Vec<[Vec<f64>; 4]> = steps.iter().map(|_| Default::default()).collect();
     for &(zenith, dyaw, dpitch) in &VIEWS {
         let sun = psns::sun::SunPosition::new(zenith, 120.0);
@@ -395,10 +395,15 @@ pub fn accuracy(cfg: &SceneConfig, steps: &[usize]) -> Result<Vec<Accuracy>> {
         let ifov = (intr.pixel_pitch_um * 1e-3 / intr.focal_length_mm).to_degrees();
         let keep: Vec<bool> = (0..intr.width * intr.height)
             .map(|i| {
-                let d = intr
-                    .ray((i % intr.width) as f64, (i / intr.width) as f64)
-                    .normalize();
-                d.dot(sun_c).clamp(-1.0, 1.0).acos().to_degrees() > 0.27 + 2.0 * ifov
+                let Some(d) = intr.ray((i % intr.width) as f64, (i / intr.width) as f64) else {
+                    return false;
+                };
+                d.normalize()
+                    .dot(sun_c)
+                    .clamp(-1.0, 1.0)
+                    .acos()
+                    .to_degrees()
+                    > 0.27 + 2.0 * ifov
                     && exact.s0.data[i] > 0.0
             })
             .collect();

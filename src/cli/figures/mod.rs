@@ -17,23 +17,130 @@ pub struct FiguresArgs {
     /// Output directory (regenerate the docs' pictures with `--out docs/img`).
     #[arg(long, default_value = "out-figures")]
     out: PathBuf,
+    /// Only this group of pictures: sky, sensor or lens (default: all).
+    #[arg(long, value_enum, value_name = "GROUP")]
+    only: Option<Group>,
+}
+
+/// A group of pictures.
+#[derive(Clone, Copy, PartialEq, Eq, clap::ValueEnum)]
+pub enum Group {
+    /// Sky sweeps and the default camera frame.
+    Sky,
+    /// The sensor figures of docs/sensor.md.
+    Sensor,
+    /// The lens and projection figures of docs/camera.md.
+    Lens,
 }
 
 /// Runs `psns figures`.
 pub fn run(a: FiguresArgs) -> anyhow::Result<()> {
-    let mut progress = Progress::new(
-        "psns figures",
-        Unit::Steps,
-        Some(SKY_FIGURE_STEPS + sensor::SENSOR_FIGURE_STEPS),
-        false,
-    );
-    for f in sky_figures(&a.out, &mut progress)? {
-        progress.println(format!("wrote {f}"));
+    let want = |g: Group| a.only.is_none_or(|o| o == g);
+    let steps = [
+        (Group::Sky, SKY_FIGURE_STEPS),
+        (Group::Sensor, sensor::SENSOR_FIGURE_STEPS),
+        (Group::Lens, LENS_FIGURE_STEPS),
+    ]
+    .iter()
+    .filter(|(g, _)| want(*g))
+    .map(|(_, n)| n)
+    .sum();
+    let mut progress = Progress::new("psns figures", Unit::Steps, Some(steps), false);
+    let mut files = Vec::new();
+    if want(Group::Sky) {
+        files.extend(sky_figures(&a.out, &mut progress)?);
     }
-    for f in sensor::sensor_figures(&a.out, &mut progress)? {
+    if want(Group::Sensor) {
+        files.extend(sensor::sensor_figures(&a.out, &mut progress)?);
+    }
+    if want(Group::Lens) {
+        files.extend(lens_figures(&a.out, &mut progress)?);
+    }
+    for f in files {
         progress.println(format!("wrote {f}"));
     }
     Ok(())
+}
+
+/// Steps of [`lens_figures`].
+pub const LENS_FIGURE_STEPS: u64 = 2;
+
+/// The pictures of `docs/camera.md`: the whole sky through a 1.8 mm equidistant fisheye (LI,
+/// DOP, AOP; the default scene and camera preset, looking at the zenith, the full sensor's field
+/// at 8x8 binning), and the default frame's AOP through the pinhole and the ideal lens with their
+/// difference (8x smaller), whose statistics at full size go to `lens_numbers.json`.
+pub fn lens_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>> {
+    use psns::camera::{Lens, Projection};
+    create_dir(dir)?;
+    let mut files = Vec::new();
+    progress.set_message("lens: fisheye");
+    let mut cfg = SceneConfig::default();
+    let i = &mut cfg.camera.intrinsics;
+    i.projection = Projection::Equidistant;
+    i.focal_length_mm = 1.8;
+    i.width = 306;
+    i.height = 256;
+    i.pixel_pitch_um = 3.45 * 8.0;
+    let (sky, cam) = cfg.build()?;
+    let ideal = render::render_ideal(&sky, &cam);
+    let white = vis::quantile(&ideal.li, 0.999);
+    let li = vis::gray_rgb(&vis::gray8(&ideal.li, white));
+    let dop = vis::dop_rgb(&ideal.dop, Some(&ideal.valid));
+    let aop = vis::aop_rgb(&ideal.aop_deg, Some(&ideal.valid));
+    let p = dir.join("fisheye_equidistant_1.8mm.png");
+    io::write_png_rgb8(&p, &vis::hstack(&[&li, &dop, &aop], 4))?;
+    files.push(p.display().to_string());
+    progress.inc(1);
+
+    progress.set_message("lens: pinhole vs ideal");
+    let aop_of = |lens: Lens| -> Result<psns::image::Image<f32>> {
+        let mut c = SceneConfig::default();
+        c.camera.intrinsics.lens = Some(lens);
+        let (sky, cam) = c.build()?;
+        Ok(render::render_ideal(&sky, &cam).aop_deg)
+    };
+    let (a, b) = (aop_of(Lens::Pinhole)?, aop_of(Lens::Ideal)?);
+    let diff = psns::image::Image::from_vec(
+        a.width,
+        a.height,
+        a.data
+            .iter()
+            .zip(&b.data)
+            .map(|(&x, &y)| {
+                let d = (x - y).rem_euclid(180.0);
+                d.min(180.0 - d)
+            })
+            .collect(),
+    );
+    let mut sorted = diff.data.clone();
+    sorted.sort_by(f32::total_cmp);
+    let q = |f: f64| sorted[((sorted.len() - 1) as f64 * f).round() as usize] as f64;
+    let numbers = serde_json::json!({
+        "what": "|AOP ideal - AOP pinhole|, degrees, default scene and camera (2448 x 2048)",
+        "median_deg": q(0.5),
+        "p99_deg": q(0.99),
+        "max_deg": q(1.0),
+        "pixel_0_0_deg": diff.data[0],
+    });
+    let scaled = psns::image::Image::from_vec(
+        diff.width,
+        diff.height,
+        diff.data.iter().map(|&d| d / 15.0).collect(),
+    );
+    let panels = [
+        vis::aop_rgb(&vis::decimate(&a, 8), None),
+        vis::aop_rgb(&vis::decimate(&b, 8), None),
+        vis::dop_rgb(&vis::decimate(&scaled, 8), None),
+    ];
+    let p = dir.join("lens_pinhole_ideal_aop.png");
+    io::write_png_rgb8(&p, &vis::hstack(&[&panels[0], &panels[1], &panels[2]], 4))?;
+    files.push(p.display().to_string());
+    let p = dir.join("lens_numbers.json");
+    let text = serde_json::to_string_pretty(&numbers).expect("json") + "\n";
+    std::fs::write(&p, text).map_err(|e| psns::Error::io(format!("writing {}", p.display()), e))?;
+    files.push(p.display().to_string());
+    progress.inc(1);
+    Ok(files)
 }
 
 /// Steps of [`sky_figures`] counted by its progress (one per picture).

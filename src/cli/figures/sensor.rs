@@ -582,7 +582,7 @@ pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>
     let mut sun_view = None;
     for pitch in [-30.0, 30.0] {
         let att = Attitude::enu(sun.azimuth_deg, pitch, 0.0);
-        let cam = Camera::new(cfg.camera.intrinsics, &att, sun.azimuth_deg)?;
+        let cam = Camera::new(cfg.intrinsics(), &att, sun.azimuth_deg)?;
         if let Some((x, y)) = cfg
             .camera
             .intrinsics
