@@ -733,6 +733,19 @@ mod tests {
     use crate::camera::{Attitude, Intrinsics};
     use crate::sky::{SkyParams, SunPosition};
 
+    /// A 64 × 64 window of camera `big` (attitude `att`, sun azimuth 200°) centred on the sun.
+    fn window_on_sun(big: Intrinsics, att: &Attitude, sun: SunPosition) -> Intrinsics {
+        let probe = Camera::new(big, att, 200.0).unwrap();
+        let (sc, sr) = big.project(probe.enu_to_camera * sun.vector()).unwrap();
+        let (pc, pr) = big.principal();
+        Intrinsics {
+            width: 64,
+            height: 64,
+            principal_point: Some([pc - (sc - 32.0).round(), pr - (sr - 32.0).round()]),
+            ..big
+        }
+    }
+
     /// Solar flux collected by the disc pixels of a 64 × 64 window centred on the sun, for a camera
     /// whose optical axis is `off_axis_deg` from the sun: Σ ΔS0 · Ω_pixel.
     fn disc_flux(off_axis_deg: f64) -> (f64, usize) {
@@ -740,16 +753,7 @@ mod tests {
         let sky = Sky::new(sun, &SkyParams::default()).unwrap();
         // look toward the sun's azimuth, tilted so the sun is off_axis_deg from the axis
         let att = Attitude::enu(200.0, -(50.0 - off_axis_deg), 0.0);
-        let big = Intrinsics::default();
-        let probe = Camera::new(big, &att, 200.0).unwrap();
-        let (sc, sr) = big.project(probe.enu_to_camera * sun.vector()).unwrap();
-        let (pc, pr) = big.principal();
-        let win = Intrinsics {
-            width: 64,
-            height: 64,
-            principal_point: Some([pc - (sc - 32.0).round(), pr - (sr - 32.0).round()]),
-            ..big
-        };
+        let win = window_on_sun(Intrinsics::default(), &att, sun);
         let cam = Camera::new(win, &att, 200.0).unwrap();
         let (with, n) = render_stokes(&sky, &cam, StokesOptions { sun_disc: true });
         let (without, _) = render_stokes(&sky, &cam, StokesOptions { sun_disc: false });
@@ -944,15 +948,7 @@ mod tests {
                 pixel_pitch_um: 1.0,
                 ..Intrinsics::default()
             };
-            let probe = Camera::new(big, &att, 200.0).unwrap();
-            let (sc, sr) = big.project(probe.enu_to_camera * sun.vector()).unwrap();
-            let (pc, pr) = big.principal();
-            let win = Intrinsics {
-                width: 64,
-                height: 64,
-                principal_point: Some([pc - (sc - 32.0).round(), pr - (sr - 32.0).round()]),
-                ..big
-            };
+            let win = window_on_sun(big, &att, sun);
             let cam = Camera::new(win, &att, 200.0).unwrap();
             let (with, n) = render_stokes(&sky, &cam, StokesOptions { sun_disc: true });
             let (without, _) = render_stokes(&sky, &cam, StokesOptions { sun_disc: false });
