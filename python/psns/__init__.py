@@ -50,7 +50,9 @@ def render(**scene: Any) -> Dict[str, np.ndarray]:
     Keyword arguments: the scene options of ``psns render`` (``sun_zenith``, ``sun_azimuth`` or
     ``time``/``lat``/``lon``, ``turbidity``, ``wavelength``, ``albedo``, ``model``,
     ``dop_model``, ``yaw``/``pitch``/``roll``/``frame`` or ``quaternion``, ``width``, ``height``,
-    ``focal_length``, ``pixel_pitch``, ``principal_point``, ``config`` (a scene file), ...).
+    ``focal_length``, ``pixel_pitch``, ``principal_point``, ``projection`` (rectilinear,
+    equidistant, equisolid, stereographic, orthographic), ``lens`` (pinhole, ideal), ``config``
+    (a scene file), ...).
 
     Returns ``{"li", "dop", "aop"}``: float32 arrays ``height x width``, identical to the CLI's
     ``li.npy``, ``dop.npy`` and ``aop.npy`` (AOP in degrees).
