@@ -28,6 +28,32 @@ use super::Sensor;
 use crate::image::StokesRows;
 use rayon::prelude::*;
 
+/// Defines `$vis fn $name(args) -> ret` that calls the `#[inline(always)]` kernel `$body` with AVX2
+/// and FMA enabled where the CPU has them (its loops then vectorise), plainly otherwise. Both give
+/// the same bits: the kernels' `mul_add` is exactly rounded with or without the instruction, and
+/// plain `*` and `+` are never fused. Used by every row kernel of the fast path and the PSNS
+/// presets.
+macro_rules! avx2_dispatch {
+    ($(#[$m:meta])* $vis:vis fn $name:ident = $body:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)?) => {
+        $(#[$m])*
+        #[allow(clippy::too_many_arguments)]
+        $vis fn $name($($arg: $ty),*) $(-> $ret)? {
+            #[cfg(target_arch = "x86_64")]
+            if $crate::sensor::fast::has_avx2_fma() {
+                #[target_feature(enable = "avx2,fma")]
+                #[allow(clippy::too_many_arguments)]
+                unsafe fn avx2($($arg: $ty),*) $(-> $ret)? {
+                    $body($($arg),*)
+                }
+                // SAFETY: the CPU has AVX2 and FMA (checked above)
+                return unsafe { avx2($($arg),*) };
+            }
+            $body($($arg),*)
+        }
+    };
+}
+pub(crate) use avx2_dispatch;
+
 /// Below this mean (e⁻) shot noise is sampled exactly by inversion of the Poisson CDF.
 pub const EXACT_POISSON_BELOW: f64 = 16.0;
 
@@ -628,69 +654,34 @@ fn row_body(
     }
 }
 
-#[cfg(target_arch = "x86_64")]
-#[target_feature(enable = "avx2,fma")]
-#[allow(clippy::too_many_arguments)]
-unsafe fn row_avx2(
-    fc: &FrameConsts,
-    folded: bool,
-    mu_hi: f32,
-    s: [&[f32]; 3],
-    st: &StaticRow,
-    k0: usize,
-    r: usize,
-    mu: &mut [f32],
-    row: &mut [u16],
-    sat: &mut [u32; 4],
-) {
-    row_body(fc, folded, mu_hi, s, st, k0, r, mu, row, sat)
+avx2_dispatch! {
+    /// [`row_body`], built for AVX2 and FMA when the CPU has them.
+    fn row_kernel = row_body(
+        fc: &FrameConsts,
+        folded: bool,
+        mu_hi: f32,
+        s: [&[f32]; 3],
+        st: &StaticRow,
+        k0: usize,
+        r: usize,
+        mu: &mut [f32],
+        row: &mut [u16],
+        sat: &mut [u32; 4],
+    )
 }
 
-/// [`row_body`], built for AVX2 and FMA when the CPU has them.
-#[allow(clippy::too_many_arguments)]
-fn row_kernel(
-    fc: &FrameConsts,
-    folded: bool,
-    mu_hi: f32,
-    s: [&[f32]; 3],
-    st: &StaticRow,
-    k0: usize,
-    r: usize,
-    mu: &mut [f32],
-    row: &mut [u16],
-    sat: &mut [u32; 4],
-) {
-    #[cfg(target_arch = "x86_64")]
-    if has_avx2_fma() {
-        // SAFETY: the CPU has AVX2 and FMA (checked above). `mul_add` is exactly rounded with or
-        // without the instruction, so both builds give the same bits.
-        unsafe { row_avx2(fc, folded, mu_hi, s, st, k0, r, mu, row, sat) };
-        return;
+/// [`normals`] over a slice of any length, block by block.
+#[inline(always)]
+fn normals_body(key: &NoiseKey, idx0: u32, z: &mut [f32]) {
+    for (b, chunk) in z.chunks_mut(BLOCK).enumerate() {
+        normals(key, idx0.wrapping_add((b * BLOCK) as u32), chunk);
     }
-    row_body(fc, folded, mu_hi, s, st, k0, r, mu, row, sat)
 }
 
-/// [`normal_from_bits`] of `key.bits(idx0 + i)` for every i of `z` (any length), vectorised
-/// with AVX2 where the CPU has it; the same bits either way.
-pub(crate) fn normals_into(key: &NoiseKey, idx0: u32, z: &mut [f32]) {
-    #[inline(always)] // into the AVX2 wrapper, which then vectorises it
-    fn body(key: &NoiseKey, idx0: u32, z: &mut [f32]) {
-        for (b, chunk) in z.chunks_mut(BLOCK).enumerate() {
-            normals(key, idx0.wrapping_add((b * BLOCK) as u32), chunk);
-        }
-    }
-    #[cfg(target_arch = "x86_64")]
-    if has_avx2_fma() {
-        #[target_feature(enable = "avx2,fma")]
-        unsafe fn avx2(key: &NoiseKey, idx0: u32, z: &mut [f32]) {
-            body(key, idx0, z)
-        }
-        // SAFETY: the CPU has AVX2 and FMA (checked above); `mul_add` is exactly rounded with or
-        // without the instruction, so both give the same bits.
-        unsafe { avx2(key, idx0, z) };
-        return;
-    }
-    body(key, idx0, z)
+avx2_dispatch! {
+    /// [`normal_from_bits`] of `key.bits(idx0 + i)` for every i of `z` (any length), vectorised
+    /// with AVX2 where the CPU has it; the same bits either way.
+    pub(crate) fn normals_into = normals_body(key: &NoiseKey, idx0: u32, z: &mut [f32])
 }
 
 #[cfg(target_arch = "x86_64")]

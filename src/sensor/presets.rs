@@ -165,34 +165,28 @@ pub fn auto_kappa(stokes: &StokesImage, ri: Option<&[f32]>, full: f64) -> f64 {
     }
 }
 
-/// Calls the `#[inline(always)]` row kernel `$body` with AVX2 and FMA enabled where the CPU has
-/// them (its loop then vectorises), plainly otherwise; the kernels use no `mul_add`, so both
-/// give the same bits.
-macro_rules! avx2_dispatch {
-    ($name:ident, $body:ident, ($($arg:ident: $ty:ty),*) -> $ret:ty) => {
-        fn $name($($arg: $ty),*) -> $ret {
-            #[cfg(target_arch = "x86_64")]
-            if super::fast::has_avx2_fma() {
-                #[target_feature(enable = "avx2,fma")]
-                unsafe fn avx2($($arg: $ty),*) -> $ret {
-                    $body($($arg),*)
-                }
-                // SAFETY: the CPU has AVX2 and FMA (checked above)
-                return unsafe { avx2($($arg),*) };
-            }
-            $body($($arg),*)
-        }
-    };
-}
-
-avx2_dispatch!(psns_row_dispatch, psns_row,
-    (row: &mut [u16], s: [&[f32]; 3], g: &[f64], axis: [&[f64]; 2], z: &[f32], sigma: f64, max: u16) -> ());
-avx2_dispatch!(kappa_row_dispatch, kappa_row,
-    (a: &[f32], b: &[f32], c: &[f32], g: Option<&[f32]>) -> f64);
+super::fast::avx2_dispatch!(fn psns_row_dispatch = psns_row(
+    row: &mut [u16],
+    s: [&[f32]; 3],
+    g: &[f64],
+    axis: [&[f64]; 2],
+    z: &[f32],
+    sigma: f64,
+    max: u16,
+));
+super::fast::avx2_dispatch!(fn kappa_row_dispatch = kappa_row(
+    a: &[f32],
+    b: &[f32],
+    c: &[f32],
+    g: Option<&[f32]>,
+) -> f64);
 
 /// max over a row of RI·½(S0 + |S_lin|) (0 for none finite and positive), for [`auto_kappa`].
 #[inline(always)]
 fn kappa_row(a: &[f32], b: &[f32], c: &[f32], g: Option<&[f32]>) -> f64 {
+    // plain loops, no closures: a closure is compiled apart from the AVX2 wrapper and would not
+    // vectorise. f32 squares are exact in f64: hypot within an ulp, without libm's call;
+    // non-finite values (NaN included) never win
     let n = a.len();
     let (b, c) = (&b[..n], &c[..n]);
     let mut best = 0f64;
@@ -201,7 +195,6 @@ fn kappa_row(a: &[f32], b: &[f32], c: &[f32], g: Option<&[f32]>) -> f64 {
             let g = &g[..n];
             for k in 0..n {
                 let (bk, ck) = (b[k] as f64, c[k] as f64);
-                // f32 squares are exact in f64: hypot within an ulp, without libm's call
                 let v = g[k] as f64 * 0.5 * (a[k] as f64 + (bk * bk + ck * ck).sqrt());
                 best = if v.is_finite() && v > best { v } else { best };
             }
@@ -209,7 +202,7 @@ fn kappa_row(a: &[f32], b: &[f32], c: &[f32], g: Option<&[f32]>) -> f64 {
         None => {
             for k in 0..n {
                 let (bk, ck) = (b[k] as f64, c[k] as f64);
-                let v = 1.0 * 0.5 * (a[k] as f64 + (bk * bk + ck * ck).sqrt());
+                let v = 0.5 * (a[k] as f64 + (bk * bk + ck * ck).sqrt());
                 best = if v.is_finite() && v > best { v } else { best };
             }
         }
@@ -219,7 +212,7 @@ fn kappa_row(a: &[f32], b: &[f32], c: &[f32], g: Option<&[f32]>) -> f64 {
 
 /// One row of a PSNS-model frame: codes of g_c·(S0 + S1 cos 2θ_c + S2 sin 2θ_c) + σ z_c with
 /// g = κ·RI·½ (`g` holds it per column), non-finite Stokes read as 0, z empty for no noise; the
-/// same bits as [`adc::quantize`] of that value, without branches so the loop vectorises.
+/// codes by [`adc::quantize`], which has no branches, so the loop vectorises.
 #[inline(always)]
 fn psns_row(
     row: &mut [u16],
@@ -234,22 +227,18 @@ fn psns_row(
     let (s0, s1, s2) = (&s[0][..n], &s[1][..n], &s[2][..n]);
     let (g, co, si) = (&g[..n], &axis[0][..n], &axis[1][..n]);
     let fin = |v: f32| if v.is_finite() { v as f64 } else { 0.0 };
-    let maxf = max as f64;
-    let q = |v: f64| {
-        // adc::quantize: NaN and v <= 0 give 0, v >= max gives max, else round half away
-        let v = v.max(0.0).min(maxf);
-        let t = v as u32;
-        (t + (v - t as f64 >= 0.5) as u32) as u16
-    };
+    // the expression written out in both loops: a closure holding it is compiled apart from the
+    // AVX2 wrapper and stops the loop vectorising
     if z.is_empty() {
         for c in 0..n {
-            row[c] = q(g[c] * (fin(s0[c]) + fin(s1[c]) * co[c] + fin(s2[c]) * si[c]));
+            let v = g[c] * (fin(s0[c]) + fin(s1[c]) * co[c] + fin(s2[c]) * si[c]);
+            row[c] = adc::quantize(v, max);
         }
     } else {
         let z = &z[..n];
         for c in 0..n {
             let v = g[c] * (fin(s0[c]) + fin(s1[c]) * co[c] + fin(s2[c]) * si[c]);
-            row[c] = q(v + sigma * z[c] as f64);
+            row[c] = adc::quantize(v + sigma * z[c] as f64, max);
         }
     }
 }
