@@ -193,7 +193,6 @@ fn render<'py>(
     let ideal = py.detach(|| -> psns::Result<_> {
         let (cfg, _) = a.config()?;
         let (sky, cam) = cfg.build()?;
-        cfg.camera.intrinsics.validate()?;
         Ok(psns::render::render_ideal(&sky, &cam))
     });
     let ideal = ideal.map_err(lib_err)?;
@@ -214,7 +213,6 @@ fn render_raw<'py>(
     let a = render_args(scene_and_sensor, true)?;
     let frame = py.detach(|| -> psns::Result<_> {
         let (cfg, _) = a.config()?;
-        cfg.camera.intrinsics.validate()?;
         let pipe = psns::pipeline::RawPipeline::new(&cfg)?;
         let (frame, info) = pipe.render_configured()?;
         let dolp_aolp = frame.truth_dolp_aolp();
@@ -300,19 +298,13 @@ fn heading<'py>(
     sun_and_tilt: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let a = parse::<cli::heading::HeadingArgs>("heading", &["<array>"], sun_and_tilt)?;
-    for (given, name) in [(a.index.is_some(), "index"), (a.imu_tilt, "imu-tilt")] {
-        if given {
-            return Err(PyValueError::new_err(format!(
-                "--{name} applies to stream input only"
-            )));
-        }
+    if a.index.is_some() {
+        // the CLI's image path refuses it while reading the file, which an array skips
+        return Err(PyValueError::new_err(
+            "--index applies to stream input only",
+        ));
     }
-    if a.fit_sun_elevation && a.method != psns::heading::HeadingMethod::ModelFit {
-        return Err(PyValueError::new_err(format!(
-            "--fit-sun-elevation applies to --method model-fit, not {}",
-            a.method
-        )));
-    }
+    cli::heading::check_image_options(&a).map_err(lib_err)?;
     let (codes, bits) = codes_in(raw)?;
     let loaded = cli::demosaic::LoadedRaw {
         codes,
@@ -464,7 +456,6 @@ impl Camera {
         let a = render_args(scene_and_sensor, true)?;
         let pipe = py.detach(|| -> psns::Result<_> {
             let (cfg, _) = a.config()?;
-            cfg.camera.intrinsics.validate()?;
             psns::pipeline::RawPipeline::new(&cfg)
         });
         let pipe = pipe.map_err(lib_err)?;
@@ -584,24 +575,10 @@ struct StreamIter {
     damage: Vec<psns::stream::Damage>,
 }
 
-fn open_source(path: &std::path::Path) -> psns::Result<Source> {
-    if path.as_os_str() == "-" {
-        return Ok(Box::new(std::io::stdin()));
-    }
-    let f = std::fs::File::open(path).map_err(|e| psns::Error::input(path, e))?;
-    if f.metadata().is_ok_and(|m| m.is_dir()) {
-        return Err(psns::Error::Invalid(format!(
-            "{} is a directory",
-            path.display()
-        )));
-    }
-    Ok(Box::new(std::io::BufReader::with_capacity(1 << 20, f)))
-}
-
 #[pyfunction]
 fn open_stream(py: Python<'_>, path: PathBuf) -> PyResult<StreamIter> {
-    let r =
-        py.detach(|| -> psns::Result<_> { psns::stream::StreamReader::new(open_source(&path)?) });
+    let r = py
+        .detach(|| -> psns::Result<_> { psns::stream::StreamReader::new(cli::open_input(&path)?) });
     let reader = r.map_err(lib_err)?;
     let tally = psns::stream::VerifyTally::new(reader.header().clone(), None);
     Ok(StreamIter {

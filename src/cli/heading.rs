@@ -62,22 +62,36 @@ pub struct HeadingArgs {
 /// Runs `psns heading`: one row `yaw_deg,confidence,pixels,saturated_pixels` for an image, or a
 /// row per frame of a stream (see [`STREAM_HEADER`]) and a summary on stderr.
 pub fn run(a: HeadingArgs) -> anyhow::Result<()> {
+    check_method_options(&a)?;
+    if is_stream(&a.input)? {
+        return Ok(run_stream(&a)?);
+    }
+    check_image_options(&a)?;
+    let row = heading_row(&a)?;
+    let mut out = std::io::stdout().lock();
+    writeln!(out, "yaw_deg,confidence,pixels,saturated_pixels\n{row}")?;
+    Ok(())
+}
+
+/// Options that need a particular `--method`.
+fn check_method_options(a: &HeadingArgs) -> Result<()> {
     if a.fit_sun_elevation && a.method != HeadingMethod::ModelFit {
         return Err(Error::Invalid(format!(
             "--fit-sun-elevation applies to --method model-fit, not {}",
             a.method
-        ))
-        .into());
+        )));
     }
-    if is_stream(&a.input)? {
-        return Ok(run_stream(&a)?);
-    }
+    Ok(())
+}
+
+/// The option checks of one image (not a stream), shared with `psns.heading` in Python.
+pub(crate) fn check_image_options(a: &HeadingArgs) -> Result<()> {
+    check_method_options(a)?;
     if a.imu_tilt {
-        return Err(Error::Invalid("--imu-tilt applies to stream input only".into()).into());
+        return Err(Error::Invalid(
+            "--imu-tilt applies to stream input only".into(),
+        ));
     }
-    let row = heading_row(&a)?;
-    let mut out = std::io::stdout().lock();
-    writeln!(out, "yaw_deg,confidence,pixels,saturated_pixels\n{row}")?;
     Ok(())
 }
 

@@ -40,9 +40,11 @@ pub fn create_dir(dir: &Path) -> Result<()> {
 }
 
 /// Opens a file, or stdin for `-`.
-pub fn open_input(path: &Path) -> Result<Box<dyn std::io::Read>> {
+/// Send + Sync, so a reader kept across calls (the Python package's stream iterator) can hold
+/// it; stdin is locked per read, which its large buffered reads make negligible.
+pub fn open_input(path: &Path) -> Result<Box<dyn std::io::Read + Send + Sync>> {
     if path.as_os_str() == "-" {
-        Ok(Box::new(std::io::stdin().lock()))
+        Ok(Box::new(std::io::stdin()))
     } else {
         let f = std::fs::File::open(path).map_err(|e| Error::input(path, e))?;
         if f.metadata().is_ok_and(|m| m.is_dir()) {
