@@ -83,6 +83,14 @@ fn ok(o: &std::process::Output) {
     assert!(o.status.success(), "{:?}: {}", o.status, stderr(o));
 }
 
+/// The rows of a `labels.csv`, each a map from column name to value.
+fn label_rows(labels: &str) -> Vec<BTreeMap<&str, &str>> {
+    let mut lines = labels.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    lines
+        .map(|l| header.iter().copied().zip(l.split(',')).collect())
+        .collect()
+}
 #[test]
 fn shards_one_after_another_and_at_once_equal_the_whole_build() {
     let t = tempfile::tempdir().unwrap();
@@ -334,8 +342,7 @@ fn labels_match_file_names_and_rerendering_from_them_gives_the_image() {
     let d = t.path().join("d");
     ok(&build(&d, &cfg, &["--jobs", "1"]));
     let labels = std::fs::read_to_string(d.join("labels.csv")).unwrap();
-    let mut lines = labels.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let header: Vec<&str> = labels.lines().next().unwrap().split(',').collect();
     for want in [
         "split",
         "file",
@@ -358,9 +365,7 @@ fn labels_match_file_names_and_rerendering_from_them_gives_the_image() {
     ] {
         assert!(header.contains(&want), "no column {want}");
     }
-    let rows: Vec<BTreeMap<&str, &str>> = lines
-        .map(|l| header.iter().copied().zip(l.split(',')).collect())
-        .collect();
+    let rows = label_rows(&labels);
     assert_eq!(rows.len(), 10);
     let mut rendered = std::collections::BTreeSet::new();
     for r in &rows {
@@ -804,11 +809,7 @@ fn sun_from_times_and_places_is_labelled_and_reproducible() {
     let d = t.path().join("d");
     ok(&build(&d, &cfg, &["--jobs", "1"]));
     let labels = std::fs::read_to_string(d.join("labels.csv")).unwrap();
-    let mut lines = labels.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let rows: Vec<BTreeMap<&str, &str>> = lines
-        .map(|l| header.iter().copied().zip(l.split(',')).collect())
-        .collect();
+    let rows = label_rows(&labels);
     assert_eq!(rows.len(), 3);
     for r in &rows {
         assert!(r["time_utc"].starts_with("2025-03-"), "{r:?}");
@@ -969,11 +970,7 @@ fn soft_clouds_differ_per_sample_and_render_again() {
     let d = t.path().join("d");
     ok(&build(&d, &cfg, &["--jobs", "1"]));
     let labels = std::fs::read_to_string(d.join("labels.csv")).unwrap();
-    let mut lines = labels.lines();
-    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
-    let rows: Vec<BTreeMap<&str, &str>> = lines
-        .map(|l| header.iter().copied().zip(l.split(',')).collect())
-        .collect();
+    let rows = label_rows(&labels);
     let clouded = rows.iter().filter(|r| r["soft_clouds"] == "1").count();
     assert!((1..8).contains(&clouded), "{clouded} of 8 with clouds");
     let seeds: std::collections::BTreeSet<&str> = rows.iter().map(|r| r["seed"]).collect();
