@@ -40,6 +40,34 @@ impl Ellipse {
         (u * u + v * v).sqrt()
     }
 
+    /// Columns `lo..hi` (clamped to [0, w)) outside which no pixel of row `row` has
+    /// [`Self::rho`] ≤ 1: the real interval where ρ² ≤ 1 (a quadratic in the column) widened by
+    /// 2 pixels. Beyond that ρ² − 1 exceeds 4/max(a, b)² (≥ 1e-8 for any semi-axis under 10⁴
+    /// pixels), far above the rounding of [`Self::rho`], so testing `rho` only inside the span
+    /// gives the mask the test at every pixel gives.
+    fn col_span(&self, row: f64, w: usize) -> (usize, usize) {
+        let (s, c) = self.angle.sin_cos();
+        let (ia2, ib2) = (1.0 / (self.a * self.a), 1.0 / (self.b * self.b));
+        let dy = row - self.cy;
+        // ρ² = α dx² + β dx + γ with dx = col − cx
+        let alpha = c * c * ia2 + s * s * ib2;
+        let beta = 2.0 * dy * c * s * (ia2 - ib2);
+        let gamma = dy * dy * (s * s * ia2 + c * c * ib2);
+        let mid = -beta / (2.0 * alpha);
+        let disc = beta * beta - 4.0 * alpha * (gamma - 1.0);
+        let half = if disc > 0.0 {
+            disc.sqrt() / (2.0 * alpha)
+        } else {
+            0.0
+        };
+        let lo = (self.cx + mid - half - 2.0).floor().max(0.0);
+        let hi = (self.cx + mid + half + 2.0).ceil().max(0.0) + 1.0;
+        if !(lo.is_finite() && hi.is_finite()) {
+            return (0, w); // degenerate axes: test every pixel
+        }
+        ((lo as usize).min(w), (hi as usize).min(w))
+    }
+
     /// Rows the ellipse (scaled by `grow`) can touch, clamped to [0, h).
     fn row_span(&self, h: usize, grow: f64) -> (usize, usize) {
         let r = self.a.max(self.b) * grow;
@@ -85,7 +113,8 @@ pub fn ellipse_mask(width: usize, height: usize, ellipses: &[Ellipse]) -> Vec<bo
                 if r < lo || r > hi {
                     continue;
                 }
-                for (c, v) in row.iter_mut().enumerate() {
+                let (c0, c1) = e.col_span(r as f64, row.len());
+                for (c, v) in row.iter_mut().enumerate().take(c1).skip(c0) {
                     if e.rho(c as f64, r as f64) <= 1.0 {
                         *v = true;
                     }
@@ -237,6 +266,37 @@ mod tests {
         }];
         let m = ellipse_mask(20, 20, &one);
         assert!(m[10 * 20 + 14] && !m[10 * 20 + 16] && m[12 * 20 + 10] && !m[13 * 20 + 10]);
+    }
+
+    /// The mask tests ρ only inside each row's column span: it must equal the test at every
+    /// pixel, for fat, thin, tiny, rotated and off-image ellipses.
+    #[test]
+    fn ellipse_mask_equals_the_test_at_every_pixel() {
+        let (w, h) = (97, 61);
+        let mut rng = crate::rng::scene_rng(11, 0);
+        let mut inside = 0;
+        for k in 0..300 {
+            let e = Ellipse {
+                cx: rng.random::<f64>() * 140.0 - 20.0,
+                cy: rng.random::<f64>() * 100.0 - 20.0,
+                a: 0.3 + rng.random::<f64>() * if k % 3 == 0 { 2.0 } else { 60.0 },
+                b: 0.3 + rng.random::<f64>() * if k % 5 == 0 { 1.0 } else { 40.0 },
+                angle: if k % 7 == 0 {
+                    0.0
+                } else {
+                    rng.random::<f64>() * std::f64::consts::PI
+                },
+            };
+            let m = ellipse_mask(w, h, &[e]);
+            for r in 0..h {
+                for c in 0..w {
+                    let want = e.rho(c as f64, r as f64) <= 1.0;
+                    assert_eq!(m[r * w + c], want, "ellipse {e:?} pixel ({c}, {r})");
+                    inside += want as usize;
+                }
+            }
+        }
+        assert!(inside > 10_000, "the ellipses cover pixels ({inside})");
     }
 
     #[test]
