@@ -11,7 +11,7 @@ use crate::error::Result;
 use crate::image::StokesImage;
 use crate::render::{self, StokesOptions};
 use crate::sensor::{self, RawFrame, Sensor, SensorConfig};
-use crate::sky::Sky;
+use crate::sky::{Sky, SkyParams};
 use crate::sun::SunPosition;
 
 /// What one frame's scene looked like.
@@ -93,6 +93,18 @@ impl RawPipeline {
         sun: SunPosition,
         attitude: &Attitude,
     ) -> Result<(StokesImage, SceneInfo)> {
+        self.stokes_in(&self.cfg.sky, sun, attitude)
+    }
+
+    /// [`Self::stokes`] under the sky `sky` instead of the configured one (same camera and
+    /// scene otherwise): one pipeline serves scenes that differ only in the sky.
+    pub fn stokes_in(
+        &self,
+        sky: &SkyParams,
+        sun: SunPosition,
+        attitude: &Attitude,
+    ) -> Result<(StokesImage, SceneInfo)> {
+        let sky_params = sky;
         let raw: &RawConfig = &self.cfg.raw;
         let i = self.cfg.camera.intrinsics;
         let mut info = SceneInfo::default();
@@ -115,7 +127,7 @@ impl RawPipeline {
                     StokesImage::zeros(i.width, i.height)
                 } else {
                     info.sky_valid = true;
-                    let sky = Sky::new(sun, &self.cfg.sky)?;
+                    let sky = Sky::new(sun, sky_params)?;
                     let opts = StokesOptions {
                         sun_disc: raw.sun_disc_on(),
                     };
@@ -142,8 +154,11 @@ impl RawPipeline {
     /// Frame `frame_index` for a sun position and attitude, without the ground truth (`truth`
     /// is 0 × 0). The fast path reads the sky row by row from a refined node grid
     /// ([`render::SkyGrid`]) into the fast sensor kernel, so no full-size Stokes planes are made;
-    /// otherwise (`exact`, or a configuration only the exact path models) this is
-    /// [`Self::stokes`] + [`Self::frame_codes`]. `codes` is a buffer to reuse.
+    /// so do the PSNS presets (two passes over the grid: κ, then the codes), with the grid of
+    /// `psns render` (tolerance [`render::GRID_TOLERANCE`]), giving the codes of
+    /// [`Self::stokes`] + [`Self::frame_codes`]. Otherwise (`exact`, soft clouds, a flat field,
+    /// or a configuration only the exact path models) this is [`Self::stokes`] +
+    /// [`Self::frame_codes`]. `codes` is a buffer to reuse.
     pub fn frame_at(
         &self,
         sun: SunPosition,
@@ -151,20 +166,38 @@ impl RawPipeline {
         frame_index: u64,
         codes: Vec<u16>,
     ) -> Result<(RawFrame, SceneInfo)> {
+        self.frame_at_in(&self.cfg.sky, sun, attitude, frame_index, codes)
+    }
+
+    /// [`Self::frame_at`] under the sky `sky` instead of the configured one.
+    pub fn frame_at_in(
+        &self,
+        sky: &SkyParams,
+        sun: SunPosition,
+        attitude: &Attitude,
+        frame_index: u64,
+        codes: Vec<u16>,
+    ) -> Result<(RawFrame, SceneInfo)> {
         let raw = &self.cfg.raw;
-        if !self.fast() {
-            let (st, info) = self.stokes(sun, attitude)?;
+        let psns = self.sensor_cfg.psns.is_some() && !raw.exact;
+        if !self.fast() && !psns {
+            let (st, info) = self.stokes_in(sky, sun, attitude)?;
             return Ok((self.frame_codes(&st, frame_index)?, info));
         }
         let up = (0.0..=90.0).contains(&sun.zenith_deg);
         if raw.scene == SceneKind::Sky && raw.soft_clouds.is_none() && raw.sky_grid >= 2 && up {
             let i = self.cfg.camera.intrinsics;
             let cam = Camera::new(i, attitude, sun.azimuth_deg)?;
-            let sky = Sky::new(sun, &self.cfg.sky)?;
+            let sky = Sky::new(sun, sky)?;
             let opts = StokesOptions {
                 sun_disc: raw.sun_disc_on(),
             };
-            let grid = render::SkyGrid::new(&sky, &cam, opts, raw.sky_grid, self.grid_tolerance());
+            let tol = if psns {
+                render::GRID_TOLERANCE
+            } else {
+                self.grid_tolerance()
+            };
+            let grid = render::SkyGrid::new(&sky, &cam, opts, raw.sky_grid, tol);
             let info = SceneInfo {
                 sun: Some(sun),
                 sky_valid: true,
@@ -172,10 +205,20 @@ impl RawPipeline {
                 ground_pixels: render::ground_pixel_count(&cam),
                 enu_to_camera: Some(cam.enu_to_camera),
             };
-            return Ok((self.sensor.frame_fast(&grid, frame_index, codes)?, info));
+            let f = if psns {
+                self.sensor.frame_psns_rows(&grid, frame_index, codes)?
+            } else {
+                self.sensor.frame_fast(&grid, frame_index, codes)?
+            };
+            return Ok((f, info));
         }
-        let (st, info) = self.stokes(sun, attitude)?;
-        Ok((self.sensor.frame_fast(&st, frame_index, codes)?, info))
+        let (st, info) = self.stokes_in(sky, sun, attitude)?;
+        let f = if psns {
+            self.frame_codes(&st, frame_index)?
+        } else {
+            self.sensor.frame_fast(&st, frame_index, codes)?
+        };
+        Ok((f, info))
     }
 
     /// Interpolation tolerance of the sky grid, relative to S0: a quarter of a tenth of the

@@ -426,10 +426,12 @@ fn pipeline_key(scene: &SceneConfig) -> SceneConfig {
 /// The camera preset keys its pipeline on the whole scene but the sun, attitude and frame index.
 /// For the PSNS presets the sensor's costly part (the relative-illumination map of gniipi and
 /// gniicpi) depends on the frame size, optics, preset and seed but not on the sky, which changes
-/// from sample to sample: that sensor is kept in the cache keyed also without the sky, and the
-/// Stokes image comes from a pipeline of the same scene with the nfpi preset, which builds no
-/// maps and draws the same scene (no PSNS preset draws the sun disc). The test that renders
-/// every sample again through `psns render` holds this to the same bytes.
+/// from sample to sample: that pipeline is kept in the cache keyed also without the sky and
+/// renders the sample's sky ([`RawPipeline::frame_at_in`]: read row by row from the sky grid,
+/// the codes of `psns render`'s planes). With `truth` the Stokes planes are made (the truth
+/// needs them) by a pipeline of the same scene with the nfpi preset, which builds no maps and
+/// draws the same scene (no PSNS preset draws the sun disc). The test that renders every sample
+/// again through `psns render` holds both to the same bytes.
 fn render(
     cache: &PipelineCache,
     scene: &SceneConfig,
@@ -448,6 +450,15 @@ fn render(
             let pipe = cache.get(scene)?;
             let (st, _) = pipe.stokes(sun, &scene.camera.attitude)?;
             frame(&pipe, &st)
+        }
+        _ if !truth => {
+            let mut key = scene.clone();
+            key.sky = Default::default();
+            let pipe = cache.get(&key)?;
+            let attitude = &scene.camera.attitude;
+            let (f, _) =
+                pipe.frame_at_in(&scene.sky, sun, attitude, scene.raw.frame_index, Vec::new())?;
+            Ok((f, pipe.sensor_config().layout))
         }
         preset => {
             let mut sky_scene = scene.clone();

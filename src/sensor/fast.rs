@@ -183,7 +183,7 @@ pub fn normal_from_bits(bits: u32) -> f32 {
 /// Pixels per block of the row kernels: each stage runs over a whole block, so its vector
 /// iterations are independent and the long dependency chains (hash, logarithm, polynomial)
 /// overlap.
-const BLOCK: usize = 64;
+pub(crate) const BLOCK: usize = 64;
 
 /// [`normal_from_bits`] of `key.bits(idx0 + i)` for every i of `z` (at most [`BLOCK`] long),
 /// bit-identical, in stages: the tail branch (0.34 % of draws) only where it is needed.

@@ -778,6 +778,29 @@ impl Sensor {
         )
     }
 
+    /// A PSNS-preset frame read row by row from `src` (a [`crate::render::SkyGrid`]: no
+    /// full-size Stokes planes): the codes, κ and saturation counts of [`Self::frame_codes`] of
+    /// the planes `src` fills. No ground truth. `codes`
+    /// is a buffer to reuse. Errors when the sensor is not a PSNS preset.
+    pub fn frame_psns_rows(
+        &self,
+        src: &dyn StokesRows,
+        frame_index: u64,
+        codes: Vec<u16>,
+    ) -> Result<RawFrame> {
+        self.check_rows(src)?;
+        if self.cfg.psns.is_none() {
+            return Err(Error::Invalid("not a PSNS preset".into()));
+        }
+        presets::psns_frame(
+            self,
+            presets::PsnsSource::Rows(src),
+            frame_index,
+            false,
+            codes,
+        )
+    }
+
     /// Renders frame `frame_index` of this camera.
     pub fn frame(&self, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
         self.render(stokes, frame_index, true)
@@ -792,7 +815,13 @@ impl Sensor {
     fn render(&self, stokes: &StokesImage, frame_index: u64, want_truth: bool) -> Result<RawFrame> {
         self.check_input(stokes)?;
         if self.cfg.psns.is_some() {
-            return presets::psns_frame(self, stokes, frame_index, want_truth);
+            return presets::psns_frame(
+                self,
+                presets::PsnsSource::Planes(stokes),
+                frame_index,
+                want_truth,
+                Vec::new(),
+            );
         }
         let cfg = &self.cfg;
         let st = &cfg.stages;

@@ -14,10 +14,11 @@
 //! * `gniicpi`: plus 3–8 filled ellipses set to full scale, applied last (ground truth there:
 //!   unpolarized with S0 = 2 × full scale, consistent with every channel reading full scale).
 
+use super::fast::BLOCK;
 use super::optics::RelativeIllumination;
 use super::{adc, noise, nominal_axis, RawFrame, Sensor, SensorConfig, Stages};
 use crate::error::{check_range, Error, Result};
-use crate::image::{Image, StokesImage};
+use crate::image::{Image, StokesImage, StokesRows};
 use crate::sky::clouds;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -148,15 +149,66 @@ pub fn config(p: Preset) -> SensorConfig {
 /// with `ri` the relative-illumination map (`None` = 1): the brightest sample the sensor can
 /// read after the falloff is full scale.
 pub fn auto_kappa(stokes: &StokesImage, ri: Option<&[f32]>, full: f64) -> f64 {
-    let w = stokes.width().max(1);
-    let m = stokes
-        .s0
-        .data
-        .par_chunks(w)
-        .zip(stokes.s1.data.par_chunks(w))
-        .zip(stokes.s2.data.par_chunks(w))
-        .enumerate()
-        .map(|(r, ((a, b), c))| kappa_row_dispatch(a, b, c, ri.map(|m| &m[r * w..r * w + a.len()])))
+    kappa_of(PsnsSource::Planes(stokes), ri, full)
+}
+
+/// Where a PSNS frame reads its Stokes rows: the three planes as they are, or a row source (a
+/// sky grid) interpolated row by row into a per-thread buffer, so no full-size planes are made.
+/// Both read a pixel as the same number: [`StokesRows::fill_row`] of a grid gives the values
+/// its planes would hold.
+#[derive(Clone, Copy)]
+pub(crate) enum PsnsSource<'a> {
+    Planes(&'a StokesImage),
+    Rows(&'a dyn StokesRows),
+}
+
+impl PsnsSource<'_> {
+    fn width(&self) -> usize {
+        match self {
+            PsnsSource::Planes(s) => s.width(),
+            PsnsSource::Rows(s) => s.width(),
+        }
+    }
+    /// Row r of S0, S1, S2 (a grid's through `buf`).
+    fn row<'b>(&'b self, r: usize, buf: &'b mut [Vec<f32>; 3]) -> [&'b [f32]; 3] {
+        let w = self.width();
+        match *self {
+            PsnsSource::Planes(s) => {
+                let span = r * w..(r + 1) * w;
+                [
+                    &s.s0.data[span.clone()],
+                    &s.s1.data[span.clone()],
+                    &s.s2.data[span],
+                ]
+            }
+            PsnsSource::Rows(src) => {
+                let [a, b, c] = buf;
+                for v in [&mut *a, &mut *b, &mut *c] {
+                    v.resize(w, 0.0);
+                }
+                src.fill_row(r, a, b, c);
+                [&a[..], &b[..], &c[..]]
+            }
+        }
+    }
+}
+
+/// [`auto_kappa`] of any [`PsnsSource`].
+fn kappa_of(src: PsnsSource, ri: Option<&[f32]>, full: f64) -> f64 {
+    let w = src.width().max(1);
+    let h = match src {
+        PsnsSource::Planes(s) => s.height(),
+        PsnsSource::Rows(s) => s.height(),
+    };
+    let m = (0..h)
+        .into_par_iter()
+        .map_init(
+            || [Vec::new(), Vec::new(), Vec::new()],
+            |buf, r| {
+                let [a, b, c] = src.row(r, buf);
+                kappa_row_dispatch(a, b, c, ri.map(|m| &m[r * w..(r + 1) * w]))
+            },
+        )
         .reduce(|| 0.0, f64::max);
     if m > 0.0 {
         full / m
@@ -181,28 +233,50 @@ super::fast::avx2_dispatch!(fn kappa_row_dispatch = kappa_row(
     g: Option<&[f32]>,
 ) -> f64);
 
-/// max over a row of RI·½(S0 + |S_lin|) (0 for none finite and positive), for [`auto_kappa`].
+/// max over a row of RI·½(S0 + |S_lin|) in f64 (0 for none finite and positive), for
+/// [`auto_kappa`]. The f64 value (its square root is the cost) is needed only where it can be the
+/// maximum: an f32 estimate of every pixel, within `tol` of the f64 value, picks the candidates
+/// block by block, and the f64 maximum over them is the f64 maximum over the row, bit for bit.
 #[inline(always)]
 fn kappa_row(a: &[f32], b: &[f32], c: &[f32], g: Option<&[f32]>) -> f64 {
     // plain loops, no closures: a closure is compiled apart from the AVX2 wrapper and would not
-    // vectorise. f32 squares are exact in f64: hypot within an ulp, without libm's call;
-    // non-finite values (NaN included) never win
+    // vectorise
     let n = a.len();
     let (b, c) = (&b[..n], &c[..n]);
+    let ones = [1f32; BLOCK];
     let mut best = 0f64;
-    match g {
-        Some(g) => {
-            let g = &g[..n];
-            for k in 0..n {
-                let (bk, ck) = (b[k] as f64, c[k] as f64);
-                let v = g[k] as f64 * 0.5 * (a[k] as f64 + (bk * bk + ck * ck).sqrt());
-                best = if v.is_finite() && v > best { v } else { best };
-            }
+    let mut lo_max = f32::NEG_INFINITY;
+    let mut est = [0f32; BLOCK];
+    let mut tol = [0f32; BLOCK];
+    for b0 in (0..n).step_by(BLOCK) {
+        let len = BLOCK.min(n - b0);
+        let (ab, bb, cb) = (&a[b0..b0 + len], &b[b0..b0 + len], &c[b0..b0 + len]);
+        let gb = match g {
+            Some(g) => &g[b0..b0 + len],
+            None => &ones[..len],
+        };
+        for k in 0..len {
+            let r = (bb[k] * bb[k] + cb[k] * cb[k]).sqrt();
+            let x = gb[k] * 0.5;
+            est[k] = x * (ab[k] + r);
+            // an f32 result of 6 roundings is within 6 ulp of the real value, the f64 one
+            // within 1e-15: 4e-6 of the magnitudes is far outside both (the 1e-30 covers
+            // subnormals)
+            tol[k] = 4e-6 * x.abs() * (ab[k].abs() + r) + 1e-30;
+            let lo = est[k] - tol[k];
+            lo_max = if lo.is_finite() && lo > lo_max {
+                lo
+            } else {
+                lo_max
+            };
         }
-        None => {
-            for k in 0..n {
-                let (bk, ck) = (b[k] as f64, c[k] as f64);
-                let v = 0.5 * (a[k] as f64 + (bk * bk + ck * ck).sqrt());
+        for k in 0..len {
+            // non-finite estimates (f32 overflow, NaN) are always checked in f64
+            if !(est[k] + tol[k] < lo_max) {
+                let (bk, ck) = (bb[k] as f64, cb[k] as f64);
+                // f32 squares are exact in f64: hypot within an ulp, without libm's call;
+                // non-finite values (NaN included) never win
+                let v = gb[k] as f64 * 0.5 * (ab[k] as f64 + (bk * bk + ck * ck).sqrt());
                 best = if v.is_finite() && v > best { v } else { best };
             }
         }
@@ -243,13 +317,20 @@ fn psns_row(
     }
 }
 
-/// Renders a PSNS-model frame (called by [`Sensor::frame`] when `cfg.psns` is set).
+/// Renders a PSNS-model frame (called by [`Sensor::frame`] when `cfg.psns` is set, and by
+/// [`Sensor::frame_psns_rows`]); `codes` is a buffer to reuse. The ground truth needs the planes.
 pub(crate) fn psns_frame(
     s: &Sensor,
-    stokes: &StokesImage,
+    src: PsnsSource,
     frame_index: u64,
     want_truth: bool,
+    codes: Vec<u16>,
 ) -> Result<RawFrame> {
+    if want_truth && matches!(src, PsnsSource::Rows(_)) {
+        return Err(Error::Invalid(
+            "the ground truth needs the Stokes planes".into(),
+        ));
+    }
     let cfg = &s.cfg;
     let p = cfg.psns.as_ref().expect("psns model");
     let (w, h) = (s.intrinsics.width, s.intrinsics.height);
@@ -257,9 +338,11 @@ pub(crate) fn psns_frame(
     let full = max as f64;
     let kappa = p
         .kappa
-        .unwrap_or_else(|| auto_kappa(stokes, s.ri.as_deref(), full));
+        .unwrap_or_else(|| kappa_of(src, s.ri.as_deref(), full));
     let sigma = p.noise_fraction * full;
-    let mut codes = vec![0u16; w * h];
+    let mut codes = codes;
+    codes.clear();
+    codes.resize(w * h, 0);
     // Gaussian noise from the fast path's counter-based generator (one keyed hash of the pixel
     // index per draw, inverted exactly to f32 precision): the frame does not depend on rows,
     // threads or blocks, and costs a few ns per pixel instead of ChaCha + ziggurat
@@ -274,8 +357,8 @@ pub(crate) fn psns_frame(
         ]
     });
     codes.par_chunks_mut(w).enumerate().for_each_init(
-        || (Vec::new(), Vec::new()),
-        |(z, g), (r, row)| {
+        || (Vec::new(), Vec::new(), [Vec::new(), Vec::new(), Vec::new()]),
+        |(z, g, buf), (r, row)| {
             let span = r * w..(r + 1) * w;
             z.resize(w, 0f32);
             if sigma > 0.0 {
@@ -283,23 +366,18 @@ pub(crate) fn psns_frame(
             }
             g.clear();
             match ri {
-                Some(m) => g.extend(m[span.clone()].iter().map(|&x| kappa * 0.5 * x as f64)),
+                Some(m) => g.extend(m[span].iter().map(|&x| kappa * 0.5 * x as f64)),
                 None => g.resize(w, kappa * 0.5),
             }
-            let st = [
-                &stokes.s0.data[span.clone()],
-                &stokes.s1.data[span.clone()],
-                &stokes.s2.data[span],
-            ];
+            let st = src.row(r, buf);
             let ax = [&axis[r & 1][0][..], &axis[r & 1][1][..]];
             let zs = if sigma > 0.0 { &z[..] } else { &[][..] };
             psns_row_dispatch(row, st, g, ax, zs, sigma, max);
         },
     );
-    let mut truth = if want_truth {
-        s.truth(stokes, kappa)
-    } else {
-        StokesImage::zeros(0, 0)
+    let mut truth = match (want_truth, src) {
+        (true, PsnsSource::Planes(stokes)) => s.truth(stokes, kappa),
+        _ => StokesImage::zeros(0, 0),
     };
     if p.clouds {
         let mut rng = noise::frame_rng(s.seed, frame_index, noise::STAGE_PSNS_CLOUDS, 0);
@@ -357,5 +435,117 @@ mod tests {
         let e = "fancy".parse::<Preset>().unwrap_err();
         assert!(e.to_string().contains("fancy") && e.to_string().contains("gniicpi"));
         assert!(e.is_usage());
+    }
+
+    /// The f64 maximum of the row, evaluated at every pixel (what `kappa_row` must equal).
+    fn kappa_row_direct(a: &[f32], b: &[f32], c: &[f32], g: Option<&[f32]>) -> f64 {
+        let mut best = 0f64;
+        for k in 0..a.len() {
+            let (bk, ck) = (b[k] as f64, c[k] as f64);
+            let gk = g.map_or(1.0, |g| g[k]) as f64;
+            let v = gk * 0.5 * (a[k] as f64 + (bk * bk + ck * ck).sqrt());
+            best = if v.is_finite() && v > best { v } else { best };
+        }
+        best
+    }
+
+    /// The candidate filter of `kappa_row` never changes the maximum: smooth skies, flat rows
+    /// (every pixel tied), near-ties an ulp apart, negative S0, huge, tiny, NaN and infinite
+    /// values, with and without a gain map, every row length around the block size.
+    #[test]
+    fn kappa_row_is_the_f64_maximum() {
+        use rand::Rng;
+        let mut rng = crate::rng::scene_rng(3, 0);
+        let mut f32_misses = 0;
+        for case in 0..600 {
+            let n = [1, 7, 63, 64, 65, 130, 611, 2448][case % 8];
+            let kind = case / 8 % 6;
+            let mut v = |_: usize| -> f32 {
+                let x: f32 = rng.random::<f32>();
+                match kind {
+                    0 => 0.1 + 0.02 * x,
+                    1 => 0.25,
+                    2 => f32::from_bits(0.3f32.to_bits() + (x * 3.0) as u32),
+                    3 => 2.0 * x - 1.0,
+                    4 => [1e30, 1e-30, 3e38, f32::NAN, f32::INFINITY, 5.0][(x * 6.0) as usize % 6],
+                    _ => x * x * x,
+                }
+            };
+            let a: Vec<f32> = (0..n).map(&mut v).collect();
+            let b: Vec<f32> = (0..n).map(|k| 0.3 * v(k)).collect();
+            let c: Vec<f32> = (0..n).map(|k| -0.2 * v(k)).collect();
+            let g: Vec<f32> = (0..n).map(|_| rng.random::<f32>()).collect();
+            for gm in [None, Some(&g[..])] {
+                let want = kappa_row_direct(&a, &b, &c, gm);
+                // does the f32 estimate alone pick a pixel whose f64 value is not the maximum?
+                let est = |k: usize| {
+                    let r = (b[k] * b[k] + c[k] * c[k]).sqrt();
+                    gm.map_or(1.0, |g| g[k]) * 0.5 * (a[k] + r)
+                };
+                let top = (0..n)
+                    .filter(|&k| est(k).is_finite())
+                    .max_by(|&i, &j| est(i).total_cmp(&est(j)));
+                if let Some(k) = top {
+                    let gk = gm.map_or(1.0, |g| g[k]) as f64;
+                    let (bk, ck) = (b[k] as f64, c[k] as f64);
+                    let v = gk * 0.5 * (a[k] as f64 + (bk * bk + ck * ck).sqrt());
+                    f32_misses += (v.is_finite() && v > 0.0 && v != want) as usize;
+                }
+                assert_eq!(
+                    kappa_row(&a, &b, &c, gm).to_bits(),
+                    want.to_bits(),
+                    "case {case}"
+                );
+                assert_eq!(kappa_row_dispatch(&a, &b, &c, gm).to_bits(), want.to_bits());
+            }
+        }
+        // the cases include rows where f32 alone would give the wrong maximum
+        assert!(
+            f32_misses > 10,
+            "{f32_misses} rows where the f32 maximum is off"
+        );
+
+        // two pixels whose f32 estimates order them the other way round from their f64
+        // values (the roundings of b², c² and their sum): the filter needs its tolerance
+        let est = |a: f32, b: f32, c: f32| 0.5 * (a + (b * b + c * c).sqrt());
+        let val = |a: f32, b: f32, c: f32| {
+            let (b, c) = (b as f64, c as f64);
+            0.5 * (a as f64 + (b * b + c * c).sqrt())
+        };
+        let near = |x: f32, k: u32| f32::from_bits(x.to_bits() + k);
+        let (mut found, mut tries) = (None, 0);
+        while found.is_none() && tries < 1_000_000 {
+            tries += 1;
+            let p = [
+                near(0.3, 0),
+                near(0.09, rng.random_range(0..64)),
+                near(0.06, rng.random_range(0..64)),
+            ];
+            let q = [
+                near(0.3, 0),
+                near(0.09, rng.random_range(0..64)),
+                near(0.06, rng.random_range(0..64)),
+            ];
+            if val(p[0], p[1], p[2]) > val(q[0], q[1], q[2])
+                && est(p[0], p[1], p[2]) < est(q[0], q[1], q[2])
+            {
+                found = Some((p, q));
+            }
+        }
+        let (p, q) = found.expect("an f32/f64 order reversal");
+        let mut rows: [Vec<f32>; 3] = std::array::from_fn(|_| vec![0.1f32; 100]);
+        for (i, px) in [(17, p), (40, q)] {
+            // in one block: across blocks the running maximum would hide a missing tolerance
+            for k in 0..3 {
+                rows[k][i] = px[k];
+            }
+        }
+        let want = val(p[0], p[1], p[2]);
+        assert_eq!(kappa_row_direct(&rows[0], &rows[1], &rows[2], None), want);
+        assert_eq!(
+            kappa_row(&rows[0], &rows[1], &rows[2], None),
+            want,
+            "after {tries} tries"
+        );
     }
 }
