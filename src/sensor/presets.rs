@@ -220,7 +220,8 @@ fn kappa_of(src: PsnsSource, ri: Option<&[f32]>, full: f64) -> f64 {
 super::fast::avx2_dispatch!(fn psns_row_dispatch = psns_row(
     row: &mut [u16],
     s: [&[f32]; 3],
-    g: &[f64],
+    ri: &[f32],
+    hk: f64,
     axis: [&[f64]; 2],
     z: &[f32],
     sigma: f64,
@@ -248,6 +249,7 @@ fn kappa_row(a: &[f32], b: &[f32], c: &[f32], g: Option<&[f32]>) -> f64 {
     let mut lo_max = f32::NEG_INFINITY;
     let mut est = [0f32; BLOCK];
     let mut tol = [0f32; BLOCK];
+    let mut lo = [0f32; BLOCK];
     for b0 in (0..n).step_by(BLOCK) {
         let len = BLOCK.min(n - b0);
         let (ab, bb, cb) = (&a[b0..b0 + len], &b[b0..b0 + len], &c[b0..b0 + len]);
@@ -263,21 +265,36 @@ fn kappa_row(a: &[f32], b: &[f32], c: &[f32], g: Option<&[f32]>) -> f64 {
             // within 1e-15: 4e-6 of the magnitudes is far outside both (the 1e-30 covers
             // subnormals)
             tol[k] = 4e-6 * x.abs() * (ab[k].abs() + r) + 1e-30;
-            let lo = est[k] - tol[k];
-            lo_max = if lo.is_finite() && lo > lo_max {
-                lo
-            } else {
-                lo_max
-            };
+            lo[k] = est[k] - tol[k];
         }
-        for k in 0..len {
-            // non-finite estimates (f32 overflow, NaN) are always checked in f64
-            if !(est[k] + tol[k] < lo_max) {
-                let (bk, ck) = (bb[k] as f64, cb[k] as f64);
-                // f32 squares are exact in f64: hypot within an ulp, without libm's call;
-                // non-finite values (NaN included) never win
-                let v = gb[k] as f64 * 0.5 * (ab[k] as f64 + (bk * bk + ck * ck).sqrt());
-                best = if v.is_finite() && v > best { v } else { best };
+        // the running maximum of the lower bounds, 8 lanes at a time (vectorises); NaN never
+        // wins, and a lower bound is never +inf (an infinite estimate has an infinite
+        // tolerance: inf − inf is NaN)
+        let mut m = [lo_max; 8];
+        for ch in lo[..len].chunks(8) {
+            for (j, &v) in ch.iter().enumerate() {
+                m[j] = if v > m[j] { v } else { m[j] };
+            }
+        }
+        lo_max = m.iter().fold(lo_max, |a, &v| if v > a { v } else { a });
+        for k0 in (0..len).step_by(8) {
+            let k1 = (k0 + 8).min(len);
+            let mut any = false;
+            for k in k0..k1 {
+                // non-finite estimates (f32 overflow, NaN) are always checked in f64
+                any |= !(est[k] + tol[k] < lo_max);
+            }
+            if !any {
+                continue;
+            }
+            for k in k0..k1 {
+                if !(est[k] + tol[k] < lo_max) {
+                    let (bk, ck) = (bb[k] as f64, cb[k] as f64);
+                    // f32 squares are exact in f64: hypot within an ulp, without libm's call;
+                    // non-finite values (NaN included) never win
+                    let v = gb[k] as f64 * 0.5 * (ab[k] as f64 + (bk * bk + ck * ck).sqrt());
+                    best = if v.is_finite() && v > best { v } else { best };
+                }
             }
         }
     }
@@ -285,13 +302,16 @@ fn kappa_row(a: &[f32], b: &[f32], c: &[f32], g: Option<&[f32]>) -> f64 {
 }
 
 /// One row of a PSNS-model frame: codes of g_c·(S0 + S1 cos 2θ_c + S2 sin 2θ_c) + σ z_c with
-/// g = κ·RI·½ (`g` holds it per column), non-finite Stokes read as 0, z empty for no noise; the
-/// codes by [`adc::quantize`], which has no branches, so the loop vectorises.
+/// g_c = ½κ·RI_c (`hk` = ½κ, `ri` the row of the relative illumination, ones without it),
+/// non-finite Stokes read as 0, z empty for no noise; the codes by [`adc::quantize`], which has
+/// no branches, so the loop vectorises.
 #[inline(always)]
+#[allow(clippy::too_many_arguments)]
 fn psns_row(
     row: &mut [u16],
     s: [&[f32]; 3],
-    g: &[f64],
+    ri: &[f32],
+    hk: f64,
     axis: [&[f64]; 2],
     z: &[f32],
     sigma: f64,
@@ -299,19 +319,21 @@ fn psns_row(
 ) {
     let n = row.len();
     let (s0, s1, s2) = (&s[0][..n], &s[1][..n], &s[2][..n]);
-    let (g, co, si) = (&g[..n], &axis[0][..n], &axis[1][..n]);
+    let (ri, co, si) = (&ri[..n], &axis[0][..n], &axis[1][..n]);
     let fin = |v: f32| if v.is_finite() { v as f64 } else { 0.0 };
     // the expression written out in both loops: a closure holding it is compiled apart from the
     // AVX2 wrapper and stops the loop vectorising
     if z.is_empty() {
         for c in 0..n {
-            let v = g[c] * (fin(s0[c]) + fin(s1[c]) * co[c] + fin(s2[c]) * si[c]);
+            let g = hk * ri[c] as f64;
+            let v = g * (fin(s0[c]) + fin(s1[c]) * co[c] + fin(s2[c]) * si[c]);
             row[c] = adc::quantize(v, max);
         }
     } else {
         let z = &z[..n];
         for c in 0..n {
-            let v = g[c] * (fin(s0[c]) + fin(s1[c]) * co[c] + fin(s2[c]) * si[c]);
+            let g = hk * ri[c] as f64;
+            let v = g * (fin(s0[c]) + fin(s1[c]) * co[c] + fin(s2[c]) * si[c]);
             row[c] = adc::quantize(v + sigma * z[c] as f64, max);
         }
     }
@@ -348,7 +370,7 @@ pub(crate) fn psns_frame(
     // threads or blocks, and costs a few ns per pixel instead of ChaCha + ziggurat
     let key = super::fast::NoiseKey::new(s.seed, frame_index, noise::STAGE_PSNS_NOISE);
     let ri = s.ri_map();
-    // per-column pass-axis terms of even and odd rows, and per-row gains κ·RI·½
+    // per-column pass-axis terms of even and odd rows
     let axis: [[Vec<f64>; 2]; 2] = std::array::from_fn(|r| {
         let a: Vec<(f64, f64)> = (0..w).map(|c| nominal_axis(&cfg.layout, r, c)).collect();
         [
@@ -356,55 +378,55 @@ pub(crate) fn psns_frame(
             a.iter().map(|x| x.1).collect(),
         ]
     });
-    codes.par_chunks_mut(w).enumerate().for_each_init(
-        || (Vec::new(), Vec::new(), [Vec::new(), Vec::new(), Vec::new()]),
-        |(z, g, buf), (r, row)| {
-            let span = r * w..(r + 1) * w;
-            z.resize(w, 0f32);
-            if sigma > 0.0 {
-                super::fast::normals_into(&key, (r * w) as u32, z);
-            }
-            g.clear();
-            match ri {
-                Some(m) => g.extend(m[span].iter().map(|&x| kappa * 0.5 * x as f64)),
-                None => g.resize(w, kappa * 0.5),
-            }
-            let st = src.row(r, buf);
-            let ax = [&axis[r & 1][0][..], &axis[r & 1][1][..]];
-            let zs = if sigma > 0.0 { &z[..] } else { &[][..] };
-            psns_row_dispatch(row, st, g, ax, zs, sigma, max);
-        },
-    );
+    // clouds: filled ellipses at full scale, applied last (drawn from the frame's stream)
+    let ellipses = if p.clouds {
+        let mut rng = noise::frame_rng(s.seed, frame_index, noise::STAGE_PSNS_CLOUDS, 0);
+        clouds::psns_ellipses(w, h, &mut rng)
+    } else {
+        Vec::new()
+    };
+    let ones = vec![1f32; if ri.is_some() { 0 } else { w }];
+    let hk = kappa * 0.5;
+    // one pass per row: codes, clouds, saturation counts
+    let saturated = codes
+        .par_chunks_mut(w)
+        .enumerate()
+        .map_init(
+            || (Vec::new(), [Vec::new(), Vec::new(), Vec::new()]),
+            |(z, buf), (r, row)| {
+                z.resize(w, 0f32);
+                if sigma > 0.0 {
+                    super::fast::normals_into(&key, (r * w) as u32, z);
+                }
+                let g = match ri {
+                    Some(m) => &m[r * w..(r + 1) * w],
+                    None => &ones[..],
+                };
+                let st = src.row(r, buf);
+                let ax = [&axis[r & 1][0][..], &axis[r & 1][1][..]];
+                let zs = if sigma > 0.0 { &z[..] } else { &[][..] };
+                psns_row_dispatch(row, st, g, hk, ax, zs, sigma, max);
+                clouds::ellipse_row(&ellipses, h, r, w, |c| row[c] = max);
+                let mut n = [0u32; 4];
+                for (c, &v) in row.iter().enumerate() {
+                    n[((r & 1) << 1) | (c & 1)] += (v == max) as u32;
+                }
+                n
+            },
+        )
+        .reduce(|| [0; 4], |a, b| std::array::from_fn(|i| a[i] + b[i]));
     let mut truth = match (want_truth, src) {
         (true, PsnsSource::Planes(stokes)) => s.truth(stokes, kappa),
         _ => StokesImage::zeros(0, 0),
     };
-    if p.clouds {
-        let mut rng = noise::frame_rng(s.seed, frame_index, noise::STAGE_PSNS_CLOUDS, 0);
-        let ellipses = clouds::psns_ellipses(w, h, &mut rng);
-        let mask = clouds::ellipse_mask(w, h, &ellipses);
-        for (k, &m) in mask.iter().enumerate() {
-            if m {
-                codes[k] = max;
-                if want_truth {
-                    truth.s0.data[k] = (2.0 * full) as f32;
-                    truth.s1.data[k] = 0.0;
-                    truth.s2.data[k] = 0.0;
-                }
-            }
-        }
+    if want_truth && !ellipses.is_empty() {
+        // ground truth under a cloud: unpolarized, every channel at full scale
+        truth.par_rows(|r, s0, s1, s2| {
+            clouds::ellipse_row(&ellipses, h, r, w, |c| {
+                (s0[c], s1[c], s2[c]) = ((2.0 * full) as f32, 0.0, 0.0);
+            })
+        });
     }
-    let saturated = codes
-        .par_chunks(w)
-        .enumerate()
-        .map(|(r, row)| {
-            let mut n = [0u32; 4];
-            for (c, &v) in row.iter().enumerate() {
-                n[((r & 1) << 1) | (c & 1)] += (v == max) as u32;
-            }
-            n
-        })
-        .reduce(|| [0; 4], |a, b| std::array::from_fn(|i| a[i] + b[i]));
     Ok(RawFrame {
         codes: Image::from_vec(w, h, codes),
         bit_depth: cfg.bit_depth,

@@ -107,21 +107,32 @@ pub fn ellipse_mask(width: usize, height: usize, ellipses: &[Ellipse]) -> Vec<bo
     let mut m = vec![false; width * height];
     m.par_chunks_mut(width.max(1))
         .enumerate()
-        .for_each(|(r, row)| {
-            for e in ellipses {
-                let (lo, hi) = e.row_span(height, 1.0);
-                if r < lo || r > hi {
-                    continue;
-                }
-                let (c0, c1) = e.col_span(r as f64, row.len());
-                for (c, v) in row.iter_mut().enumerate().take(c1).skip(c0) {
-                    if e.rho(c as f64, r as f64) <= 1.0 {
-                        *v = true;
-                    }
-                }
-            }
-        });
+        .for_each(|(r, row)| ellipse_row(ellipses, height, r, row.len(), |c| row[c] = true));
     m
+}
+
+/// Calls `f(c)` for every column c of row `r` (of a `width` × `height` image) whose pixel centre
+/// is inside an ellipse (once per ellipse holding it): row `r` of [`ellipse_mask`].
+#[inline]
+pub fn ellipse_row(
+    ellipses: &[Ellipse],
+    height: usize,
+    r: usize,
+    width: usize,
+    mut f: impl FnMut(usize),
+) {
+    for e in ellipses {
+        let (lo, hi) = e.row_span(height, 1.0);
+        if r < lo || r > hi {
+            continue;
+        }
+        let (c0, c1) = e.col_span(r as f64, width);
+        for c in c0..c1 {
+            if e.rho(c as f64, r as f64) <= 1.0 {
+                f(c);
+            }
+        }
+    }
 }
 
 /// Soft unpolarized cloud patches.
