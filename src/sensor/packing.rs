@@ -423,7 +423,7 @@ mod tests {
         assert!(unpack(&[0; 5], PixelFormat::Mono12p, 12, false, 2, 2).is_err());
         assert!(unpack(&[0x01, 0x00], PixelFormat::Mono16, 12, true, 1, 1).is_err());
         assert!(unpack(&[0xFF, 0xFF], PixelFormat::Mono16, 12, false, 1, 1).is_err());
-        assert_eq!(PixelFormat::from_pfnc(0x8108_0001).is_err(), true);
+        assert!(PixelFormat::from_pfnc(0x8108_0001).is_err());
         assert_eq!(
             PixelFormat::from_pfnc(0x010C_0047).unwrap(),
             PixelFormat::Mono12p

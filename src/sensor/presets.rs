@@ -282,13 +282,15 @@ fn kappa_row(a: &[f32], b: &[f32], c: &[f32], g: Option<&[f32]>) -> f64 {
             let mut any = false;
             for k in k0..k1 {
                 // non-finite estimates (f32 overflow, NaN) are always checked in f64
-                any |= !(est[k] + tol[k] < lo_max);
+                let up = est[k] + tol[k];
+                any |= up >= lo_max || up.is_nan();
             }
             if !any {
                 continue;
             }
             for k in k0..k1 {
-                if !(est[k] + tol[k] < lo_max) {
+                let up = est[k] + tol[k];
+                if up >= lo_max || up.is_nan() {
                     let (bk, ck) = (bb[k] as f64, cb[k] as f64);
                     // f32 squares are exact in f64: hypot within an ulp, without libm's call;
                     // non-finite values (NaN included) never win
