@@ -409,10 +409,18 @@ pub(crate) fn psns_frame(
                 let zs = if sigma > 0.0 { &z[..] } else { &[][..] };
                 psns_row_dispatch(row, st, g, hk, ax, zs, sigma, max);
                 clouds::ellipse_row(&ellipses, h, r, w, |c| row[c] = max);
-                let mut n = [0u32; 4];
-                for (c, &v) in row.iter().enumerate() {
-                    n[((r & 1) << 1) | (c & 1)] += (v == max) as u32;
+                // even and odd columns counted apart (a computed index would not vectorise)
+                let (mut even, mut odd) = (0u32, 0u32);
+                for p in row.chunks_exact(2) {
+                    even += (p[0] == max) as u32;
+                    odd += (p[1] == max) as u32;
                 }
+                if let [.., last] = row.chunks_exact(2).remainder() {
+                    even += (*last == max) as u32;
+                }
+                let mut n = [0u32; 4];
+                n[(r & 1) << 1] = even;
+                n[((r & 1) << 1) | 1] = odd;
                 n
             },
         )
