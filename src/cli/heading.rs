@@ -18,6 +18,8 @@ use psns::heading::{
 };
 use psns::image::Image;
 use psns::sensor::mosaic::MosaicLayout;
+use psns::sensor::optics::RelativeIllumination;
+use psns::sensor::{Preset, SensorConfig};
 use psns::stream::{Event, StreamReader};
 use psns::sun::SunPosition;
 use psns::{Error, Result};
@@ -57,6 +59,29 @@ pub struct HeadingArgs {
     /// as an IMU would supply them; otherwise --pitch/--roll (default level).
     #[arg(long, conflicts_with_all = ["pitch", "roll"])]
     pub(crate) imu_tilt: bool,
+    /// Flat-field law of the intensity vote (the 180° decision with the sun within 8° of the
+    /// horizon): the frames' relative illumination is cos^N of the field angle (0 = none).
+    /// Default: an image's `--preset` (camera cos^1.5, gniipi/gniicpi cos^4, nfpi none); a
+    /// stream's recorded optics (or its preset).
+    #[arg(long, value_name = "N")]
+    pub(crate) vignetting_cos_power: Option<f64>,
+}
+
+/// The relative illumination to flat-field S0 by: `--vignetting-cos-power`, else `default`.
+fn flat_field(a: &HeadingArgs, default: RelativeIllumination) -> Result<RelativeIllumination> {
+    Ok(match a.vignetting_cos_power {
+        Some(n) => {
+            let ri = if n == 0.0 {
+                RelativeIllumination::None
+            } else {
+                RelativeIllumination::CosPower { n }
+            };
+            ri.validate()
+                .map_err(|_| Error::range("vignetting-cos-power", n, "0..8"))?;
+            ri
+        }
+        None => default,
+    })
 }
 
 /// Runs `psns heading`: one row `yaw_deg,confidence,pixels,saturated_pixels` for an image, or a
@@ -204,6 +229,13 @@ pub(crate) fn image_setup(a: &HeadingArgs) -> Result<HeadingSetup> {
     setup.pitch_deg = pitch;
     setup.roll_deg = roll;
     setup.fit_elevation = a.fit_sun_elevation;
+    // the falloff of the preset's (or the configured) sensor, as psns render makes it
+    let sensor = cfg
+        .raw
+        .sensor
+        .clone()
+        .unwrap_or_else(|| SensorConfig::preset(cfg.raw.preset));
+    setup.relative_illumination = flat_field(a, sensor.effective_ri())?;
     Ok(setup)
 }
 
@@ -247,15 +279,36 @@ pub(crate) fn estimate_loaded(
 pub const STREAM_HEADER: &str =
     "frame_index,yaw_deg,confidence,pixels,true_yaw_deg,error_deg,saturated_pixels,ms";
 
-/// Intrinsics of a stream: its header's, each overridden by an option given.
-fn stream_intrinsics(a: &HeadingArgs, h: &psns::stream::FileHeader) -> Result<Intrinsics> {
+/// Intrinsics of a stream, its header's, each overridden by an option given; and the relative
+/// illumination of its frames: `--vignetting-cos-power`, else the header's `optics` record, else
+/// its sensor configuration, else its preset's.
+fn stream_optics(
+    a: &HeadingArgs,
+    h: &psns::stream::FileHeader,
+) -> Result<(Intrinsics, RelativeIllumination)> {
     let s = &a.scene;
     let c = &h.camera;
     // the stream's record of its optics; a stream without one was rendered rectilinear through
     // the pinhole (psns before the lens option)
-    let optics: Option<serde_json::Value> = serde_json::from_str::<serde_json::Value>(&h.json)
-        .ok()
-        .and_then(|v| v.get("optics").cloned());
+    let doc: Option<serde_json::Value> = serde_json::from_str(&h.json).ok();
+    let optics: Option<serde_json::Value> = doc.as_ref().and_then(|v| v.get("optics").cloned());
+    let recorded_ri = optics
+        .as_ref()
+        .and_then(|o| o.get("relative_illumination"))
+        .and_then(|v| serde_json::from_value::<RelativeIllumination>(v.clone()).ok());
+    let sensor_ri = || {
+        doc.as_ref()
+            .and_then(|v| v.pointer("/scene/raw/sensor"))
+            .and_then(|v| serde_json::from_value::<SensorConfig>(v.clone()).ok())
+            .map(|sc| sc.effective_ri())
+    };
+    let preset_ri = || {
+        h.preset
+            .parse::<Preset>()
+            .map(|p| SensorConfig::preset(p).effective_ri())
+            .unwrap_or_default()
+    };
+    let ri = flat_field(a, recorded_ri.or_else(sensor_ri).unwrap_or_else(preset_ri))?;
     let recorded = |key: &str| -> Option<String> {
         optics
             .as_ref()
@@ -296,7 +349,7 @@ fn stream_intrinsics(a: &HeadingArgs, h: &psns::stream::FileHeader) -> Result<In
         }
     }
     i.validate()?;
-    Ok(i)
+    Ok((i, ri))
 }
 
 fn run_stream(a: &HeadingArgs) -> Result<()> {
@@ -318,7 +371,7 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
     }
     let (pitch, roll) = given_tilt(a)?;
     let mut reader = StreamReader::new(super::open_input(&a.input)?)?;
-    let mut intr = stream_intrinsics(a, reader.header())?;
+    let (mut intr, mut ri) = stream_optics(a, reader.header())?;
     let mut out = std::io::stdout().lock();
     let w = |out: &mut std::io::StdoutLock, line: &str| -> Result<()> {
         writeln!(out, "{line}")
@@ -332,7 +385,7 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         let f = match ev {
             Event::Frame(f) => f,
             Event::Restart(_) => {
-                intr = stream_intrinsics(a, reader.header())?;
+                (intr, ri) = stream_optics(a, reader.header())?;
                 continue;
             }
             Event::Gap { from, to } => {
@@ -381,6 +434,7 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         setup.pitch_deg = p;
         setup.roll_deg = r;
         setup.fit_elevation = a.fit_sun_elevation;
+        setup.relative_illumination = ri;
         let est = if sun.check_up().is_err() {
             eprintln!(
                 "psns: frame {}: sun elevation {} deg, below the horizon",
