@@ -202,8 +202,7 @@ pub fn eigenvector_heading(
     for _ in 0..4 {
         let s = vecs[0];
         let mut r: Vec<f64> = samples.iter().map(|(e, _)| e.dot(s).abs()).collect();
-        r.sort_by(f64::total_cmp);
-        let c = (4.685 * 1.4826 * r[r.len() / 2]).max(1e-4);
+        let c = (4.685 * 1.4826 * median_of(&mut r)).max(1e-4);
         (vals, vecs) = solve(&|e, d| {
             let u = e.dot(s) / c;
             if u.abs() >= 1.0 {
@@ -230,8 +229,7 @@ pub fn eigenvector_heading(
     };
     // the robust spread of the residual angles: noise (low light, low DoLP) and clouds widen it
     let mut r: Vec<f64> = samples.iter().map(|(e, _)| e.dot(s_c).abs()).collect();
-    r.sort_by(f64::total_cmp);
-    let spread_deg = (1.4826 * r[r.len() / 2]).asin().to_degrees();
+    let spread_deg = (1.4826 * median_of(&mut r)).asin().to_degrees();
     // A sun-direction error δ becomes a yaw error of about δ / sin(sun zenith). This method has a
     // bias of a few tenths of a degree in the sun's direction on the Berry sky, so its
     // confidence falls below sin 45° of horizontal sun component (with a 5° tilt and the sun at
@@ -343,6 +341,13 @@ fn solve_small(mut a: [[f64; 4]; 4], mut b: [f64; 4], n: usize) -> Option<[f64; 
         x[k] = v / a[k][k];
     }
     Some(x)
+}
+
+/// The element of rank len/2 (the upper median; what sorting and indexing [len / 2] gave), by
+/// selection instead of a full sort. `v` must not be empty; its order is changed.
+fn median_of(v: &mut [f64]) -> f64 {
+    let m = v.len() / 2;
+    *v.select_nth_unstable_by(m, f64::total_cmp).1
 }
 
 /// An angle difference wrapped to (−π/2, π/2] (AoLP is axial).
@@ -472,8 +477,7 @@ pub fn model_fit_heading(
     let mut iterations = 0;
     let reweight = |r: &[f64], w: &mut Vec<f64>| {
         let mut a: Vec<f64> = r.iter().map(|x| x.abs()).collect();
-        a.sort_by(f64::total_cmp);
-        let c = (4.685 * 1.4826 * a[a.len() / 2]).max(0.5f64.to_radians());
+        let c = (4.685 * 1.4826 * median_of(&mut a)).max(0.5f64.to_radians());
         for (k, s) in samples.iter().enumerate() {
             let u = r[k] / c;
             w[k] = if u.abs() >= 1.0 {
@@ -1008,6 +1012,81 @@ pub fn mask_saturated(dolp: &mut Image<f32>, codes: &Image<u16>, full_scale: u16
     masked
 }
 
+/// The intrinsics of a frame read as every `k`-th 2 × 2 superpixel
+/// ([`crate::demosaic::superpixel::superpixel_sampled`]): (width / k) × (height / k) pixels of
+/// k times the pitch, output pixel (j, i) centred on mosaic position (k j + ½, k i + ½), so the
+/// principal point moves to ((c₀ − ½)/k, (r₀ − ½)/k). Same focal length, projection and lens.
+pub fn sampled_intrinsics(i: &Intrinsics, k: usize) -> Intrinsics {
+    let (c0, r0) = i.principal();
+    let kf = k as f64;
+    Intrinsics {
+        width: i.width / k,
+        height: i.height / k,
+        pixel_pitch_um: i.pixel_pitch_um * kf,
+        principal_point: Some([(c0 - 0.5) / kf, (r0 - 0.5) / kf]),
+        ..*i
+    }
+}
+
+/// The superpixel sampling step for a frame of `width` × `height`: the largest even k with
+/// (width / k)(height / k) ≥ [`EIGEN_SAMPLES`], or `None` when that is below 4 (frames under
+/// about 640 000 pixels, which the estimators read at every 4th pixel or closer anyway).
+pub fn superpixel_step(width: usize, height: usize) -> Option<usize> {
+    let s = ((width * height) as f64 / EIGEN_SAMPLES).sqrt().floor() as usize;
+    let k = s - s % 2;
+    (k >= 4).then_some(k)
+}
+
+/// [`mask_saturated`] for a superpixel-sampled view (`k` as in
+/// [`crate::demosaic::superpixel::superpixel_sampled`]): a sample is unusable when a code at
+/// `full_scale` lies in its 2 × 2 block or one pixel around it. Returns how many pixels of the
+/// whole frame are within one pixel of a code at full scale (what [`mask_saturated`] would mask).
+pub fn mask_saturated_sampled(
+    dolp: &mut Image<f32>,
+    codes: &Image<u16>,
+    full_scale: u16,
+    k: usize,
+) -> usize {
+    let (w, h) = (codes.width, codes.height);
+    let hot = |r: usize| codes.row(r).iter().any(|&v| v >= full_scale);
+    if !codes
+        .data
+        .par_chunks(w.max(1))
+        .any(|row| row.iter().any(|&v| v >= full_scale))
+    {
+        return 0;
+    }
+    for i in 0..dolp.height {
+        for j in 0..dolp.width {
+            let (r, c) = (k * i, k * j);
+            let bad = (r.saturating_sub(1)..(r + 3).min(h)).any(|rr| {
+                (c.saturating_sub(1)..(c + 3).min(w))
+                    .any(|cc| codes.data[rr * w + cc] >= full_scale)
+            });
+            if bad {
+                dolp.data[i * dolp.width + j] = f32::NAN;
+            }
+        }
+    }
+    // the frame's count, row by row in parallel
+    (0..h)
+        .into_par_iter()
+        .map(|r| {
+            if !(r.saturating_sub(1)..(r + 2).min(h)).any(hot) {
+                return 0;
+            }
+            (0..w)
+                .filter(|&c| {
+                    (r.saturating_sub(1)..(r + 2).min(h)).any(|rr| {
+                        (c.saturating_sub(1)..(c + 2).min(w))
+                            .any(|cc| codes.data[rr * w + cc] >= full_scale)
+                    })
+                })
+                .count()
+        })
+        .sum()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1033,6 +1112,51 @@ mod tests {
 
     /// The true yaw and tilt read back from a stream quaternion are the Euler angles of
     /// `psns render --frame enu` (round trip through `camera_to_enu_quaternion`).
+    #[test]
+    fn sampled_view_matches_the_full_frame() {
+        // the sampled intrinsics' rays are the full frame's at the blocks' centres
+        let i = Intrinsics::with_size(2448, 2048);
+        let k = superpixel_step(i.width, i.height).unwrap();
+        assert_eq!(k, 10);
+        assert_eq!(superpixel_step(612, 512), None);
+        let si = sampled_intrinsics(&i, k);
+        assert_eq!((si.width, si.height), (244, 204));
+        for (j, r) in [(0usize, 0usize), (100, 50), (243, 203)] {
+            let a = si.ray(j as f64, r as f64).unwrap().normalize();
+            let b = i
+                .ray((k * j) as f64 + 0.5, (k * r) as f64 + 0.5)
+                .unwrap()
+                .normalize();
+            assert!((a - b).length() < 1e-12, "{a} {b}");
+        }
+        // and its samples are the superpixel blocks at those positions
+        let raw = Image::from_vec(
+            40,
+            24,
+            (0..40 * 24).map(|v| (v * 7 % 1000) as u16).collect(),
+        );
+        let layout = crate::sensor::mosaic::MosaicLayout::default();
+        let half = crate::demosaic::superpixel_half(&raw, layout).unwrap();
+        let p = crate::demosaic::superpixel::superpixel_sampled(&raw, layout, 4, 0.0).unwrap();
+        assert_eq!((p.dolp.width, p.dolp.height), (10, 6));
+        for r in 0..6 {
+            for j in 0..10 {
+                let h = (2 * r) * half.s0.width + 2 * j;
+                let q = r * 10 + j;
+                assert_eq!(p.stokes.s0.data[q], half.s0.data[h]);
+                assert_eq!(p.stokes.s1.data[q], half.s1.data[h]);
+                assert_eq!(p.stokes.s2.data[q], half.s2.data[h]);
+            }
+        }
+        // a full-scale code masks the samples around it and counts its 3 x 3 neighbourhood
+        let mut codes = Image::from_vec(40, 24, vec![100u16; 40 * 24]);
+        codes.data[9 * 40 + 8] = 4095;
+        let mut d = Image::from_vec(10, 6, vec![0.5f32; 60]);
+        assert_eq!(mask_saturated_sampled(&mut d, &codes, 4095, 4), 9);
+        let nan: Vec<usize> = (0..60).filter(|&q| d.data[q].is_nan()).collect();
+        assert_eq!(nan, vec![2 * 10 + 2]); // block (8..10, 8..10) plus one pixel around
+    }
+
     #[test]
     fn attitude_yaw_and_tilt_round_trip() {
         for (y, p, r) in [

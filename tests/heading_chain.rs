@@ -737,3 +737,53 @@ fn stream_heading_uses_the_recorded_falloff() {
     eprintln!("forced cos^1.5: {wrong:?}");
     assert!(wrong.iter().any(|&e| e > 90.0), "{wrong:?}");
 }
+
+/// `--latest`: a consumer slower than the stream estimates the newest complete frame and skips
+/// the ones replaced before it got to them. Read from a file (which arrives as fast as the disk
+/// delivers), every frame is either estimated or counted as skipped, the rows come in frame
+/// order, and the last frame, which nothing replaces, is always estimated. Which frames are
+/// skipped depends on timing, so the test asserts only what does not.
+#[test]
+fn latest_estimates_the_newest_frame_and_counts_the_skipped() {
+    let dir = tempfile::tempdir().unwrap();
+    let stream = dir.path().join("s.psns");
+    let n = 12;
+    let o = common::psns(&[
+        "stream",
+        "--frames",
+        &n.to_string(),
+        "--yaw-rate",
+        "300",
+        "--width",
+        "304",
+        "--height",
+        "256",
+        "--pixel-pitch",
+        "27.6",
+        "--auto-exposure",
+        "--out",
+        stream.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let o = common::psns(&["heading", stream.to_str().unwrap(), "--latest"]);
+    let err = common::stderr(&o);
+    eprintln!("{err}");
+    let (_, rows) = stream_rows(&o);
+    let idx: Vec<u64> = rows.iter().map(|r| r[0].parse().unwrap()).collect();
+    assert!(idx.windows(2).all(|w| w[0] < w[1]), "{idx:?}");
+    assert_eq!(idx.last(), Some(&(n - 1)), "the newest frame is estimated");
+    let skipped: usize = err
+        .split(" skipped for newer frames")
+        .next()
+        .and_then(|head| head.rsplit(' ').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no skip count in {err}"));
+    assert_eq!(rows.len() + skipped, n as usize, "{err}");
+    for r in &rows {
+        let e: f64 = r[5].parse().unwrap();
+        assert!(e.abs() < 0.5, "{r:?}");
+    }
+    // without --latest every frame is estimated, in order
+    let (_, all) = stream_rows(&common::psns(&["heading", stream.to_str().unwrap()]));
+    assert_eq!(all.len(), n as usize);
+}

@@ -11,10 +11,12 @@ use super::args::SceneArgs;
 use super::demosaic::{demosaic_codes, load_raw, LoadedRaw};
 use clap::Args;
 use psns::camera::{Attitude, Intrinsics, Lens, Projection};
+use psns::demosaic::superpixel::superpixel_sampled;
 use psns::demosaic::Method;
 use psns::heading::{
-    attitude_tilt_deg, attitude_yaw_deg, error_stats, estimate_heading, mask_saturated, wrap180,
-    HeadingEstimate, HeadingMethod, HeadingSetup, PolarView,
+    attitude_tilt_deg, attitude_yaw_deg, error_stats, estimate_heading, mask_saturated,
+    mask_saturated_sampled, sampled_intrinsics, superpixel_step, wrap180, HeadingEstimate,
+    HeadingMethod, HeadingSetup, PolarView,
 };
 use psns::image::Image;
 use psns::sensor::mosaic::MosaicLayout;
@@ -37,9 +39,11 @@ pub struct HeadingArgs {
     /// A stream gives the sun per frame and the intrinsics in its header (options override them).
     #[command(flatten)]
     pub(crate) scene: SceneArgs,
-    /// Demosaic method.
-    #[arg(long, default_value = "bilinear", value_parser = |s: &str| s.parse::<Method>().map_err(|e| e.to_string()))]
-    pub(crate) demosaic: Method,
+    /// Demosaic method (the whole frame). Default: bilinear; a frame of more than about 640 000
+    /// pixels (the full 2448 x 2048 sensor) is instead read as every k-th 2 x 2 superpixel only
+    /// (k even, about 40 000 samples: what the estimators read), the rest never demosaicked.
+    #[arg(long, value_parser = |s: &str| s.parse::<Method>().map_err(|e| e.to_string()))]
+    pub(crate) demosaic: Option<Method>,
     /// Estimator: model-fit (Berry field fitted from the eigenvector answer; default, the most
     /// accurate), eigen (sun vector), hough (solar meridian).
     #[arg(long, default_value = "model-fit", value_parser = |s: &str| s.parse::<HeadingMethod>().map_err(|e| e.to_string()))]
@@ -59,6 +63,12 @@ pub struct HeadingArgs {
     /// as an IMU would supply them; otherwise --pitch/--roll (default level).
     #[arg(long, conflicts_with_all = ["pitch", "roll"])]
     pub(crate) imu_tilt: bool,
+    /// Stream input, for a consumer slower than the camera: always estimate the newest complete
+    /// frame. A reader thread keeps draining the stream (so the producer is never held up) and
+    /// keeps only the latest frame; frames replaced before the estimator took them are skipped,
+    /// counted in the summary and missing from the rows (frame_index shows the gaps).
+    #[arg(long)]
+    pub(crate) latest: bool,
     /// Flat-field law of the intensity vote (the 180° decision with the sun within 8° of the
     /// horizon): the frames' relative illumination is cos^N of the field angle (0 = none).
     /// Default: an image's `--preset` (camera cos^1.5, gniipi/gniicpi cos^4, nfpi none); a
@@ -177,6 +187,41 @@ pub fn polar_from_codes(
     Ok((p, saturated))
 }
 
+/// [`polar_from_codes`] for what the estimators read: with no `--demosaic` and a frame large
+/// enough ([`superpixel_step`]), every k-th superpixel only, with the intrinsics of that sampled
+/// view ([`sampled_intrinsics`]) in the returned setup; otherwise the whole frame.
+fn polar_for_estimate(
+    codes: &Image<u16>,
+    black_level: f64,
+    layout: MosaicLayout,
+    bits: u8,
+    demosaic: Option<Method>,
+    setup: &HeadingSetup,
+) -> Result<(psns::demosaic::PolarImages, usize, HeadingSetup)> {
+    let k = superpixel_step(codes.width, codes.height);
+    match (demosaic, k) {
+        (None, Some(k)) => {
+            let full = ((1u32 << bits) - 1).min(65535) as u16;
+            let mut p = superpixel_sampled(codes, layout, k, black_level as f32)?;
+            let saturated = mask_saturated_sampled(&mut p.dolp, codes, full, k);
+            let mut s = *setup;
+            s.intrinsics = sampled_intrinsics(&setup.intrinsics, k);
+            s.step = 1;
+            Ok((p, saturated, s))
+        }
+        (d, _) => {
+            let (p, saturated) = polar_from_codes(
+                codes,
+                black_level,
+                layout,
+                bits,
+                d.unwrap_or(Method::Bilinear),
+            )?;
+            Ok((p, saturated, *setup))
+        }
+    }
+}
+
 /// The estimate from one mosaic: demosaic, mask clipped pixels, estimate. `Ok(None)` when too few
 /// pixels are usable (the reason on stderr); also returns the number of masked pixels.
 fn estimate_codes(
@@ -184,17 +229,18 @@ fn estimate_codes(
     black_level: f64,
     layout: MosaicLayout,
     bits: u8,
-    demosaic: Method,
+    demosaic: Option<Method>,
     method: HeadingMethod,
     setup: &HeadingSetup,
 ) -> Result<(Option<HeadingEstimate>, usize)> {
-    let (p, saturated) = polar_from_codes(codes, black_level, layout, bits, demosaic)?;
+    let (p, saturated, setup) =
+        polar_for_estimate(codes, black_level, layout, bits, demosaic, setup)?;
     let view = PolarView {
         aolp_deg: &p.aolp_deg,
         dolp: &p.dolp,
         s0: Some(&p.stokes.s0),
     };
-    match estimate_heading(method, &view, setup) {
+    match estimate_heading(method, &view, &setup) {
         Ok(e) => Ok((Some(e), saturated)),
         // too few usable pixels (saturated, unpolarized): no heading, zero confidence
         Err(Error::Invalid(m)) if m.starts_with("heading: only") => {
@@ -370,7 +416,7 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         ));
     }
     let (pitch, roll) = given_tilt(a)?;
-    let mut reader = StreamReader::new(super::open_input(&a.input)?)?;
+    let reader = StreamReader::new(super::open_input(&a.input)?)?;
     let (mut intr, mut ri) = stream_optics(a, reader.header())?;
     let mut out = std::io::stdout().lock();
     let w = |out: &mut std::io::StdoutLock, line: &str| -> Result<()> {
@@ -379,44 +425,27 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
             .map_err(|e| Error::io("writing stdout", e))
     };
     w(&mut out, STREAM_HEADER)?;
-    let (mut errors, mut frames, mut none, mut damaged) = (Vec::new(), 0usize, 0usize, 0usize);
+    let (mut errors, mut frames, mut none) = (Vec::new(), 0usize, 0usize);
     let mut total_s = 0.0;
-    while let Some(ev) = reader.next_event()? {
-        let f = match ev {
-            Event::Frame(f) => f,
-            Event::Restart(_) => {
-                (intr, ri) = stream_optics(a, reader.header())?;
-                continue;
-            }
-            Event::Gap { from, to } => {
-                eprintln!("psns: frames {from}..{to} missing (dropped)");
-                continue;
-            }
-            Event::Corrupt { index, reason, .. } => {
-                damaged += 1;
-                eprintln!("psns: damaged record (frame {index:?}): {reason}");
-                continue;
-            }
-            Event::Truncated { index, .. } => {
-                damaged += 1;
-                eprintln!("psns: stream ends inside a record (frame {index:?})");
-                continue;
-            }
-            Event::Skipped { .. } => continue,
-        };
-        if a.index.is_some_and(|n| n != f.meta.index) {
-            continue;
+    let mut source = if a.latest {
+        FrameSource::latest(reader, a.index)
+    } else {
+        FrameSource::Sequential {
+            reader: Box::new(reader),
+            index: a.index,
+            damaged: 0,
+            generation: 0,
         }
-        if !f.payload_crc_ok {
-            damaged += 1;
-            eprintln!(
-                "psns: frame {}: payload CRC mismatch, skipped",
-                f.meta.index
-            );
-            continue;
+    };
+    let mut generation = 0u64;
+    while let Some((gen, h, f)) = source.next()? {
+        if gen != generation {
+            // the stream restarted with a new header
+            generation = gen;
+            (intr, ri) = stream_optics(a, &h)?;
         }
         let t0 = Instant::now();
-        let h = reader.header();
+        let h = &h;
         let codes = Image::from_vec(h.width as usize, h.height as usize, f.codes(h)?);
         let black = if h.msb_aligned {
             f.meta.black_level / 2f64.powi(16 - h.bits_valid as i32)
@@ -473,13 +502,176 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         };
         w(&mut out, &line)?;
     }
+    let (damaged, skipped) = source.finish()?;
     let st = error_stats(&errors);
+    let skipped = if a.latest {
+        format!(", {skipped} skipped for newer frames")
+    } else {
+        String::new()
+    };
     eprintln!(
-        "psns heading: {frames} frames ({none} without an estimate, {damaged} damaged); error RMS {:.4} deg, p95 {:.4}, max {:.4}; {:.1} ms per frame",
+        "psns heading: {frames} frames ({none} without an estimate, {damaged} damaged{skipped}); error RMS {:.4} deg, p95 {:.4}, max {:.4}; {:.1} ms per frame",
         st.rms,
         st.p95,
         st.max,
         if frames > 0 { total_s * 1e3 / frames as f64 } else { f64::NAN }
     );
     Ok(())
+}
+
+type Reader = StreamReader<Box<dyn std::io::Read + Send + Sync>>;
+
+/// Where `psns heading` takes a stream's frames from: in order, or (`--latest`) the newest
+/// complete frame from a reader thread. Yields (header generation, header, frame).
+enum FrameSource {
+    Sequential {
+        reader: Box<Reader>,
+        index: Option<u64>,
+        damaged: usize,
+        generation: u64,
+    },
+    Latest {
+        shared: std::sync::Arc<(std::sync::Mutex<Mailbox>, std::sync::Condvar)>,
+        thread: Option<std::thread::JoinHandle<()>>,
+    },
+}
+
+/// The one-frame slot between the reader thread and the estimator (`--latest`).
+#[derive(Default)]
+struct Mailbox {
+    slot: Option<(u64, psns::stream::FileHeader, psns::stream::Frame)>,
+    done: bool,
+    error: Option<Error>,
+    damaged: usize,
+    skipped: usize,
+}
+
+/// A frame event of a stream as `psns heading` treats it: `Some` for a good frame (of the
+/// `--index` wanted), `None` for anything else (reported on stderr; `damaged` counts damage).
+fn usable_frame(
+    ev: Event,
+    index: Option<u64>,
+    damaged: &mut usize,
+    generation: &mut u64,
+) -> Option<psns::stream::Frame> {
+    match ev {
+        Event::Frame(f) => {
+            if index.is_some_and(|n| n != f.meta.index) {
+                return None;
+            }
+            if !f.payload_crc_ok {
+                *damaged += 1;
+                eprintln!(
+                    "psns: frame {}: payload CRC mismatch, skipped",
+                    f.meta.index
+                );
+                return None;
+            }
+            Some(f)
+        }
+        Event::Restart(_) => {
+            *generation += 1;
+            None
+        }
+        Event::Gap { from, to } => {
+            eprintln!("psns: frames {from}..{to} missing (dropped)");
+            None
+        }
+        Event::Corrupt { index, reason, .. } => {
+            *damaged += 1;
+            eprintln!("psns: damaged record (frame {index:?}): {reason}");
+            None
+        }
+        Event::Truncated { index, .. } => {
+            *damaged += 1;
+            eprintln!("psns: stream ends inside a record (frame {index:?})");
+            None
+        }
+        Event::Skipped { .. } => None,
+    }
+}
+
+impl FrameSource {
+    /// Starts the reader thread of `--latest`: it reads as fast as the stream delivers and keeps
+    /// only the newest good frame, counting the ones it replaces before the estimator took them.
+    fn latest(mut reader: Reader, index: Option<u64>) -> FrameSource {
+        use std::sync::{Arc, Condvar, Mutex};
+        let shared = Arc::new((Mutex::new(Mailbox::default()), Condvar::new()));
+        let sh = shared.clone();
+        let thread = std::thread::spawn(move || {
+            let (lock, cv) = &*sh;
+            let (mut generation, mut damaged) = (0u64, 0usize);
+            let result = (|| -> Result<()> {
+                while let Some(ev) = reader.next_event()? {
+                    let Some(f) = usable_frame(ev, index, &mut damaged, &mut generation) else {
+                        continue;
+                    };
+                    let h = reader.header().clone();
+                    let mut m = lock.lock().unwrap_or_else(|p| p.into_inner());
+                    if m.slot.replace((generation, h, f)).is_some() {
+                        m.skipped += 1;
+                    }
+                    cv.notify_one();
+                }
+                Ok(())
+            })();
+            let mut m = lock.lock().unwrap_or_else(|p| p.into_inner());
+            m.done = true;
+            m.damaged = damaged;
+            m.error = result.err();
+            cv.notify_one();
+        });
+        FrameSource::Latest {
+            shared,
+            thread: Some(thread),
+        }
+    }
+
+    fn next(&mut self) -> Result<Option<(u64, psns::stream::FileHeader, psns::stream::Frame)>> {
+        match self {
+            FrameSource::Sequential {
+                reader,
+                index,
+                damaged,
+                generation,
+            } => {
+                while let Some(ev) = reader.next_event()? {
+                    if let Some(f) = usable_frame(ev, *index, damaged, generation) {
+                        return Ok(Some((*generation, reader.header().clone(), f)));
+                    }
+                }
+                Ok(None)
+            }
+            FrameSource::Latest { shared, .. } => {
+                let (lock, cv) = &**shared;
+                let mut m = lock.lock().unwrap_or_else(|p| p.into_inner());
+                loop {
+                    if let Some(x) = m.slot.take() {
+                        return Ok(Some(x));
+                    }
+                    if m.done {
+                        return Ok(None);
+                    }
+                    m = cv.wait(m).unwrap_or_else(|p| p.into_inner());
+                }
+            }
+        }
+    }
+
+    /// (damaged records, frames skipped for newer ones); the reader thread's error, if any.
+    fn finish(&mut self) -> Result<(usize, usize)> {
+        match self {
+            FrameSource::Sequential { damaged, .. } => Ok((*damaged, 0)),
+            FrameSource::Latest { shared, thread } => {
+                if let Some(t) = thread.take() {
+                    let _ = t.join();
+                }
+                let mut m = shared.0.lock().unwrap_or_else(|p| p.into_inner());
+                match m.error.take() {
+                    Some(e) => Err(e),
+                    None => Ok((m.damaged, m.skipped)),
+                }
+            }
+        }
+    }
 }
