@@ -50,6 +50,11 @@ pub struct HeadingSetup {
     /// Model fit only: fit the sun's zenith angle too (with one neutral-point distance), starting
     /// from `sun`'s.
     pub fit_elevation: bool,
+    /// Model fit only: start the neutral-point distances (δ_Ba, δ_Br, degrees) here instead of
+    /// at 25°, e.g. from the previous frame of a stream ([`ModelFitInfo`]); the robust weights
+    /// are then set from the first residuals and the fit may stop after 6 iterations instead of
+    /// 11. The yaw still starts from the eigenvector answer.
+    pub warm_start: Option<(f64, f64)>,
 }
 
 impl HeadingSetup {
@@ -64,6 +69,7 @@ impl HeadingSetup {
             step: 4,
             relative_illumination: RelativeIllumination::CosPower { n: 1.5 },
             fit_elevation: false,
+            warm_start: None,
         }
     }
 }
@@ -467,7 +473,9 @@ pub fn model_fit_heading(
             })
             .collect_into_vec(out);
     };
-    let mut p = clamp([start.yaw_deg, 25.0, 25.0, setup.sun.zenith_deg]);
+    let (d_ba, d_br) = setup.warm_start.unwrap_or((25.0, 25.0));
+    let warm = setup.warm_start.is_some();
+    let mut p = clamp([start.yaw_deg, d_ba, d_br, setup.sun.zenith_deg]);
     // inverse-variance weights: the AoLP noise of a pixel is ∝ 1/DoLP
     let mut w: Vec<f64> = samples.iter().map(|s| s.2 * s.2).collect();
     let cost = |r: &[f64], w: &[f64]| r.iter().zip(w).map(|(r, w)| w * r * r).sum::<f64>();
@@ -491,7 +499,12 @@ pub fn model_fit_heading(
     let mut jac: Vec<[f64; 4]> = vec![[0.0; 4]; samples.len()];
     for it in 0..40 {
         iterations = it + 1;
-        if it == 2 || it == 5 || it == 9 {
+        let reweight_now = if warm {
+            it == 0 || it == 2 || it == 4
+        } else {
+            it == 2 || it == 5 || it == 9
+        };
+        if reweight_now {
             reweight(&r, &mut w);
         }
         // forward differences (the Jacobian only steers the steps; the answer is the residual's)
@@ -555,7 +568,7 @@ pub fn model_fit_heading(
             }
             lambda *= 4.0;
         }
-        if (!improved || converged) && it >= 10 {
+        if (!improved || converged) && it >= if warm { 5 } else { 10 } {
             break;
         }
     }
@@ -613,15 +626,25 @@ pub fn estimate_heading(
     view: &PolarView,
     setup: &HeadingSetup,
 ) -> Result<HeadingEstimate> {
+    estimate_heading_info(method, view, setup).map(|r| r.0)
+}
+
+/// [`estimate_heading`], with the model fit's [`ModelFitInfo`] (`None` for the other methods):
+/// what a stream passes on as the next frame's [`HeadingSetup::warm_start`].
+pub fn estimate_heading_info(
+    method: HeadingMethod,
+    view: &PolarView,
+    setup: &HeadingSetup,
+) -> Result<(HeadingEstimate, Option<ModelFitInfo>)> {
     if method == HeadingMethod::Hough {
-        return hough_heading(view, setup);
+        return hough_heading(view, setup).map(|e| (e, None));
     }
     let eigen = eigen_resolved(view, setup)?;
     match method {
-        HeadingMethod::Eigen => Ok(eigen),
+        HeadingMethod::Eigen => Ok((eigen, None)),
         HeadingMethod::ModelFit => {
             model_fit_heading(view.aolp_deg, view.dolp, setup, &eigen, setup.fit_elevation)
-                .map(|r| r.0)
+                .map(|(e, i)| (e, Some(i)))
         }
         HeadingMethod::Hough => unreachable!("handled above"),
     }

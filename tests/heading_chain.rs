@@ -590,6 +590,14 @@ fn heading_bad_input_is_refused() {
             vec!["heading", s, "--fit-sun-elevation", "--method", "eigen"],
             "model-fit",
         ),
+        (
+            vec!["heading", s, "--warm-start", "--method", "hough"],
+            "--warm-start applies to --method model-fit",
+        ),
+        (
+            vec!["heading", s, "--vignetting-cos-power", "9"],
+            "vignetting-cos-power",
+        ),
     ] {
         let o = common::psns(&args);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", common::stderr(&o));
@@ -611,8 +619,15 @@ fn heading_bad_input_is_refused() {
     // --imu-tilt needs a stream
     let png = dir.path().join("x.png");
     std::fs::write(&png, b"\x89PNG\r\n\x1a\n0000").unwrap();
-    let o = common::psns(&["heading", png.to_str().unwrap(), "--imu-tilt"]);
-    assert_eq!(o.status.code(), Some(2), "{}", common::stderr(&o));
+    for opt in ["--imu-tilt", "--latest", "--warm-start"] {
+        let o = common::psns(&["heading", png.to_str().unwrap(), opt]);
+        assert_eq!(o.status.code(), Some(2), "{}", common::stderr(&o));
+        assert!(
+            common::stderr(&o).contains("stream input only"),
+            "{opt}: {}",
+            common::stderr(&o)
+        );
+    }
 }
 
 /// A PSNS-preset frame (`gniipi`: cos⁴ falloff, 8 bit, 2 % noise) with the sun `elev` degrees
@@ -786,4 +801,20 @@ fn latest_estimates_the_newest_frame_and_counts_the_skipped() {
     // without --latest every frame is estimated, in order
     let (_, all) = stream_rows(&common::psns(&["heading", stream.to_str().unwrap()]));
     assert_eq!(all.len(), n as usize);
+    // --warm-start (the next frame's fit starts from this one's neutral points, fewer
+    // iterations) gives the same yaws to within a hundredth of a degree (measured: 0.0131 deg
+    // RMS against 0.0132 cold on 24 frames at 612 x 512)
+    let (_, warm) = stream_rows(&common::psns(&[
+        "heading",
+        stream.to_str().unwrap(),
+        "--warm-start",
+    ]));
+    assert_eq!(warm.len(), n as usize);
+    for (c, w) in all.iter().zip(&warm) {
+        let (yc, yw): (f64, f64) = (c[1].parse().unwrap(), w[1].parse().unwrap());
+        assert!(
+            psns::heading::wrap180(yc - yw).abs() < 0.01,
+            "cold {c:?} warm {w:?}"
+        );
+    }
 }

@@ -14,9 +14,9 @@ use psns::camera::{Attitude, Intrinsics, Lens, Projection};
 use psns::demosaic::superpixel::superpixel_sampled;
 use psns::demosaic::Method;
 use psns::heading::{
-    attitude_tilt_deg, attitude_yaw_deg, error_stats, estimate_heading, mask_saturated,
+    attitude_tilt_deg, attitude_yaw_deg, error_stats, estimate_heading_info, mask_saturated,
     mask_saturated_sampled, sampled_intrinsics, superpixel_step, wrap180, HeadingEstimate,
-    HeadingMethod, HeadingSetup, PolarView,
+    HeadingMethod, HeadingSetup, ModelFitInfo, PolarView,
 };
 use psns::image::Image;
 use psns::sensor::mosaic::MosaicLayout;
@@ -69,6 +69,11 @@ pub struct HeadingArgs {
     /// counted in the summary and missing from the rows (frame_index shows the gaps).
     #[arg(long)]
     pub(crate) latest: bool,
+    /// Stream input, model fit: start each frame's neutral-point distances from the previous
+    /// frame's fit (when its confidence was at least 0.5) and stop after 6 iterations instead of
+    /// 11 when converged; the yaw still starts from the frame's own eigenvector answer.
+    #[arg(long)]
+    pub(crate) warm_start: bool,
     /// Flat-field law of the intensity vote (the 180° decision with the sun within 8° of the
     /// horizon): the frames' relative illumination is cos^N of the field angle (0 = none).
     /// Default: an image's `--preset` (camera cos^1.5, gniipi/gniicpi cos^4, nfpi none); a
@@ -116,16 +121,28 @@ fn check_method_options(a: &HeadingArgs) -> Result<()> {
             a.method
         )));
     }
+    if a.warm_start && a.method != HeadingMethod::ModelFit {
+        return Err(Error::Invalid(format!(
+            "--warm-start applies to --method model-fit, not {}",
+            a.method
+        )));
+    }
     Ok(())
 }
 
 /// The option checks of one image (not a stream), shared with `psns.heading` in Python.
 pub(crate) fn check_image_options(a: &HeadingArgs) -> Result<()> {
     check_method_options(a)?;
-    if a.imu_tilt {
-        return Err(Error::Invalid(
-            "--imu-tilt applies to stream input only".into(),
-        ));
+    for (name, given) in [
+        ("imu-tilt", a.imu_tilt),
+        ("latest", a.latest),
+        ("warm-start", a.warm_start),
+    ] {
+        if given {
+            return Err(Error::Invalid(format!(
+                "--{name} applies to stream input only"
+            )));
+        }
     }
     Ok(())
 }
@@ -232,7 +249,7 @@ fn estimate_codes(
     demosaic: Option<Method>,
     method: HeadingMethod,
     setup: &HeadingSetup,
-) -> Result<(Option<HeadingEstimate>, usize)> {
+) -> Result<(Option<HeadingEstimate>, usize, Option<ModelFitInfo>)> {
     let (p, saturated, setup) =
         polar_for_estimate(codes, black_level, layout, bits, demosaic, setup)?;
     let view = PolarView {
@@ -240,12 +257,12 @@ fn estimate_codes(
         dolp: &p.dolp,
         s0: Some(&p.stokes.s0),
     };
-    match estimate_heading(method, &view, &setup) {
-        Ok(e) => Ok((Some(e), saturated)),
+    match estimate_heading_info(method, &view, &setup) {
+        Ok((e, info)) => Ok((Some(e), saturated, info)),
         // too few usable pixels (saturated, unpolarized): no heading, zero confidence
         Err(Error::Invalid(m)) if m.starts_with("heading: only") => {
             eprintln!("psns: {m}");
-            Ok((None, saturated))
+            Ok((None, saturated, None))
         }
         Err(e) => Err(e),
     }
@@ -319,6 +336,7 @@ pub(crate) fn estimate_loaded(
         a.method,
         setup,
     )
+    .map(|(e, sat, _)| (e, sat))
 }
 
 /// Columns of the per-frame CSV of a stream.
@@ -438,11 +456,13 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         }
     };
     let mut generation = 0u64;
+    let mut warm: Option<(f64, f64)> = None;
     while let Some((gen, h, f)) = source.next()? {
         if gen != generation {
             // the stream restarted with a new header
             generation = gen;
             (intr, ri) = stream_optics(a, &h)?;
+            warm = None;
         }
         let t0 = Instant::now();
         let h = &h;
@@ -464,12 +484,15 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         setup.roll_deg = r;
         setup.fit_elevation = a.fit_sun_elevation;
         setup.relative_illumination = ri;
+        if a.warm_start {
+            setup.warm_start = warm;
+        }
         let est = if sun.check_up().is_err() {
             eprintln!(
                 "psns: frame {}: sun elevation {} deg, below the horizon",
                 m.index, m.sun_elevation_deg
             );
-            (None, 0)
+            (None, 0, None)
         } else {
             estimate_codes(
                 &codes,
@@ -486,7 +509,12 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         frames += 1;
         // the truth is read only here, after the estimate, for the error column
         let truth = attitude_yaw_deg(m.attitude_wxyz);
-        let line = match est {
+        // the next frame starts from this one's neutral points, if this one was trustworthy
+        warm = match (&est.0, &est.2) {
+            (Some(e), Some(i)) if e.confidence >= 0.5 => Some((i.babinet_deg, i.brewster_deg)),
+            _ => None,
+        };
+        let line = match (est.0, est.1) {
             (Some(e), sat) => {
                 let err = wrap180(e.yaw_deg - truth);
                 errors.push(err);
