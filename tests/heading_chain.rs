@@ -751,6 +751,52 @@ fn stream_heading_uses_the_recorded_falloff() {
     let wrong = errors(&["--vignetting-cos-power", "1.5"]);
     eprintln!("forced cos^1.5: {wrong:?}");
     assert!(wrong.iter().any(|&e| e > 90.0), "{wrong:?}");
+    // an image: --preset gniipi gives the preset's falloff (and lens), as psns render used them;
+    // without it the camera preset's cos^1.5 flips this frame
+    let out = dir.path().join("img");
+    let geo = [
+        "--sun-zenith",
+        "88",
+        "--sun-azimuth",
+        "200",
+        "--width",
+        "304",
+        "--height",
+        "256",
+        "--pixel-pitch",
+        "27.6",
+        "--pitch",
+        "5",
+        "--roll",
+        "-5",
+    ];
+    let mut args = vec!["render", "--raw", "--preset", "gniipi", "--frame", "enu"];
+    args.extend_from_slice(&["--yaw", "107", "--out", out.to_str().unwrap()]);
+    args.extend_from_slice(&geo);
+    let o = common::psns(&args);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let raw = out.join("raw.png");
+    let yaw = |extra: &[&str]| -> f64 {
+        let mut args = vec!["heading", raw.to_str().unwrap()];
+        args.extend_from_slice(&geo);
+        args.extend_from_slice(extra);
+        let o = common::psns(&args);
+        assert!(o.status.success(), "{}", common::stderr(&o));
+        let text = String::from_utf8(o.stdout).unwrap();
+        let row = text.lines().nth(1).unwrap().to_string();
+        row.split(',').next().unwrap().parse().unwrap()
+    };
+    let right = yaw(&["--preset", "gniipi"]);
+    let camera_law = yaw(&[]);
+    eprintln!("image: --preset gniipi {right}, camera preset's law {camera_law}");
+    assert!(psns::heading::wrap180(right - 107.0).abs() < 1.0, "{right}");
+    assert!(
+        psns::heading::wrap180(camera_law - 107.0).abs() > 90.0,
+        "{camera_law}"
+    );
+    // and a stream refuses --preset (its header records it)
+    let o = common::psns(&["heading", stream.to_str().unwrap(), "--preset", "gniipi"]);
+    assert_eq!(o.status.code(), Some(2), "{}", common::stderr(&o));
 }
 
 /// `--latest`: a consumer slower than the stream estimates the newest complete frame and skips

@@ -74,9 +74,14 @@ pub struct HeadingArgs {
     /// 11 when converged; the yaw still starts from the frame's own eigenvector answer.
     #[arg(long)]
     pub(crate) warm_start: bool,
+    /// Image input: the sensor preset the frame was made with (camera, nfpi, gniipi, gniicpi), as
+    /// in `psns render --raw`: its lens is the default of --lens and its relative illumination the
+    /// flat-field law. A stream's header records both.
+    #[arg(long, value_parser = super::args::parse_preset)]
+    pub(crate) preset: Option<Preset>,
     /// Flat-field law of the intensity vote (the 180° decision with the sun within 8° of the
     /// horizon): the frames' relative illumination is cos^N of the field angle (0 = none).
-    /// Default: an image's `--preset` (camera cos^1.5, gniipi/gniicpi cos^4, nfpi none); a
+    /// Default: an image's --preset (camera cos^1.5, gniipi/gniicpi cos^4, nfpi none); a
     /// stream's recorded optics (or its preset).
     #[arg(long, value_name = "N")]
     pub(crate) vignetting_cos_power: Option<f64>,
@@ -284,7 +289,10 @@ fn heading_row(a: &HeadingArgs) -> Result<String> {
 /// The estimator's setup for one image: the options' sun (up), intrinsics and tilt.
 pub(crate) fn image_setup(a: &HeadingArgs) -> Result<HeadingSetup> {
     let (pitch, roll) = given_tilt(a)?;
-    let cfg = a.scene.scene()?;
+    let mut cfg = a.scene.scene()?;
+    if let Some(p) = a.preset {
+        cfg.raw.preset = p;
+    }
     let sun = cfg.sun.resolve()?;
     cfg.sun.check_up(sun)?;
     // lens: --lens, or the camera preset's (as psns render)
@@ -431,6 +439,11 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
     if a.bits.is_some() {
         return Err(Error::Invalid(
             "--bits: a stream's header gives the bit depth".into(),
+        ));
+    }
+    if a.preset.is_some() {
+        return Err(Error::Invalid(
+            "--preset: a stream's header records its preset and optics (--lens, --projection and --vignetting-cos-power override them)".into(),
         ));
     }
     let (pitch, roll) = given_tilt(a)?;
