@@ -356,6 +356,45 @@ fn median_of(v: &mut [f64]) -> f64 {
     *v.select_nth_unstable_by(m, f64::total_cmp).1
 }
 
+/// A pixel's lens basis for the model fit's residual: the sensor vector of an E-vector e is
+/// (e·m) ρ̂ + (e·s) φ̂ ([`crate::camera::Lens::sensor_vector`]; for the pinhole m = x̂, s = ŷ,
+/// ρ̂ = x̂, φ̂ = ŷ), so its AOP relative to ρ̂ is atan2(e·s, e·m); the observed AoLP φ relative to
+/// ρ̂ is kept as (cos 2φ′, sin 2φ′).
+struct SensorBasis {
+    m: DVec3,
+    s: DVec3,
+    c2: f64,
+    s2: f64,
+}
+
+impl SensorBasis {
+    fn new(lens: crate::camera::Lens, d: DVec3, phi: f64) -> Self {
+        let h = d.x.hypot(d.y);
+        let (m, s, rho) = match lens {
+            crate::camera::Lens::Ideal if h >= 1e-12 => {
+                let (ux, uy) = (d.x / h, d.y / h);
+                (
+                    DVec3::new(d.z * ux, d.z * uy, -h),
+                    DVec3::new(-uy, ux, 0.0),
+                    uy.atan2(ux),
+                )
+            }
+            _ => (DVec3::X, DVec3::Y, 0.0),
+        };
+        let (s2, c2) = (2.0 * (phi - rho)).sin_cos();
+        SensorBasis { m, s, c2, s2 }
+    }
+
+    /// Observed minus predicted AoLP of E-vector `e` (camera frame), wrapped to (−π/2, π/2].
+    #[inline]
+    fn residual(&self, e: DVec3) -> f64 {
+        let (a, b) = (e.dot(self.m), e.dot(self.s));
+        // doubled predicted angle: (a² − b², 2ab) ∝ (cos 2θ, sin 2θ)
+        let (pc, ps) = (a * a - b * b, 2.0 * a * b);
+        0.5 * (self.s2 * pc - self.c2 * ps).atan2(self.c2 * pc + self.s2 * ps)
+    }
+}
+
 /// An angle difference wrapped to (−π/2, π/2] (AoLP is axial).
 fn wrap_half_pi(d: f64) -> f64 {
     let h = std::f64::consts::FRAC_PI_2;
@@ -456,20 +495,26 @@ pub fn model_fit_heading(
         ]
     };
     let lens = i.lens();
+    // per pixel, once: its lens basis and its observed AoLP in that basis (doubled angle), so a
+    // residual costs a Berry E-vector, two dot products and one atan2
+    let bases: Vec<SensorBasis> = samples
+        .iter()
+        .map(|&(r, phi, _)| SensorBasis::new(lens, r, phi))
+        .collect();
     let residuals = |p: [f64; 4], out: &mut Vec<f64>| {
         let c = tilt * crate::camera::rot_z(p[0].to_radians());
         let ct = c.transpose();
         let f = BerryField::new(p[3], az, p[1], p[2]);
         samples
             .par_iter()
+            .zip(bases.par_iter())
             .with_min_len(1024)
-            .map(|&(r, phi, _)| {
+            .map(|(&(r, _, _), b)| {
                 let v = ct * r;
                 if v.z <= 0.0 {
                     return 0.0;
                 }
-                let e = c * f.eval(v).e;
-                wrap_half_pi(phi - lens.sensor_angle(r, e))
+                b.residual(c * f.e_only(v))
             })
             .collect_into_vec(out);
     };
@@ -1135,6 +1180,36 @@ mod tests {
 
     /// The true yaw and tilt read back from a stream quaternion are the Euler angles of
     /// `psns render --frame enu` (round trip through `camera_to_enu_quaternion`).
+    #[test]
+    fn sensor_basis_residual_is_the_wrapped_aop_difference() {
+        use crate::camera::Lens;
+        let rays = [
+            DVec3::new(0.0, 0.0, 1.0),
+            DVec3::new(0.3, -0.2, 1.0),
+            DVec3::new(-0.7, 0.5, 0.6),
+            DVec3::new(0.01, 0.9, 0.2),
+        ];
+        for lens in [Lens::Pinhole, Lens::Ideal] {
+            for d in rays {
+                let d = d.normalize();
+                for phi_deg in [-80.0f64, -10.0, 0.0, 33.0, 89.0, 135.0] {
+                    let phi = phi_deg.to_radians();
+                    let b = SensorBasis::new(lens, d, phi);
+                    for k in 0..12 {
+                        // an E-vector perpendicular to the ray
+                        let t = (k as f64 * 31.0).to_radians();
+                        let u = d.any_orthonormal_pair();
+                        let e = u.0 * t.cos() + u.1 * t.sin();
+                        let want = wrap_half_pi(phi - lens.sensor_angle(d, e));
+                        let got = b.residual(e);
+                        let diff = wrap_half_pi(got - want).abs();
+                        assert!(diff < 1e-9, "{lens:?} {d} {phi_deg} {t}: {got} vs {want}");
+                    }
+                }
+            }
+        }
+    }
+
     #[test]
     fn sampled_view_matches_the_full_frame() {
         // the sampled intrinsics' rays are the full frame's at the blocks' centres
