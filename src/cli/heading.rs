@@ -64,7 +64,8 @@ pub struct HeadingArgs {
     #[arg(long, conflicts_with_all = ["pitch", "roll"])]
     pub(crate) imu_tilt: bool,
     /// Stream input, for a consumer slower than the camera: always estimate the newest complete
-    /// frame. A reader thread keeps draining the stream (so the producer is never held up) and
+    /// frame. A reader thread keeps draining the stream (so a slow estimate never blocks the
+    /// producer's writes) and
     /// keeps only the latest frame; frames replaced before the estimator took them are skipped,
     /// counted in the summary and missing from the rows (frame_index shows the gaps).
     #[arg(long)]
