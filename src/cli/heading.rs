@@ -65,9 +65,9 @@ pub struct HeadingArgs {
     pub(crate) imu_tilt: bool,
     /// Stream input, for a consumer slower than the camera: always estimate the newest complete
     /// frame. A reader thread keeps draining the stream (so a slow estimate never blocks the
-    /// producer's writes) and
-    /// keeps only the latest frame; frames replaced before the estimator took them are skipped,
-    /// counted in the summary and missing from the rows (frame_index shows the gaps).
+    /// producer's writes) and keeps only the latest frame; frames replaced before the estimator
+    /// took them are skipped, counted in the summary and missing from the rows (frame_index
+    /// shows the gaps).
     #[arg(long)]
     pub(crate) latest: bool,
     /// Stream input, model fit: start each frame's neutral-point distances from the previous
