@@ -21,6 +21,7 @@
 use crate::camera::{rot_x, rot_y, Intrinsics};
 use crate::error::{check_range, Error, Result};
 use crate::image::Image;
+use crate::sensor::optics::RelativeIllumination;
 use crate::sun::SunPosition;
 use glam::{DMat3, DVec3};
 use rayon::prelude::*;
@@ -40,13 +41,20 @@ pub struct HeadingSetup {
     pub min_dolp: f64,
     /// Use every `step`-th pixel in each direction (1 = all).
     pub step: usize,
-    /// Flat-field correction of S0 for the intensity decision near the horizon: the image's
-    /// relative illumination is taken as cos^n of the field angle (default 1.5, the camera
-    /// preset's lens; 0 = none). Without it a tilted camera's vignetting outvotes the sky.
-    pub vignetting_cos_power: f64,
+    /// Flat-field correction of S0 for the intensity decision near the horizon: the frames'
+    /// relative illumination (default cos^1.5 of the field angle, the camera preset's lens; the
+    /// PSNS presets `gniipi`/`gniicpi` fall off as cos⁴, `nfpi` not at all:
+    /// [`crate::sensor::SensorConfig::effective_ri`]). Without it a tilted camera's vignetting
+    /// outvotes the sky.
+    pub relative_illumination: RelativeIllumination,
     /// Model fit only: fit the sun's zenith angle too (with one neutral-point distance), starting
     /// from `sun`'s.
     pub fit_elevation: bool,
+    /// Model fit only: start the neutral-point distances (δ_Ba, δ_Br, degrees) here instead of
+    /// at 25°, e.g. from the previous frame of a stream ([`ModelFitInfo`]); the robust weights
+    /// are then set from the first residuals and the fit may stop after 6 iterations instead of
+    /// 11. The yaw still starts from the eigenvector answer.
+    pub warm_start: Option<(f64, f64)>,
 }
 
 impl HeadingSetup {
@@ -59,8 +67,9 @@ impl HeadingSetup {
             sun,
             min_dolp: 0.05,
             step: 4,
-            vignetting_cos_power: 1.5,
+            relative_illumination: RelativeIllumination::CosPower { n: 1.5 },
             fit_elevation: false,
+            warm_start: None,
         }
     }
 }
@@ -161,12 +170,7 @@ pub fn eigenvector_heading(
     check_range("roll", setup.roll_deg, -90.0, 90.0)?;
     check_range("min-dolp", setup.min_dolp, 0.0, 1.0)?;
     setup.sun.check_up()?;
-    // at least every `step`-th pixel, and no more than about EIGEN_SAMPLES of them
-    let n_px = (i.width * i.height) as f64;
-    let step = setup
-        .step
-        .max((n_px / EIGEN_SAMPLES).sqrt().floor() as usize)
-        .max(1);
+    let step = sample_step(setup);
     let mut samples: Vec<(DVec3, f64)> = Vec::new();
     for row in (0..i.height).step_by(step) {
         for col in (0..i.width).step_by(step) {
@@ -204,8 +208,7 @@ pub fn eigenvector_heading(
     for _ in 0..4 {
         let s = vecs[0];
         let mut r: Vec<f64> = samples.iter().map(|(e, _)| e.dot(s).abs()).collect();
-        r.sort_by(f64::total_cmp);
-        let c = (4.685 * 1.4826 * r[r.len() / 2]).max(1e-4);
+        let c = (4.685 * 1.4826 * median_of(&mut r)).max(1e-4);
         (vals, vecs) = solve(&|e, d| {
             let u = e.dot(s) / c;
             if u.abs() >= 1.0 {
@@ -232,8 +235,7 @@ pub fn eigenvector_heading(
     };
     // the robust spread of the residual angles: noise (low light, low DoLP) and clouds widen it
     let mut r: Vec<f64> = samples.iter().map(|(e, _)| e.dot(s_c).abs()).collect();
-    r.sort_by(f64::total_cmp);
-    let spread_deg = (1.4826 * r[r.len() / 2]).asin().to_degrees();
+    let spread_deg = (1.4826 * median_of(&mut r)).asin().to_degrees();
     // A sun-direction error δ becomes a yaw error of about δ / sin(sun zenith). This method has a
     // bias of a few tenths of a degree in the sun's direction on the Berry sky, so its
     // confidence falls below sin 45° of horizontal sun component (with a 5° tilt and the sun at
@@ -347,6 +349,52 @@ fn solve_small(mut a: [[f64; 4]; 4], mut b: [f64; 4], n: usize) -> Option<[f64; 
     Some(x)
 }
 
+/// The element of rank len/2 (the upper median; what sorting and indexing [len / 2] gave), by
+/// selection instead of a full sort. `v` must not be empty; its order is changed.
+fn median_of(v: &mut [f64]) -> f64 {
+    let m = v.len() / 2;
+    *v.select_nth_unstable_by(m, f64::total_cmp).1
+}
+
+/// A pixel's lens basis for the model fit's residual: the sensor vector of an E-vector e is
+/// (e·m) ρ̂ + (e·s) φ̂ ([`crate::camera::Lens::sensor_vector`]; for the pinhole m = x̂, s = ŷ,
+/// ρ̂ = x̂, φ̂ = ŷ), so its AOP relative to ρ̂ is atan2(e·s, e·m); the observed AoLP φ relative to
+/// ρ̂ is kept as (cos 2φ′, sin 2φ′).
+struct SensorBasis {
+    m: DVec3,
+    s: DVec3,
+    c2: f64,
+    s2: f64,
+}
+
+impl SensorBasis {
+    fn new(lens: crate::camera::Lens, d: DVec3, phi: f64) -> Self {
+        let h = d.x.hypot(d.y);
+        let (m, s, rho) = match lens {
+            crate::camera::Lens::Ideal if h >= 1e-12 => {
+                let (ux, uy) = (d.x / h, d.y / h);
+                (
+                    DVec3::new(d.z * ux, d.z * uy, -h),
+                    DVec3::new(-uy, ux, 0.0),
+                    uy.atan2(ux),
+                )
+            }
+            _ => (DVec3::X, DVec3::Y, 0.0),
+        };
+        let (s2, c2) = (2.0 * (phi - rho)).sin_cos();
+        SensorBasis { m, s, c2, s2 }
+    }
+
+    /// Observed minus predicted AoLP of E-vector `e` (camera frame), wrapped to (−π/2, π/2].
+    #[inline]
+    fn residual(&self, e: DVec3) -> f64 {
+        let (a, b) = (e.dot(self.m), e.dot(self.s));
+        // doubled predicted angle: (a² − b², 2ab) ∝ (cos 2θ, sin 2θ)
+        let (pc, ps) = (a * a - b * b, 2.0 * a * b);
+        0.5 * (self.s2 * pc - self.c2 * ps).atan2(self.c2 * pc + self.s2 * ps)
+    }
+}
+
 /// An angle difference wrapped to (−π/2, π/2] (AoLP is axial).
 fn wrap_half_pi(d: f64) -> f64 {
     let h = std::f64::consts::FRAC_PI_2;
@@ -447,24 +495,32 @@ pub fn model_fit_heading(
         ]
     };
     let lens = i.lens();
+    // per pixel, once: its lens basis and its observed AoLP in that basis (doubled angle), so a
+    // residual costs a Berry E-vector, two dot products and one atan2
+    let bases: Vec<SensorBasis> = samples
+        .iter()
+        .map(|&(r, phi, _)| SensorBasis::new(lens, r, phi))
+        .collect();
     let residuals = |p: [f64; 4], out: &mut Vec<f64>| {
         let c = tilt * crate::camera::rot_z(p[0].to_radians());
         let ct = c.transpose();
         let f = BerryField::new(p[3], az, p[1], p[2]);
         samples
             .par_iter()
+            .zip(bases.par_iter())
             .with_min_len(1024)
-            .map(|&(r, phi, _)| {
+            .map(|(&(r, _, _), b)| {
                 let v = ct * r;
                 if v.z <= 0.0 {
                     return 0.0;
                 }
-                let e = c * f.eval(v).e;
-                wrap_half_pi(phi - lens.sensor_angle(r, e))
+                b.residual(c * f.e_only(v))
             })
             .collect_into_vec(out);
     };
-    let mut p = clamp([start.yaw_deg, 25.0, 25.0, setup.sun.zenith_deg]);
+    let (d_ba, d_br) = setup.warm_start.unwrap_or((25.0, 25.0));
+    let warm = setup.warm_start.is_some();
+    let mut p = clamp([start.yaw_deg, d_ba, d_br, setup.sun.zenith_deg]);
     // inverse-variance weights: the AoLP noise of a pixel is ∝ 1/DoLP
     let mut w: Vec<f64> = samples.iter().map(|s| s.2 * s.2).collect();
     let cost = |r: &[f64], w: &[f64]| r.iter().zip(w).map(|(r, w)| w * r * r).sum::<f64>();
@@ -474,8 +530,7 @@ pub fn model_fit_heading(
     let mut iterations = 0;
     let reweight = |r: &[f64], w: &mut Vec<f64>| {
         let mut a: Vec<f64> = r.iter().map(|x| x.abs()).collect();
-        a.sort_by(f64::total_cmp);
-        let c = (4.685 * 1.4826 * a[a.len() / 2]).max(0.5f64.to_radians());
+        let c = (4.685 * 1.4826 * median_of(&mut a)).max(0.5f64.to_radians());
         for (k, s) in samples.iter().enumerate() {
             let u = r[k] / c;
             w[k] = if u.abs() >= 1.0 {
@@ -489,7 +544,12 @@ pub fn model_fit_heading(
     let mut jac: Vec<[f64; 4]> = vec![[0.0; 4]; samples.len()];
     for it in 0..40 {
         iterations = it + 1;
-        if it == 2 || it == 5 || it == 9 {
+        let reweight_now = if warm {
+            it == 0 || it == 2 || it == 4
+        } else {
+            it == 2 || it == 5 || it == 9
+        };
+        if reweight_now {
             reweight(&r, &mut w);
         }
         // forward differences (the Jacobian only steers the steps; the answer is the residual's)
@@ -553,7 +613,7 @@ pub fn model_fit_heading(
             }
             lambda *= 4.0;
         }
-        if (!improved || converged) && it >= 10 {
+        if (!improved || converged) && it >= if warm { 5 } else { 10 } {
             break;
         }
     }
@@ -611,15 +671,25 @@ pub fn estimate_heading(
     view: &PolarView,
     setup: &HeadingSetup,
 ) -> Result<HeadingEstimate> {
+    estimate_heading_info(method, view, setup).map(|r| r.0)
+}
+
+/// [`estimate_heading`], with the model fit's [`ModelFitInfo`] (`None` for the other methods):
+/// what a stream passes on as the next frame's [`HeadingSetup::warm_start`].
+pub fn estimate_heading_info(
+    method: HeadingMethod,
+    view: &PolarView,
+    setup: &HeadingSetup,
+) -> Result<(HeadingEstimate, Option<ModelFitInfo>)> {
     if method == HeadingMethod::Hough {
-        return hough_heading(view, setup);
+        return hough_heading(view, setup).map(|e| (e, None));
     }
     let eigen = eigen_resolved(view, setup)?;
     match method {
-        HeadingMethod::Eigen => Ok(eigen),
+        HeadingMethod::Eigen => Ok((eigen, None)),
         HeadingMethod::ModelFit => {
             model_fit_heading(view.aolp_deg, view.dolp, setup, &eigen, setup.fit_elevation)
-                .map(|r| r.0)
+                .map(|(e, i)| (e, Some(i)))
         }
         HeadingMethod::Hough => unreachable!("handled above"),
     }
@@ -633,8 +703,8 @@ pub const HORIZON_ELEVATION_DEG: f64 = 8.0;
 /// with its mirror image across the vertical plane perpendicular to the sun's azimuth (level frame,
 /// from the known tilt): the pair sees the sky at the same zenith angle, sunward and anti-sunward,
 /// so neither the horizon brightening nor the shape of the field of view can bias the vote. Each
-/// pair votes with its S0 difference (flat-fielded by cos^n of the field angle,
-/// [`HeadingSetup::vignetting_cos_power`]) times its distance from that plane: the sunward half
+/// pair votes with its S0 difference (flat-fielded by the frames' relative illumination,
+/// [`HeadingSetup::relative_illumination`]) times its distance from that plane: the sunward half
 /// of the sky is brighter. Returned normalised to [−1, 1] (Σ ΔL x / Σ |ΔL| x); `None` without S0, with a
 /// sun at the zenith, or with fewer than 10 pairs inside the image.
 pub fn intensity_side(view: &PolarView, setup: &HeadingSetup, s_c: DVec3) -> Option<f64> {
@@ -647,13 +717,13 @@ pub fn intensity_side(view: &PolarView, setup: &HeadingSetup, s_c: DVec3) -> Opt
         return None;
     }
     let h = DVec3::new(u.x / hl, u.y / hl, 0.0);
-    let step = setup.step.max(1);
-    let n = setup.vignetting_cos_power;
-    let usable = |k: usize, ray: DVec3| {
+    let step = sample_step(setup);
+    let ri = setup.relative_illumination;
+    let usable = |k: usize, col: f64, row: f64| {
         let (l, d) = (s0.data[k] as f64, view.dolp.data[k] as f64);
-        // flat-field: divide by the relative illumination cos^n of the field angle
-        let ri = (ray.z / ray.length()).powf(n);
-        (l.is_finite() && d.is_finite() && l > 0.0 && ri > 0.0).then_some(l / ri)
+        // flat-field: divide by the relative illumination at the pixel
+        let f = ri.factor(i, col, row);
+        (l.is_finite() && d.is_finite() && l > 0.0 && f > 0.0).then_some(l / f)
     };
     let (mut num, mut den, mut pairs) = (0.0, 0.0, 0usize);
     for row in (0..i.height).step_by(step) {
@@ -675,7 +745,7 @@ pub fn intensity_side(view: &PolarView, setup: &HeadingSetup, s_c: DVec3) -> Opt
             }
             let k = row * i.width + col;
             let km = rm as usize * i.width + cm as usize;
-            let (Some(l), Some(lm)) = (usable(k, ray), i.ray(cm, rm).and_then(|r| usable(km, r)))
+            let (Some(l), Some(lm)) = (usable(k, col as f64, row as f64), usable(km, cm, rm))
             else {
                 continue;
             };
@@ -724,7 +794,8 @@ pub fn eigen_resolved(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingE
 /// compensated as in [`eigenvector_heading`].
 ///
 /// Confidence: the share of the votes near the peak, times the horizontal-sun factor, times the
-/// clarity of the side decision (|vote| / 0.2, at most 1). Needs S0 near the horizon.
+/// clarity of the side decision (|vote| / 0.2, at most 1), times the line's support (votes within
+/// ±1.5° of it / [`HOUGH_FULL_VOTES`], at most 1). Needs S0 near the horizon.
 pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEstimate> {
     let i = &setup.intrinsics;
     if (view.aolp_deg.width, view.aolp_deg.height) != (i.width, i.height)
@@ -740,7 +811,7 @@ pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEs
     let tt = tilt.transpose();
     let tol = 3f64.to_radians().cos();
     // (1 − cos ε) ∝ ε², so q below is (ε / 3°)² and the kernel is (1 − (ε/3°)²)²
-    let step = setup.step.max(1);
+    let step = sample_step(setup);
     const BINS: usize = 720;
     let mut hist = vec![0.0f64; BINS];
     let mut votes: Vec<(f64, f64, DVec3)> = Vec::new();
@@ -808,11 +879,11 @@ pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEs
             })
         }
     };
-    let mut wn = 0.0;
+    let (mut wn, mut nline) = (0.0, 0usize);
     for _ in 0..3 {
         let n = DVec3::new(-alpha.sin(), alpha.cos(), 0.0);
         let (mut sc, mut ss) = (0.0, 0.0);
-        wn = 0.0;
+        (wn, nline) = (0.0, 0);
         for &(a, d, v) in &votes {
             let dd = (a - alpha).rem_euclid(pi);
             if dd.min(pi - dd) > win || !inside(v - 2.0 * v.dot(n) * n) {
@@ -821,6 +892,7 @@ pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEs
             sc += d * (2.0 * a).cos();
             ss += d * (2.0 * a).sin();
             wn += d;
+            nline += 1;
         }
         if wn > 0.0 {
             alpha = 0.5 * ss.atan2(sc);
@@ -859,8 +931,14 @@ pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEs
     let s_c = tilt * u;
     let sun_enu = setup.sun.vector();
     let (yaw_deg, horiz) = yaw_from(u, sun_enu);
-    let confidence =
-        (share * (horiz / 0.17).min(1.0) * (side.abs() / 0.2).min(1.0)).clamp(0.0, 1.0);
+    // The share of the votes on the line is a ratio: it stays high when clouds hide most of the
+    // meridian and a handful of votes elsewhere make the peak (13 votes at 75 % cloud cover gave
+    // a 5.4° error at share 0.51), so the line's support, its number of votes, counts too.
+    let confidence = (share
+        * (horiz / 0.17).min(1.0)
+        * (side.abs() / 0.2).min(1.0)
+        * (nline as f64 / HOUGH_FULL_VOTES).min(1.0))
+    .clamp(0.0, 1.0);
     Ok(HeadingEstimate {
         yaw_deg,
         confidence,
@@ -952,8 +1030,24 @@ fn spread_factor(spread_deg: f64) -> f64 {
     1.0 / (1.0 + (spread_deg / 10.0).powi(2))
 }
 
-/// Pixels the eigenvector method aims for at most (larger frames are sampled more sparsely).
+/// Votes within ±1.5° of the solar meridian at which the Hough method's confidence is no longer
+/// reduced for lack of support (the 612 × 512 bench frames put 90-220 there on a clear sky).
+pub const HOUGH_FULL_VOTES: f64 = 100.0;
+
+/// Pixels the eigenvector and Hough methods and the intensity vote sample at most (larger frames
+/// are sampled more sparsely): a full 2448 × 2048 frame is read at every 11th pixel.
 pub const EIGEN_SAMPLES: f64 = 40_000.0;
+
+/// The sampling step of a frame: every `setup.step`-th pixel, or sparser so that no more than
+/// about [`EIGEN_SAMPLES`] pixels are read (frames up to about 800 × 800 are unaffected).
+pub fn sample_step(setup: &HeadingSetup) -> usize {
+    let i = &setup.intrinsics;
+    let n_px = (i.width * i.height) as f64;
+    setup
+        .step
+        .max((n_px / EIGEN_SAMPLES).sqrt().floor() as usize)
+        .max(1)
+}
 
 /// The horizontal sun component (sin of the sun's zenith angle) from which the eigenvector
 /// method's confidence is not reduced: sin 45°.
@@ -986,6 +1080,81 @@ pub fn mask_saturated(dolp: &mut Image<f32>, codes: &Image<u16>, full_scale: u16
     masked
 }
 
+/// The intrinsics of a frame read as every `k`-th 2 × 2 superpixel
+/// ([`crate::demosaic::superpixel::superpixel_sampled`]): (width / k) × (height / k) pixels of
+/// k times the pitch, output pixel (j, i) centred on mosaic position (k j + ½, k i + ½), so the
+/// principal point moves to ((c₀ − ½)/k, (r₀ − ½)/k). Same focal length, projection and lens.
+pub fn sampled_intrinsics(i: &Intrinsics, k: usize) -> Intrinsics {
+    let (c0, r0) = i.principal();
+    let kf = k as f64;
+    Intrinsics {
+        width: i.width / k,
+        height: i.height / k,
+        pixel_pitch_um: i.pixel_pitch_um * kf,
+        principal_point: Some([(c0 - 0.5) / kf, (r0 - 0.5) / kf]),
+        ..*i
+    }
+}
+
+/// The superpixel sampling step for a frame of `width` × `height`: the largest even k with
+/// (width / k)(height / k) ≥ [`EIGEN_SAMPLES`], or `None` when that is below 4 (frames under
+/// about 640 000 pixels, which the estimators read at every 4th pixel or closer anyway).
+pub fn superpixel_step(width: usize, height: usize) -> Option<usize> {
+    let s = ((width * height) as f64 / EIGEN_SAMPLES).sqrt().floor() as usize;
+    let k = s - s % 2;
+    (k >= 4).then_some(k)
+}
+
+/// [`mask_saturated`] for a superpixel-sampled view (`k` as in
+/// [`crate::demosaic::superpixel::superpixel_sampled`]): a sample is unusable when a code at
+/// `full_scale` lies in its 2 × 2 block or one pixel around it. Returns how many pixels of the
+/// whole frame are within one pixel of a code at full scale (what [`mask_saturated`] would mask).
+pub fn mask_saturated_sampled(
+    dolp: &mut Image<f32>,
+    codes: &Image<u16>,
+    full_scale: u16,
+    k: usize,
+) -> usize {
+    let (w, h) = (codes.width, codes.height);
+    let hot = |r: usize| codes.row(r).iter().any(|&v| v >= full_scale);
+    if !codes
+        .data
+        .par_chunks(w.max(1))
+        .any(|row| row.iter().any(|&v| v >= full_scale))
+    {
+        return 0;
+    }
+    for i in 0..dolp.height {
+        for j in 0..dolp.width {
+            let (r, c) = (k * i, k * j);
+            let bad = (r.saturating_sub(1)..(r + 3).min(h)).any(|rr| {
+                (c.saturating_sub(1)..(c + 3).min(w))
+                    .any(|cc| codes.data[rr * w + cc] >= full_scale)
+            });
+            if bad {
+                dolp.data[i * dolp.width + j] = f32::NAN;
+            }
+        }
+    }
+    // the frame's count, row by row in parallel
+    (0..h)
+        .into_par_iter()
+        .map(|r| {
+            if !(r.saturating_sub(1)..(r + 2).min(h)).any(hot) {
+                return 0;
+            }
+            (0..w)
+                .filter(|&c| {
+                    (r.saturating_sub(1)..(r + 2).min(h)).any(|rr| {
+                        (c.saturating_sub(1)..(c + 2).min(w))
+                            .any(|cc| codes.data[rr * w + cc] >= full_scale)
+                    })
+                })
+                .count()
+        })
+        .sum()
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -1011,6 +1180,81 @@ mod tests {
 
     /// The true yaw and tilt read back from a stream quaternion are the Euler angles of
     /// `psns render --frame enu` (round trip through `camera_to_enu_quaternion`).
+    #[test]
+    fn sensor_basis_residual_is_the_wrapped_aop_difference() {
+        use crate::camera::Lens;
+        let rays = [
+            DVec3::new(0.0, 0.0, 1.0),
+            DVec3::new(0.3, -0.2, 1.0),
+            DVec3::new(-0.7, 0.5, 0.6),
+            DVec3::new(0.01, 0.9, 0.2),
+        ];
+        for lens in [Lens::Pinhole, Lens::Ideal] {
+            for d in rays {
+                let d = d.normalize();
+                for phi_deg in [-80.0f64, -10.0, 0.0, 33.0, 89.0, 135.0] {
+                    let phi = phi_deg.to_radians();
+                    let b = SensorBasis::new(lens, d, phi);
+                    for k in 0..12 {
+                        // an E-vector perpendicular to the ray
+                        let t = (k as f64 * 31.0).to_radians();
+                        let u = d.any_orthonormal_pair();
+                        let e = u.0 * t.cos() + u.1 * t.sin();
+                        let want = wrap_half_pi(phi - lens.sensor_angle(d, e));
+                        let got = b.residual(e);
+                        let diff = wrap_half_pi(got - want).abs();
+                        assert!(diff < 1e-9, "{lens:?} {d} {phi_deg} {t}: {got} vs {want}");
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn sampled_view_matches_the_full_frame() {
+        // the sampled intrinsics' rays are the full frame's at the blocks' centres
+        let i = Intrinsics::with_size(2448, 2048);
+        let k = superpixel_step(i.width, i.height).unwrap();
+        assert_eq!(k, 10);
+        assert_eq!(superpixel_step(612, 512), None);
+        let si = sampled_intrinsics(&i, k);
+        assert_eq!((si.width, si.height), (244, 204));
+        for (j, r) in [(0usize, 0usize), (100, 50), (243, 203)] {
+            let a = si.ray(j as f64, r as f64).unwrap().normalize();
+            let b = i
+                .ray((k * j) as f64 + 0.5, (k * r) as f64 + 0.5)
+                .unwrap()
+                .normalize();
+            assert!((a - b).length() < 1e-12, "{a} {b}");
+        }
+        // and its samples are the superpixel blocks at those positions
+        let raw = Image::from_vec(
+            40,
+            24,
+            (0..40 * 24).map(|v| (v * 7 % 1000) as u16).collect(),
+        );
+        let layout = crate::sensor::mosaic::MosaicLayout::default();
+        let half = crate::demosaic::superpixel_half(&raw, layout).unwrap();
+        let p = crate::demosaic::superpixel::superpixel_sampled(&raw, layout, 4, 0.0).unwrap();
+        assert_eq!((p.dolp.width, p.dolp.height), (10, 6));
+        for r in 0..6 {
+            for j in 0..10 {
+                let h = (2 * r) * half.s0.width + 2 * j;
+                let q = r * 10 + j;
+                assert_eq!(p.stokes.s0.data[q], half.s0.data[h]);
+                assert_eq!(p.stokes.s1.data[q], half.s1.data[h]);
+                assert_eq!(p.stokes.s2.data[q], half.s2.data[h]);
+            }
+        }
+        // a full-scale code masks the samples around it and counts its 3 x 3 neighbourhood
+        let mut codes = Image::from_vec(40, 24, vec![100u16; 40 * 24]);
+        codes.data[9 * 40 + 8] = 4095;
+        let mut d = Image::from_vec(10, 6, vec![0.5f32; 60]);
+        assert_eq!(mask_saturated_sampled(&mut d, &codes, 4095, 4), 9);
+        let nan: Vec<usize> = (0..60).filter(|&q| d.data[q].is_nan()).collect();
+        assert_eq!(nan, vec![2 * 10 + 2]); // block (8..10, 8..10) plus one pixel around
+    }
+
     #[test]
     fn attitude_yaw_and_tilt_round_trip() {
         for (y, p, r) in [
@@ -1232,7 +1476,7 @@ mod tests {
                 -3.0,
             );
             let mut setup = setup;
-            setup.vignetting_cos_power = 0.0; // ideal radiance: no lens falloff to flat-field
+            setup.relative_illumination = RelativeIllumination::None; // ideal radiance: no lens falloff to flat-field
             let old = eigenvector_heading(&im.aop_deg, &im.dop, &setup).unwrap();
             if axial360(old.yaw_deg, yaw) > 90.0 {
                 old_wrong += 1;

@@ -148,7 +148,7 @@ fn heading_uses_the_streams_projection_and_lens() {
     let bytes = std::fs::read(&f).unwrap();
     let text = String::from_utf8_lossy(&bytes);
     assert!(
-        text.contains(r#""optics":{"lens":"ideal","projection":"equidistant"}"#),
+        text.contains(r#""optics":{"lens":"ideal","projection":"equidistant","relative_illumination":{"kind":"cospower","n":1.5}}"#),
         "the header records the optics"
     );
     // (|error_deg|, confidence) per frame

@@ -163,7 +163,9 @@ def heading(raw: np.ndarray, **sun_and_tilt: Any) -> Dict[str, float]:
     Give the sun (``sun_zenith``/``sun_altitude`` and ``sun_azimuth``, or ``time``, ``lat``,
     ``lon``), the camera's intrinsics if not the default camera (``width``, ``height``,
     ``focal_length``, ``pixel_pitch``) and its known tilt (``pitch``, ``roll``); also
-    ``method`` (model-fit, eigen, hough), ``demosaic`` and ``bits``. The estimate uses nothing
+    ``method`` (model-fit, eigen, hough), ``demosaic``, ``bits``, and ``preset`` (the sensor
+    preset the frame was made with: its lens and edge falloff) or ``vignetting_cos_power`` (the
+    falloff's cos^N law, for the 180 degree decision near the horizon). The estimate uses nothing
     else. Returns ``yaw_deg`` (NaN when too few pixels are usable), ``confidence`` (0..1),
     ``pixels`` and ``saturated_pixels``.
     """

@@ -11,13 +11,17 @@ use super::args::SceneArgs;
 use super::demosaic::{demosaic_codes, load_raw, LoadedRaw};
 use clap::Args;
 use psns::camera::{Attitude, Intrinsics, Lens, Projection};
+use psns::demosaic::superpixel::superpixel_sampled;
 use psns::demosaic::Method;
 use psns::heading::{
-    attitude_tilt_deg, attitude_yaw_deg, error_stats, estimate_heading, mask_saturated, wrap180,
-    HeadingEstimate, HeadingMethod, HeadingSetup, PolarView,
+    attitude_tilt_deg, attitude_yaw_deg, error_stats, estimate_heading_info, mask_saturated,
+    mask_saturated_sampled, sampled_intrinsics, superpixel_step, wrap180, HeadingEstimate,
+    HeadingMethod, HeadingSetup, ModelFitInfo, PolarView,
 };
 use psns::image::Image;
 use psns::sensor::mosaic::MosaicLayout;
+use psns::sensor::optics::RelativeIllumination;
+use psns::sensor::{Preset, SensorConfig};
 use psns::stream::{Event, StreamReader};
 use psns::sun::SunPosition;
 use psns::{Error, Result};
@@ -35,9 +39,11 @@ pub struct HeadingArgs {
     /// A stream gives the sun per frame and the intrinsics in its header (options override them).
     #[command(flatten)]
     pub(crate) scene: SceneArgs,
-    /// Demosaic method.
-    #[arg(long, default_value = "bilinear", value_parser = |s: &str| s.parse::<Method>().map_err(|e| e.to_string()))]
-    pub(crate) demosaic: Method,
+    /// Demosaic method (the whole frame). Default: bilinear; a frame of more than about 640 000
+    /// pixels (the full 2448 x 2048 sensor) is instead read as every k-th 2 x 2 superpixel only
+    /// (k even, about 40 000 samples: what the estimators read), the rest never demosaicked.
+    #[arg(long, value_parser = |s: &str| s.parse::<Method>().map_err(|e| e.to_string()))]
+    pub(crate) demosaic: Option<Method>,
     /// Estimator: model-fit (Berry field fitted from the eigenvector answer; default, the most
     /// accurate), eigen (sun vector), hough (solar meridian).
     #[arg(long, default_value = "model-fit", value_parser = |s: &str| s.parse::<HeadingMethod>().map_err(|e| e.to_string()))]
@@ -57,6 +63,46 @@ pub struct HeadingArgs {
     /// as an IMU would supply them; otherwise --pitch/--roll (default level).
     #[arg(long, conflicts_with_all = ["pitch", "roll"])]
     pub(crate) imu_tilt: bool,
+    /// Stream input, for a consumer slower than the camera: always estimate the newest complete
+    /// frame. A reader thread keeps draining the stream (so a slow estimate never blocks the
+    /// producer's writes) and keeps only the latest frame; frames replaced before the estimator
+    /// took them are skipped, counted in the summary and missing from the rows (frame_index
+    /// shows the gaps).
+    #[arg(long)]
+    pub(crate) latest: bool,
+    /// Stream input, model fit: start each frame's neutral-point distances from the previous
+    /// frame's fit (when its confidence was at least 0.5) and stop after 6 iterations instead of
+    /// 11 when converged; the yaw still starts from the frame's own eigenvector answer.
+    #[arg(long)]
+    pub(crate) warm_start: bool,
+    /// Image input: the sensor preset the frame was made with (camera, nfpi, gniipi, gniicpi), as
+    /// in `psns render --raw`: its lens is the default of --lens and its relative illumination the
+    /// flat-field law. A stream's header records both.
+    #[arg(long, value_parser = super::args::parse_preset)]
+    pub(crate) preset: Option<Preset>,
+    /// Flat-field law of the intensity vote (the 180° decision with the sun within 8° of the
+    /// horizon): the frames' relative illumination is cos^N of the field angle (0 = none).
+    /// Default: an image's --preset (camera cos^1.5, gniipi/gniicpi cos^4, nfpi none); a
+    /// stream's recorded optics (or its preset).
+    #[arg(long, value_name = "N")]
+    pub(crate) vignetting_cos_power: Option<f64>,
+}
+
+/// The relative illumination to flat-field S0 by: `--vignetting-cos-power`, else `default`.
+fn flat_field(a: &HeadingArgs, default: RelativeIllumination) -> Result<RelativeIllumination> {
+    Ok(match a.vignetting_cos_power {
+        Some(n) => {
+            let ri = if n == 0.0 {
+                RelativeIllumination::None
+            } else {
+                RelativeIllumination::CosPower { n }
+            };
+            ri.validate()
+                .map_err(|_| Error::range("vignetting-cos-power", n, "0..8"))?;
+            ri
+        }
+        None => default,
+    })
 }
 
 /// Runs `psns heading`: one row `yaw_deg,confidence,pixels,saturated_pixels` for an image, or a
@@ -81,16 +127,28 @@ fn check_method_options(a: &HeadingArgs) -> Result<()> {
             a.method
         )));
     }
+    if a.warm_start && a.method != HeadingMethod::ModelFit {
+        return Err(Error::Invalid(format!(
+            "--warm-start applies to --method model-fit, not {}",
+            a.method
+        )));
+    }
     Ok(())
 }
 
 /// The option checks of one image (not a stream), shared with `psns.heading` in Python.
 pub(crate) fn check_image_options(a: &HeadingArgs) -> Result<()> {
     check_method_options(a)?;
-    if a.imu_tilt {
-        return Err(Error::Invalid(
-            "--imu-tilt applies to stream input only".into(),
-        ));
+    for (name, given) in [
+        ("imu-tilt", a.imu_tilt),
+        ("latest", a.latest),
+        ("warm-start", a.warm_start),
+    ] {
+        if given {
+            return Err(Error::Invalid(format!(
+                "--{name} applies to stream input only"
+            )));
+        }
     }
     Ok(())
 }
@@ -152,6 +210,41 @@ pub fn polar_from_codes(
     Ok((p, saturated))
 }
 
+/// [`polar_from_codes`] for what the estimators read: with no `--demosaic` and a frame large
+/// enough ([`superpixel_step`]), every k-th superpixel only, with the intrinsics of that sampled
+/// view ([`sampled_intrinsics`]) in the returned setup; otherwise the whole frame.
+fn polar_for_estimate(
+    codes: &Image<u16>,
+    black_level: f64,
+    layout: MosaicLayout,
+    bits: u8,
+    demosaic: Option<Method>,
+    setup: &HeadingSetup,
+) -> Result<(psns::demosaic::PolarImages, usize, HeadingSetup)> {
+    let k = superpixel_step(codes.width, codes.height);
+    match (demosaic, k) {
+        (None, Some(k)) => {
+            let full = ((1u32 << bits) - 1).min(65535) as u16;
+            let mut p = superpixel_sampled(codes, layout, k, black_level as f32)?;
+            let saturated = mask_saturated_sampled(&mut p.dolp, codes, full, k);
+            let mut s = *setup;
+            s.intrinsics = sampled_intrinsics(&setup.intrinsics, k);
+            s.step = 1;
+            Ok((p, saturated, s))
+        }
+        (d, _) => {
+            let (p, saturated) = polar_from_codes(
+                codes,
+                black_level,
+                layout,
+                bits,
+                d.unwrap_or(Method::Bilinear),
+            )?;
+            Ok((p, saturated, *setup))
+        }
+    }
+}
+
 /// The estimate from one mosaic: demosaic, mask clipped pixels, estimate. `Ok(None)` when too few
 /// pixels are usable (the reason on stderr); also returns the number of masked pixels.
 fn estimate_codes(
@@ -159,22 +252,23 @@ fn estimate_codes(
     black_level: f64,
     layout: MosaicLayout,
     bits: u8,
-    demosaic: Method,
+    demosaic: Option<Method>,
     method: HeadingMethod,
     setup: &HeadingSetup,
-) -> Result<(Option<HeadingEstimate>, usize)> {
-    let (p, saturated) = polar_from_codes(codes, black_level, layout, bits, demosaic)?;
+) -> Result<(Option<HeadingEstimate>, usize, Option<ModelFitInfo>)> {
+    let (p, saturated, setup) =
+        polar_for_estimate(codes, black_level, layout, bits, demosaic, setup)?;
     let view = PolarView {
         aolp_deg: &p.aolp_deg,
         dolp: &p.dolp,
         s0: Some(&p.stokes.s0),
     };
-    match estimate_heading(method, &view, setup) {
-        Ok(e) => Ok((Some(e), saturated)),
+    match estimate_heading_info(method, &view, &setup) {
+        Ok((e, info)) => Ok((Some(e), saturated, info)),
         // too few usable pixels (saturated, unpolarized): no heading, zero confidence
         Err(Error::Invalid(m)) if m.starts_with("heading: only") => {
             eprintln!("psns: {m}");
-            Ok((None, saturated))
+            Ok((None, saturated, None))
         }
         Err(e) => Err(e),
     }
@@ -196,7 +290,10 @@ fn heading_row(a: &HeadingArgs) -> Result<String> {
 /// The estimator's setup for one image: the options' sun (up), intrinsics and tilt.
 pub(crate) fn image_setup(a: &HeadingArgs) -> Result<HeadingSetup> {
     let (pitch, roll) = given_tilt(a)?;
-    let cfg = a.scene.scene()?;
+    let mut cfg = a.scene.scene()?;
+    if let Some(p) = a.preset {
+        cfg.raw.preset = p;
+    }
     let sun = cfg.sun.resolve()?;
     cfg.sun.check_up(sun)?;
     // lens: --lens, or the camera preset's (as psns render)
@@ -204,6 +301,13 @@ pub(crate) fn image_setup(a: &HeadingArgs) -> Result<HeadingSetup> {
     setup.pitch_deg = pitch;
     setup.roll_deg = roll;
     setup.fit_elevation = a.fit_sun_elevation;
+    // the falloff of the preset's (or the configured) sensor, as psns render makes it
+    let sensor = cfg
+        .raw
+        .sensor
+        .clone()
+        .unwrap_or_else(|| SensorConfig::preset(cfg.raw.preset));
+    setup.relative_illumination = flat_field(a, sensor.effective_ri())?;
     Ok(setup)
 }
 
@@ -241,21 +345,43 @@ pub(crate) fn estimate_loaded(
         a.method,
         setup,
     )
+    .map(|(e, sat, _)| (e, sat))
 }
 
 /// Columns of the per-frame CSV of a stream.
 pub const STREAM_HEADER: &str =
     "frame_index,yaw_deg,confidence,pixels,true_yaw_deg,error_deg,saturated_pixels,ms";
 
-/// Intrinsics of a stream: its header's, each overridden by an option given.
-fn stream_intrinsics(a: &HeadingArgs, h: &psns::stream::FileHeader) -> Result<Intrinsics> {
+/// Intrinsics of a stream, its header's, each overridden by an option given; and the relative
+/// illumination of its frames: `--vignetting-cos-power`, else the header's `optics` record, else
+/// its sensor configuration, else its preset's.
+fn stream_optics(
+    a: &HeadingArgs,
+    h: &psns::stream::FileHeader,
+) -> Result<(Intrinsics, RelativeIllumination)> {
     let s = &a.scene;
     let c = &h.camera;
     // the stream's record of its optics; a stream without one was rendered rectilinear through
     // the pinhole (psns before the lens option)
-    let optics: Option<serde_json::Value> = serde_json::from_str::<serde_json::Value>(&h.json)
-        .ok()
-        .and_then(|v| v.get("optics").cloned());
+    let doc: Option<serde_json::Value> = serde_json::from_str(&h.json).ok();
+    let optics: Option<serde_json::Value> = doc.as_ref().and_then(|v| v.get("optics").cloned());
+    let recorded_ri = optics
+        .as_ref()
+        .and_then(|o| o.get("relative_illumination"))
+        .and_then(|v| serde_json::from_value::<RelativeIllumination>(v.clone()).ok());
+    let sensor_ri = || {
+        doc.as_ref()
+            .and_then(|v| v.pointer("/scene/raw/sensor"))
+            .and_then(|v| serde_json::from_value::<SensorConfig>(v.clone()).ok())
+            .map(|sc| sc.effective_ri())
+    };
+    let preset_ri = || {
+        h.preset
+            .parse::<Preset>()
+            .map(|p| SensorConfig::preset(p).effective_ri())
+            .unwrap_or_default()
+    };
+    let ri = flat_field(a, recorded_ri.or_else(sensor_ri).unwrap_or_else(preset_ri))?;
     let recorded = |key: &str| -> Option<String> {
         optics
             .as_ref()
@@ -296,7 +422,7 @@ fn stream_intrinsics(a: &HeadingArgs, h: &psns::stream::FileHeader) -> Result<In
         }
     }
     i.validate()?;
-    Ok(i)
+    Ok((i, ri))
 }
 
 fn run_stream(a: &HeadingArgs) -> Result<()> {
@@ -316,9 +442,14 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
             "--bits: a stream's header gives the bit depth".into(),
         ));
     }
+    if a.preset.is_some() {
+        return Err(Error::Invalid(
+            "--preset: a stream's header records its preset and optics (--lens, --projection and --vignetting-cos-power override them)".into(),
+        ));
+    }
     let (pitch, roll) = given_tilt(a)?;
-    let mut reader = StreamReader::new(super::open_input(&a.input)?)?;
-    let mut intr = stream_intrinsics(a, reader.header())?;
+    let reader = StreamReader::new(super::open_input(&a.input)?)?;
+    let (mut intr, mut ri) = stream_optics(a, reader.header())?;
     let mut out = std::io::stdout().lock();
     let w = |out: &mut std::io::StdoutLock, line: &str| -> Result<()> {
         writeln!(out, "{line}")
@@ -326,44 +457,29 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
             .map_err(|e| Error::io("writing stdout", e))
     };
     w(&mut out, STREAM_HEADER)?;
-    let (mut errors, mut frames, mut none, mut damaged) = (Vec::new(), 0usize, 0usize, 0usize);
+    let (mut errors, mut frames, mut none) = (Vec::new(), 0usize, 0usize);
     let mut total_s = 0.0;
-    while let Some(ev) = reader.next_event()? {
-        let f = match ev {
-            Event::Frame(f) => f,
-            Event::Restart(_) => {
-                intr = stream_intrinsics(a, reader.header())?;
-                continue;
-            }
-            Event::Gap { from, to } => {
-                eprintln!("psns: frames {from}..{to} missing (dropped)");
-                continue;
-            }
-            Event::Corrupt { index, reason, .. } => {
-                damaged += 1;
-                eprintln!("psns: damaged record (frame {index:?}): {reason}");
-                continue;
-            }
-            Event::Truncated { index, .. } => {
-                damaged += 1;
-                eprintln!("psns: stream ends inside a record (frame {index:?})");
-                continue;
-            }
-            Event::Skipped { .. } => continue,
-        };
-        if a.index.is_some_and(|n| n != f.meta.index) {
-            continue;
+    let mut source = if a.latest {
+        FrameSource::latest(reader, a.index)
+    } else {
+        FrameSource::Sequential {
+            reader: Box::new(reader),
+            index: a.index,
+            damaged: 0,
+            generation: 0,
         }
-        if !f.payload_crc_ok {
-            damaged += 1;
-            eprintln!(
-                "psns: frame {}: payload CRC mismatch, skipped",
-                f.meta.index
-            );
-            continue;
+    };
+    let mut generation = 0u64;
+    let mut warm: Option<(f64, f64)> = None;
+    while let Some((gen, h, f)) = source.next()? {
+        if gen != generation {
+            // the stream restarted with a new header
+            generation = gen;
+            (intr, ri) = stream_optics(a, &h)?;
+            warm = None;
         }
         let t0 = Instant::now();
-        let h = reader.header();
+        let h = &h;
         let codes = Image::from_vec(h.width as usize, h.height as usize, f.codes(h)?);
         let black = if h.msb_aligned {
             f.meta.black_level / 2f64.powi(16 - h.bits_valid as i32)
@@ -381,12 +497,16 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         setup.pitch_deg = p;
         setup.roll_deg = r;
         setup.fit_elevation = a.fit_sun_elevation;
+        setup.relative_illumination = ri;
+        if a.warm_start {
+            setup.warm_start = warm;
+        }
         let est = if sun.check_up().is_err() {
             eprintln!(
                 "psns: frame {}: sun elevation {} deg, below the horizon",
                 m.index, m.sun_elevation_deg
             );
-            (None, 0)
+            (None, 0, None)
         } else {
             estimate_codes(
                 &codes,
@@ -403,7 +523,12 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         frames += 1;
         // the truth is read only here, after the estimate, for the error column
         let truth = attitude_yaw_deg(m.attitude_wxyz);
-        let line = match est {
+        // the next frame starts from this one's neutral points, if this one was trustworthy
+        warm = match (&est.0, &est.2) {
+            (Some(e), Some(i)) if e.confidence >= 0.5 => Some((i.babinet_deg, i.brewster_deg)),
+            _ => None,
+        };
+        let line = match (est.0, est.1) {
             (Some(e), sat) => {
                 let err = wrap180(e.yaw_deg - truth);
                 errors.push(err);
@@ -419,13 +544,176 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         };
         w(&mut out, &line)?;
     }
+    let (damaged, skipped) = source.finish()?;
     let st = error_stats(&errors);
+    let skipped = if a.latest {
+        format!(", {skipped} skipped for newer frames")
+    } else {
+        String::new()
+    };
     eprintln!(
-        "psns heading: {frames} frames ({none} without an estimate, {damaged} damaged); error RMS {:.4} deg, p95 {:.4}, max {:.4}; {:.1} ms per frame",
+        "psns heading: {frames} frames ({none} without an estimate, {damaged} damaged{skipped}); error RMS {:.4} deg, p95 {:.4}, max {:.4}; {:.1} ms per frame",
         st.rms,
         st.p95,
         st.max,
         if frames > 0 { total_s * 1e3 / frames as f64 } else { f64::NAN }
     );
     Ok(())
+}
+
+type Reader = StreamReader<Box<dyn std::io::Read + Send + Sync>>;
+
+/// Where `psns heading` takes a stream's frames from: in order, or (`--latest`) the newest
+/// complete frame from a reader thread. Yields (header generation, header, frame).
+enum FrameSource {
+    Sequential {
+        reader: Box<Reader>,
+        index: Option<u64>,
+        damaged: usize,
+        generation: u64,
+    },
+    Latest {
+        shared: std::sync::Arc<(std::sync::Mutex<Mailbox>, std::sync::Condvar)>,
+        thread: Option<std::thread::JoinHandle<()>>,
+    },
+}
+
+/// The one-frame slot between the reader thread and the estimator (`--latest`).
+#[derive(Default)]
+struct Mailbox {
+    slot: Option<(u64, psns::stream::FileHeader, psns::stream::Frame)>,
+    done: bool,
+    error: Option<Error>,
+    damaged: usize,
+    skipped: usize,
+}
+
+/// A frame event of a stream as `psns heading` treats it: `Some` for a good frame (of the
+/// `--index` wanted), `None` for anything else (reported on stderr; `damaged` counts damage).
+fn usable_frame(
+    ev: Event,
+    index: Option<u64>,
+    damaged: &mut usize,
+    generation: &mut u64,
+) -> Option<psns::stream::Frame> {
+    match ev {
+        Event::Frame(f) => {
+            if index.is_some_and(|n| n != f.meta.index) {
+                return None;
+            }
+            if !f.payload_crc_ok {
+                *damaged += 1;
+                eprintln!(
+                    "psns: frame {}: payload CRC mismatch, skipped",
+                    f.meta.index
+                );
+                return None;
+            }
+            Some(f)
+        }
+        Event::Restart(_) => {
+            *generation += 1;
+            None
+        }
+        Event::Gap { from, to } => {
+            eprintln!("psns: frames {from}..{to} missing (dropped)");
+            None
+        }
+        Event::Corrupt { index, reason, .. } => {
+            *damaged += 1;
+            eprintln!("psns: damaged record (frame {index:?}): {reason}");
+            None
+        }
+        Event::Truncated { index, .. } => {
+            *damaged += 1;
+            eprintln!("psns: stream ends inside a record (frame {index:?})");
+            None
+        }
+        Event::Skipped { .. } => None,
+    }
+}
+
+impl FrameSource {
+    /// Starts the reader thread of `--latest`: it reads as fast as the stream delivers and keeps
+    /// only the newest good frame, counting the ones it replaces before the estimator took them.
+    fn latest(mut reader: Reader, index: Option<u64>) -> FrameSource {
+        use std::sync::{Arc, Condvar, Mutex};
+        let shared = Arc::new((Mutex::new(Mailbox::default()), Condvar::new()));
+        let sh = shared.clone();
+        let thread = std::thread::spawn(move || {
+            let (lock, cv) = &*sh;
+            let (mut generation, mut damaged) = (0u64, 0usize);
+            let result = (|| -> Result<()> {
+                while let Some(ev) = reader.next_event()? {
+                    let Some(f) = usable_frame(ev, index, &mut damaged, &mut generation) else {
+                        continue;
+                    };
+                    let h = reader.header().clone();
+                    let mut m = lock.lock().unwrap_or_else(|p| p.into_inner());
+                    if m.slot.replace((generation, h, f)).is_some() {
+                        m.skipped += 1;
+                    }
+                    cv.notify_one();
+                }
+                Ok(())
+            })();
+            let mut m = lock.lock().unwrap_or_else(|p| p.into_inner());
+            m.done = true;
+            m.damaged = damaged;
+            m.error = result.err();
+            cv.notify_one();
+        });
+        FrameSource::Latest {
+            shared,
+            thread: Some(thread),
+        }
+    }
+
+    fn next(&mut self) -> Result<Option<(u64, psns::stream::FileHeader, psns::stream::Frame)>> {
+        match self {
+            FrameSource::Sequential {
+                reader,
+                index,
+                damaged,
+                generation,
+            } => {
+                while let Some(ev) = reader.next_event()? {
+                    if let Some(f) = usable_frame(ev, *index, damaged, generation) {
+                        return Ok(Some((*generation, reader.header().clone(), f)));
+                    }
+                }
+                Ok(None)
+            }
+            FrameSource::Latest { shared, .. } => {
+                let (lock, cv) = &**shared;
+                let mut m = lock.lock().unwrap_or_else(|p| p.into_inner());
+                loop {
+                    if let Some(x) = m.slot.take() {
+                        return Ok(Some(x));
+                    }
+                    if m.done {
+                        return Ok(None);
+                    }
+                    m = cv.wait(m).unwrap_or_else(|p| p.into_inner());
+                }
+            }
+        }
+    }
+
+    /// (damaged records, frames skipped for newer ones); the reader thread's error, if any.
+    fn finish(&mut self) -> Result<(usize, usize)> {
+        match self {
+            FrameSource::Sequential { damaged, .. } => Ok((*damaged, 0)),
+            FrameSource::Latest { shared, thread } => {
+                if let Some(t) = thread.take() {
+                    let _ = t.join();
+                }
+                let mut m = shared.0.lock().unwrap_or_else(|p| p.into_inner());
+                match m.error.take() {
+                    Some(e) => Err(e),
+                    None => Ok((m.damaged, m.skipped)),
+                }
+            }
+        }
+    }
 }

@@ -430,7 +430,8 @@ pub fn stream_header(
 /// Compact JSON of the scene (with the sensor in force) and the stream settings, shortened to fit
 /// the header: first without the full sensor configuration, then the stream settings alone. The
 /// projection and lens the frames were rendered with are always there, as
-/// `"optics": {"projection": "rectilinear", "lens": "ideal"}` (`psns heading` reads them).
+/// `"optics": {"projection": "rectilinear", "lens": "ideal", "relative_illumination":
+/// {"kind": "cospower", "n": 1.5}}` (`psns heading` reads them: the falloff is its flat-field).
 fn header_json(cfg: &SceneConfig, pipe: &RawPipeline, extra: serde_json::Value) -> String {
     let mut scene = cfg.clone();
     scene.derived = None;
@@ -440,6 +441,7 @@ fn header_json(cfg: &SceneConfig, pipe: &RawPipeline, extra: serde_json::Value) 
     let optics = serde_json::json!({
         "projection": intr.projection,
         "lens": intr.lens(),
+        "relative_illumination": pipe.sensor_config().effective_ri(),
     });
     let with_sensor = {
         let mut s = scene.clone();

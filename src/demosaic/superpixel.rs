@@ -160,3 +160,56 @@ pub(crate) fn channels<T: RawPixel>(raw: &Image<T>, layout: MosaicLayout) -> [Ve
         });
     out
 }
+
+/// Superpixel Stokes, DoLP and AoLP of every `k`-th 2 × 2 block only (`k` even, ≥ 2): output
+/// pixel (i, j) is the block at rows k i, k i + 1 and columns k j, k j + 1, so the output is
+/// (width / k) × (height / k), its pixel centre at (k j + ½, k i + ½) of the mosaic. `black` is
+/// subtracted from every code. For a consumer that reads only a sample of a large frame
+/// (`psns heading`): the rest of the frame is never demosaicked.
+pub fn superpixel_sampled<T: RawPixel>(
+    raw: &Image<T>,
+    layout: MosaicLayout,
+    k: usize,
+    black: f32,
+) -> Result<super::PolarImages> {
+    check_raw(raw)?;
+    if k < 2 || k % 2 != 0 {
+        return Err(crate::error::Error::Invalid(format!(
+            "superpixel sampling step {k}: must be even and at least 2"
+        )));
+    }
+    let (ow, oh) = (raw.width / k, raw.height / k);
+    let off = offsets(&layout);
+    let mut st = StokesImage::zeros(ow, oh);
+    let mut dolp = Image::new(ow, oh);
+    let mut aolp = Image::new(ow, oh);
+    st.s0
+        .data
+        .par_chunks_mut(ow.max(1))
+        .zip(st.s1.data.par_chunks_mut(ow.max(1)))
+        .zip(st.s2.data.par_chunks_mut(ow.max(1)))
+        .zip(dolp.data.par_chunks_mut(ow.max(1)))
+        .zip(aolp.data.par_chunks_mut(ow.max(1)))
+        .enumerate()
+        .for_each(|(i, ((((o0, o1), o2), od), oa))| {
+            let rows = [raw.row(k * i), raw.row(k * i + 1)];
+            for j in 0..ow {
+                let v = off.map(|(dr, dc)| rows[dr][k * j + dc].to_f32() - black);
+                let (s0, s1, s2) = (
+                    0.5 * ((v[0] + v[2]) + (v[1] + v[3])),
+                    v[0] - v[2],
+                    v[1] - v[3],
+                );
+                o0[j] = s0;
+                o1[j] = s1;
+                o2[j] = s2;
+                od[j] = crate::stokes::dolp(s0, s1, s2);
+                oa[j] = crate::stokes::aolp_deg(s1, s2);
+            }
+        });
+    Ok(super::PolarImages {
+        stokes: st,
+        dolp,
+        aolp_deg: aolp,
+    })
+}

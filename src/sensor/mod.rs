@@ -264,6 +264,19 @@ impl SensorConfig {
         presets::config(p)
     }
 
+    /// The relative illumination the frames actually carry: `ri` when the RI stage is on (and,
+    /// for a PSNS model, its own falloff switch), otherwise none. `nfpi` has none, `gniipi` and
+    /// `gniicpi` cos⁴, the camera preset cos^1.5. What a flat-field (e.g. the heading's
+    /// intensity vote) must divide by.
+    pub fn effective_ri(&self) -> RelativeIllumination {
+        let on = self.stages.ri && self.psns.as_ref().is_none_or(|p| p.relative_illumination);
+        if on {
+            self.ri
+        } else {
+            RelativeIllumination::None
+        }
+    }
+
     /// Checks every parameter and the frame size (multiples of 4, non-zero).
     pub fn validate(&self, width: usize, height: usize) -> Result<()> {
         check_size(width, height)?;
@@ -452,8 +465,8 @@ impl Sensor {
         cfg.validate(w, h)?;
         let st = &cfg.stages;
         // the stage switch always applies; a PSNS model also has its own falloff switch
-        let want_ri = st.ri && cfg.psns.as_ref().is_none_or(|p| p.relative_illumination);
-        let ri = (want_ri && cfg.ri != RelativeIllumination::None).then(|| cfg.ri.map(intrinsics));
+        let eff = cfg.effective_ri();
+        let ri = (eff != RelativeIllumination::None).then(|| eff.map(intrinsics));
         let camera = cfg.psns.is_none();
         let axis =
             (camera && st.polarizer_orientation && cfg.orientation_sigma_deg > 0.0).then(|| {

@@ -309,21 +309,34 @@ pub fn unpack(
         PixelFormat::Mono16 => {
             let s = if msb_aligned { 16 - bits_valid } else { 0 };
             let low_mask = (1u16 << s) - 1;
-            for b in payload.chunks_exact(2) {
-                let w = u16::from_le_bytes([b[0], b[1]]);
-                if w & low_mask != 0 {
+            // straight-line loops the compiler vectorises; the first offending value is looked
+            // up only when there is one (same error as checking value by value)
+            v.extend(
+                payload
+                    .chunks_exact(2)
+                    .map(|b| u16::from_le_bytes([b[0], b[1]])),
+            );
+            if low_mask != 0 {
+                if v.iter().fold(0u16, |acc, &w| acc | (w & low_mask)) != 0 {
+                    let w = v.iter().find(|&&w| w & low_mask != 0).copied().unwrap_or(0);
                     return Err(Error::Format(format!(
                         "MSB-aligned Mono16 value {w:#06x} has bits set below the {bits_valid} valid bits"
                     )));
                 }
-                v.push(w >> s);
+                for w in &mut v {
+                    *w >>= s;
+                }
             }
         }
     }
     debug_assert_eq!(v.len(), n);
     if bits_valid < 16 {
         let limit = 1u32 << bits_valid;
-        if let Some(i) = v.iter().position(|&c| c as u32 >= limit) {
+        let over = v.iter().fold(false, |acc, &c| acc | (c as u32 >= limit));
+        if let Some(i) = over
+            .then(|| v.iter().position(|&c| c as u32 >= limit))
+            .flatten()
+        {
             return Err(Error::Format(format!(
                 "pixel {i} holds {} which exceeds {bits_valid} valid bits",
                 v[i]
