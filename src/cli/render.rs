@@ -100,18 +100,24 @@ pub fn render_ideal_to_dir(cfg: &SceneConfig, target: &Path) -> Result<RenderSum
     let out = OutDir::begin(target, RENDER_FILES)?;
     let dir = out.path();
     let mut progress = Progress::new("psns render", Unit::Steps, Some(IDEAL_STEPS), false);
-    let (summary, extra) = write_ideal(&sky, &cam, dir, &mut progress)?;
+    progress.set_message("ideal images");
+    let d = render_ideal(&sky, &cam);
+    progress.inc(1);
+    let mut files = Vec::new();
+    write_files(dir, ideal_jobs(&d), &mut progress, &mut files)?;
     let derived = Derived {
         sun: Some(sky.sun()),
-        extra,
+        extra: d.extra.clone(),
     };
     let mut scene = cfg.clone();
     scene.derived = Some(derived);
     write_scene_json(dir, &scene)?;
     out.commit()?;
-    let mut summary = summary;
-    summary.files.push("scene.json".into());
-    Ok(summary)
+    files.push("scene.json".into());
+    Ok(RenderSummary {
+        render_s: d.render_s,
+        files,
+    })
 }
 
 /// Peak resident bytes per pixel of `psns render` and `render --raw` (measured at 1000² and
@@ -133,51 +139,55 @@ fn check_size(cfg: &SceneConfig, bytes_per_pixel: u64) -> Result<()> {
     )
 }
 
-/// Renders and writes the ideal images (everything of `psns render` but `scene.json`); returns
-/// what was written and the values `scene.json` records.
-fn write_ideal(
-    sky: &psns::sky::Sky,
-    cam: &psns::camera::Camera,
+/// A file to write: its name in the run's directory and the function that writes it.
+type FileJob<'a> = (String, Box<dyn FnOnce(&Path) -> Result<()> + Send + 'a>);
+
+fn job<'a>(name: &str, f: impl FnOnce(&Path) -> Result<()> + Send + 'a) -> FileJob<'a> {
+    (name.to_string(), Box::new(f))
+}
+
+/// Writes the files side by side (each PNG or npy encoder runs on one core, so one after the
+/// other they left a core idle), counting each on `progress`; appends their names to `files` in
+/// the order given. On an error the run's directory is never committed (nothing is written).
+fn write_files(
     dir: &Path,
+    jobs: Vec<FileJob>,
     progress: &mut Progress,
-) -> Result<(RenderSummary, serde_json::Map<String, serde_json::Value>)> {
+    files: &mut Vec<String>,
+) -> Result<()> {
+    use rayon::prelude::*;
+    let progress = std::sync::Mutex::new(progress);
+    let names = jobs
+        .into_par_iter()
+        .map(|(name, write)| {
+            write(&dir.join(&name))?;
+            let mut p = progress.lock().unwrap();
+            p.set_message(name.as_str());
+            p.inc(1);
+            Ok(name)
+        })
+        .collect::<Result<Vec<_>>>()?;
+    files.extend(names);
+    Ok(())
+}
+
+/// The ideal images of a sky (everything of `psns render` but `scene.json`).
+struct Ideal {
+    ideal: render::IdealImages,
+    q8: [Image<u16>; 4],
+    q16: [Image<u16>; 4],
+    render_s: f64,
+    extra: serde_json::Map<String, serde_json::Value>,
+}
+
+/// Renders the ideal images (exact per pixel) and the values `scene.json` records.
+fn render_ideal(sky: &psns::sky::Sky, cam: &psns::camera::Camera) -> Ideal {
     let t0 = Instant::now();
-    progress.set_message("ideal images");
     let ideal = render::render_ideal(sky, cam);
     let render_s = t0.elapsed().as_secs_f64();
-    progress.inc(1);
-    let mut files = Vec::new();
-    let mut put = |name: &str| {
-        progress.set_message(name);
-        progress.inc(1);
-        files.push(name.to_string());
-        dir.join(name)
-    };
-    io::write_npy(&put("li.npy"), &ideal.li)?;
-    io::write_npy(&put("dop.npy"), &ideal.dop)?;
-    io::write_npy(&put("aop.npy"), &ideal.aop_deg)?;
     let pol = render::polarizer_images(&ideal);
     let (kappa8, q8) = render::quantize_polarizer_images(&pol, 255.0);
     let (_, q16) = render::quantize_polarizer_images(&pol, 65535.0);
-    for (k, a) in [0, 45, 90, 135].iter().enumerate() {
-        let g8 = Image::from_vec(
-            q8[k].width,
-            q8[k].height,
-            q8[k].data.iter().map(|&v| v as u8).collect(),
-        );
-        io::write_png_gray8(&put(&format!("i{a}.png")), &g8)?;
-        io::write_png_gray16(&put(&format!("i{a}_16bit.png")), &q16[k])?;
-    }
-    let white = vis::quantile(&ideal.li, 0.999);
-    io::write_png_gray8(&put("li.png"), &vis::gray8(&ideal.li, white))?;
-    io::write_png_rgb8(
-        &put("dop.png"),
-        &vis::dop_rgb(&ideal.dop, Some(&ideal.valid)),
-    )?;
-    io::write_png_rgb8(
-        &put("aop.png"),
-        &vis::aop_rgb(&ideal.aop_deg, Some(&ideal.valid)),
-    )?;
     let valid = ideal.valid.data.iter().filter(|&&v| v != 0).count();
     let mut extra = serde_json::Map::new();
     extra.insert("kappa_8bit".into(), kappa8.into());
@@ -186,7 +196,48 @@ fn write_ideal(
         "ground_pixels".into(),
         (ideal.valid.data.len() - valid).into(),
     );
-    Ok((RenderSummary { render_s, files }, extra))
+    Ideal {
+        ideal,
+        q8,
+        q16,
+        render_s,
+        extra,
+    }
+}
+
+/// The files of the ideal images, in `psns render`'s order.
+fn ideal_jobs(d: &Ideal) -> Vec<FileJob<'_>> {
+    let ideal = &d.ideal;
+    let mut jobs = vec![
+        job("li.npy", |p| io::write_npy(p, &ideal.li)),
+        job("dop.npy", |p| io::write_npy(p, &ideal.dop)),
+        job("aop.npy", |p| io::write_npy(p, &ideal.aop_deg)),
+    ];
+    for (k, a) in [0, 45, 90, 135].iter().enumerate() {
+        let (q8, q16) = (&d.q8[k], &d.q16[k]);
+        jobs.push(job(&format!("i{a}.png"), move |p| {
+            let g8 = Image::from_vec(
+                q8.width,
+                q8.height,
+                q8.data.iter().map(|&v| v as u8).collect(),
+            );
+            io::write_png_gray8(p, &g8)
+        }));
+        jobs.push(job(&format!("i{a}_16bit.png"), move |p| {
+            io::write_png_gray16(p, q16)
+        }));
+    }
+    jobs.push(job("li.png", |p| {
+        let white = vis::quantile(&ideal.li, 0.999);
+        io::write_png_gray8(p, &vis::gray8(&ideal.li, white))
+    }));
+    jobs.push(job("dop.png", |p| {
+        io::write_png_rgb8(p, &vis::dop_rgb(&ideal.dop, Some(&ideal.valid)))
+    }));
+    jobs.push(job("aop.png", |p| {
+        io::write_png_rgb8(p, &vis::aop_rgb(&ideal.aop_deg, Some(&ideal.valid)))
+    }));
+    jobs
 }
 
 /// Writes `scene.json` (atomically), with the sun written out.
@@ -233,66 +284,74 @@ pub fn render_raw_to_dir(cfg: &SceneConfig, target: &Path) -> Result<RawSummary>
             0
         };
     let mut progress = Progress::new("psns render", Unit::Steps, Some(total), false);
-    progress.set_message("raw frame");
-    let (frame, info, scene_s) = pipe.render_configured_timed()?;
-    progress.inc(1);
-    let sensor_s = t1.elapsed().as_secs_f64() - scene_s;
+    progress.set_message("raw frame and ideal images");
+    // the raw frame and the ideal images side by side (each alone leaves a core idle at times)
+    let (raw, ideal) = rayon::join(
+        || {
+            let r = pipe.render_configured_timed();
+            (r, t1.elapsed().as_secs_f64())
+        },
+        || {
+            ideal_scene
+                .as_ref()
+                .map(|(sky, cam)| render_ideal(sky, cam))
+        },
+    );
+    let ((frame, info, scene_s), raw_s) = (raw.0?, raw.1);
+    progress.inc(if ideal.is_some() { 2 } else { 1 });
+    let sensor_s = raw_s - scene_s;
     let outdir = OutDir::begin(target, RENDER_FILES)?;
     let dir = outdir.path();
-    let (mut files, mut extra) = match &ideal_scene {
-        Some((sky, cam)) => {
-            let (s, x) = write_ideal(sky, cam, dir, &mut progress)?;
-            (s.files, x)
-        }
+    let mut files = Vec::new();
+    let (mut jobs, mut extra) = match &ideal {
+        Some(d) => (ideal_jobs(d), d.extra.clone()),
         None => (Vec::new(), serde_json::Map::new()),
     };
-    let mut put = |name: &str| {
-        progress.set_message(name);
-        progress.inc(1);
-        files.push(name.to_string());
-        dir.join(name)
-    };
     let codes = &frame.codes;
-    if frame.bit_depth <= 8 {
-        let g = Image::from_vec(
+    let bits = frame.bit_depth;
+    jobs.push(job("raw.png", move |p| {
+        if bits <= 8 {
+            let g = Image::from_vec(
+                codes.width,
+                codes.height,
+                codes.data.iter().map(|&v| v as u8).collect(),
+            );
+            io::write_png_gray8(p, &g)
+        } else {
+            io::write_png_gray16(p, codes)
+        }
+    }));
+    jobs.push(job("raw.tiff", move |p| io::write_tiff_u16(p, codes)));
+    let format = cfg.raw.pixel_format;
+    jobs.push(job("raw.bin", move |p| {
+        let mut packed = Vec::new();
+        psns::sensor::packing::pack(&codes.data, bits, format, false, &mut packed)?;
+        io::write_atomic(p, |w| {
+            w.write_all(&packed)
+                .map_err(|e| Error::io("writing raw.bin", e))
+        })
+    }));
+    jobs.push(job("raw_view.png", move |p| {
+        let full = ((1u32 << bits) - 1) as f64;
+        let view = Image::from_vec(
             codes.width,
             codes.height,
-            codes.data.iter().map(|&v| v as u8).collect(),
+            codes
+                .data
+                .iter()
+                .map(|&v| (v as f64 / full * 255.0).round() as u8)
+                .collect(),
         );
-        io::write_png_gray8(&put("raw.png"), &g)?;
-    } else {
-        io::write_png_gray16(&put("raw.png"), codes)?;
-    }
-    io::write_tiff_u16(&put("raw.tiff"), codes)?;
-    let mut packed = Vec::new();
-    psns::sensor::packing::pack(
-        &codes.data,
-        frame.bit_depth,
-        cfg.raw.pixel_format,
-        false,
-        &mut packed,
-    )?;
-    io::write_atomic(&put("raw.bin"), |w| {
-        w.write_all(&packed)
-            .map_err(|e| Error::io("writing raw.bin", e))
-    })?;
-    let full = ((1u32 << frame.bit_depth) - 1) as f64;
-    let view = Image::from_vec(
-        codes.width,
-        codes.height,
-        codes
-            .data
-            .iter()
-            .map(|&v| (v as f64 / full * 255.0).round() as u8)
-            .collect(),
-    );
-    io::write_png_gray8(&put("raw_view.png"), &view)?;
-    io::write_npy(&put("truth_s0.npy"), &frame.truth.s0)?;
-    io::write_npy(&put("truth_s1.npy"), &frame.truth.s1)?;
-    io::write_npy(&put("truth_s2.npy"), &frame.truth.s2)?;
+        io::write_png_gray8(p, &view)
+    }));
+    let truth = &frame.truth;
+    jobs.push(job("truth_s0.npy", |p| io::write_npy(p, &truth.s0)));
+    jobs.push(job("truth_s1.npy", |p| io::write_npy(p, &truth.s1)));
+    jobs.push(job("truth_s2.npy", |p| io::write_npy(p, &truth.s2)));
     let (dolp, aolp) = frame.truth_dolp_aolp();
-    io::write_npy(&put("truth_dolp.npy"), &dolp)?;
-    io::write_npy(&put("truth_aolp.npy"), &aolp)?;
+    jobs.push(job("truth_dolp.npy", move |p| io::write_npy(p, &dolp)));
+    jobs.push(job("truth_aolp.npy", move |p| io::write_npy(p, &aolp)));
+    write_files(dir, jobs, &mut progress, &mut files)?;
     // scene.json: the whole configuration plus what this frame measured
     let mut out = cfg.clone();
     out.raw.sensor = Some(pipe.sensor_config().clone());
