@@ -160,31 +160,8 @@ impl BerryField {
     /// `hypot` (the same to rounding; the heading model fit evaluates it ~10⁶ times a frame).
     #[inline]
     pub fn e_only(&self, v: DVec3) -> DVec3 {
-        let k = 1.0 / (1.0 + v.z);
-        let zeta = Complex64::new(v.y * k, v.x * k);
-        let zr = zeta * self.sun_dir.conj();
-        let (tp, tm) = (self.t_plus, self.t_minus);
-        let f1 = Complex64::new(zr.re - tp, zr.im);
-        let f2 = Complex64::new(zr.re - tm, zr.im);
-        let f3 = Complex64::new(1.0 + tp * zr.re, tp * zr.im);
-        let f4 = Complex64::new(1.0 + tm * zr.re, tm * zr.im);
-        let p = -((f1 * f2) * (f3 * f4));
-        let r = (p.re * p.re + p.im * p.im).sqrt();
-        let (hx, hy) = if p.re >= 0.0 {
-            (r + p.re, p.im)
-        } else {
-            (p.im, r - p.re)
-        };
-        let h2 = hx * hx + hy * hy;
-        if h2 <= 0.0 {
-            return chart_basis(v).0;
-        }
-        let inv = 1.0 / h2.sqrt();
-        let q = self.sun_dir * Complex64::new(hx * inv, hy * inv);
-        let xy = v.x * v.y * k;
-        let n = DVec3::new(-xy, 1.0 - v.y * v.y * k, -v.y);
-        let east = DVec3::new(1.0 - v.x * v.x * k, -xy, -v.x);
-        n * q.re + east * q.im
+        let (k, p) = self.chart_p(v);
+        self.e_vector(v, k, p, (p.re * p.re + p.im * p.im).sqrt())
     }
 
     /// |w| and the unit 3-D E-vector for a unit ENU view vector `v` with v.z > −1 (any point of
@@ -192,6 +169,26 @@ impl BerryField {
     /// products.
     #[inline]
     pub fn eval(&self, v: DVec3) -> BerryEval {
+        let (k, p) = self.chart_p(v);
+        let r = p.norm();
+        // (1 + |ζ|²)² = 4/(1 + v_z)², so |w| = |p| (1 + v_z)² / ((1+t₊²)(1+t₋²)).
+        let opz = 1.0 + v.z;
+        if self.is_neutral(p, r) {
+            // neutral point: direction undefined, return χ = 0
+            return BerryEval {
+                abs_w: 0.0,
+                e: chart_basis(v).0,
+            };
+        }
+        BerryEval {
+            abs_w: r * opz * opz * self.inv_norm,
+            e: self.e_vector(v, k, p, r),
+        }
+    }
+
+    /// k = 1/(1 + v_z) and p, with w e^{−2iA_s} = e^{2iA_s} p × (positive), so χ = A_s + ½ arg p.
+    #[inline]
+    fn chart_p(&self, v: DVec3) -> (f64, Complex64) {
         let k = 1.0 / (1.0 + v.z);
         // ζ' = ζ e^{−iA_s}: chart rotated so the sun's azimuth is the real axis.
         let zeta = Complex64::new(v.y * k, v.x * k);
@@ -201,39 +198,43 @@ impl BerryField {
         let f2 = Complex64::new(zr.re - tm, zr.im);
         let f3 = Complex64::new(1.0 + tp * zr.re, tp * zr.im);
         let f4 = Complex64::new(1.0 + tm * zr.re, tm * zr.im);
-        // w e^{−2iA_s} = e^{2iA_s} p × (positive), so χ = A_s + ½ arg p.
-        let p = -((f1 * f2) * (f3 * f4));
-        let r = p.norm();
-        // (1 + |ζ|²)² = 4/(1 + v_z)², so |w| = |p| (1 + v_z)² / ((1+t₊²)(1+t₋²)).
-        let opz = 1.0 + v.z;
-        let abs_w = r * opz * opz * self.inv_norm;
-        // Half-angle direction of p without trig: ∝ (r + Re p, Im p), or (Im p, r − Re p) when
-        // Re p < 0 (the same direction, better conditioned).
-        let (hx, hy) = if p.re >= 0.0 {
-            (r + p.re, p.im)
-        } else {
-            (p.im, r - p.re)
-        };
+        (k, -((f1 * f2) * (f3 * f4)))
+    }
+
+    /// Whether the half-angle direction of p (|p| = r) is undefined (a neutral point).
+    #[inline]
+    fn is_neutral(&self, p: Complex64, r: f64) -> bool {
+        let (hx, hy) = half_angle(p, r);
+        hx * hx + hy * hy <= 0.0
+    }
+
+    /// The unit E-vector of direction χ = A_s + ½ arg p at `v` (k and p from
+    /// [`Self::chart_p`], r = |p|); the chart's first basis vector at a neutral point.
+    #[inline]
+    fn e_vector(&self, v: DVec3, k: f64, p: Complex64, r: f64) -> DVec3 {
+        let (hx, hy) = half_angle(p, r);
         let h2 = hx * hx + hy * hy;
-        let (c, s) = if h2 > 0.0 {
-            let inv = 1.0 / h2.sqrt();
-            (hx * inv, hy * inv)
-        } else {
-            // neutral point: direction undefined, return χ = 0
-            return BerryEval {
-                abs_w: 0.0,
-                e: chart_basis(v).0,
-            };
-        };
+        if h2 <= 0.0 {
+            return chart_basis(v).0;
+        }
+        let inv = 1.0 / h2.sqrt();
         // Rotate back by A_s: e^{iχ} = e^{iA_s} (c + i s).
-        let q = self.sun_dir * Complex64::new(c, s);
+        let q = self.sun_dir * Complex64::new(hx * inv, hy * inv);
         let xy = v.x * v.y * k;
         let n = DVec3::new(-xy, 1.0 - v.y * v.y * k, -v.y);
         let east = DVec3::new(1.0 - v.x * v.x * k, -xy, -v.x);
-        BerryEval {
-            abs_w,
-            e: n * q.re + east * q.im,
-        }
+        n * q.re + east * q.im
+    }
+}
+
+/// Half-angle direction of p without trig: ∝ (r + Re p, Im p), or (Im p, r − Re p) when Re p < 0
+/// (the same direction, better conditioned); r = |p|.
+#[inline]
+fn half_angle(p: Complex64, r: f64) -> (f64, f64) {
+    if p.re >= 0.0 {
+        (r + p.re, p.im)
+    } else {
+        (p.im, r - p.re)
     }
 }
 
