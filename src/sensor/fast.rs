@@ -28,31 +28,116 @@ use super::Sensor;
 use crate::image::StokesRows;
 use rayon::prelude::*;
 
-/// Defines `$vis fn $name(args) -> ret` that calls the `#[inline(always)]` kernel `$body` with AVX2
-/// and FMA enabled where the CPU has them (its loops then vectorise), plainly otherwise. Both give
-/// the same bits: the kernels' `mul_add` is exactly rounded with or without the instruction, and
-/// plain `*` and `+` are never fused. Used by every row kernel of the fast path and the PSNS
-/// presets.
-macro_rules! avx2_dispatch {
+/// Defines `$vis fn $name(args) -> ret` that calls the `#[inline(always)]` kernel `$body` built
+/// for the instruction set [`simd`] chooses: AVX-512 (F, BW, DQ, VL with AVX2 and FMA), AVX2 with
+/// FMA, or plain x86-64. The loops vectorise in each build; all give the same bits: the kernels'
+/// `mul_add` is exactly rounded with or without the instruction, plain `*` and `+` are never
+/// fused, and division, square root, min, max and conversions are exact IEEE operations in every
+/// instruction set (`simd_paths_agree` checks it). Used by every row kernel of the fast path and
+/// the PSNS presets.
+macro_rules! simd_dispatch {
     ($(#[$m:meta])* $vis:vis fn $name:ident = $body:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)?) => {
         $(#[$m])*
         #[allow(clippy::too_many_arguments)]
         $vis fn $name($($arg: $ty),*) $(-> $ret)? {
             #[cfg(target_arch = "x86_64")]
-            if $crate::sensor::fast::has_avx2_fma() {
+            {
+                #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl,avx2,fma")]
+                #[allow(clippy::too_many_arguments)]
+                unsafe fn avx512($($arg: $ty),*) $(-> $ret)? {
+                    $body($($arg),*)
+                }
                 #[target_feature(enable = "avx2,fma")]
                 #[allow(clippy::too_many_arguments)]
                 unsafe fn avx2($($arg: $ty),*) $(-> $ret)? {
                     $body($($arg),*)
                 }
-                // SAFETY: the CPU has AVX2 and FMA (checked above)
-                return unsafe { avx2($($arg),*) };
+                match $crate::sensor::fast::simd() {
+                    // SAFETY: `simd` never returns more than the CPU has
+                    $crate::sensor::fast::Simd::Avx512 => return unsafe { avx512($($arg),*) },
+                    // SAFETY: as above
+                    $crate::sensor::fast::Simd::Avx2 => return unsafe { avx2($($arg),*) },
+                    $crate::sensor::fast::Simd::Plain => {}
+                }
             }
             $body($($arg),*)
         }
     };
 }
-pub(crate) use avx2_dispatch;
+pub(crate) use simd_dispatch;
+
+/// Instruction sets the row kernels are built for ([`simd_dispatch`]), in increasing order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Simd {
+    /// Baseline x86-64 (SSE2), and every other architecture.
+    Plain,
+    /// AVX2 and FMA.
+    Avx2,
+    /// AVX-512 F, BW, DQ and VL (with AVX2 and FMA).
+    Avx512,
+}
+
+impl Simd {
+    /// The best the CPU has.
+    pub fn detected() -> Simd {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::is_x86_feature_detected as has;
+            let avx2 = has!("avx2") && has!("fma");
+            if avx2 && has!("avx512f") && has!("avx512bw") && has!("avx512dq") && has!("avx512vl")
+            {
+                return Simd::Avx512;
+            }
+            if avx2 {
+                return Simd::Avx2;
+            }
+        }
+        Simd::Plain
+    }
+
+    /// Parses `plain`, `avx2` or `avx512`.
+    pub fn parse(s: &str) -> Option<Simd> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "plain" => Some(Simd::Plain),
+            "avx2" => Some(Simd::Avx2),
+            "avx512" => Some(Simd::Avx512),
+            _ => None,
+        }
+    }
+}
+
+thread_local! {
+    static SIMD_OVERRIDE: std::cell::Cell<Option<Simd>> = const { std::cell::Cell::new(None) };
+}
+
+/// The instruction set of the row kernels: the best the CPU has, capped by the environment
+/// variable `PSNS_SIMD` (`plain`, `avx2` or `avx512`, read once; for comparing and timing the
+/// builds) and, on the calling thread only, by [`with_simd`]. Every choice gives the same bits.
+pub fn simd() -> Simd {
+    static PROCESS: std::sync::OnceLock<Simd> = std::sync::OnceLock::new();
+    let p = *PROCESS.get_or_init(|| {
+        let cpu = Simd::detected();
+        std::env::var("PSNS_SIMD")
+            .ok()
+            .and_then(|v| Simd::parse(&v))
+            .map_or(cpu, |cap| cap.min(cpu))
+    });
+    SIMD_OVERRIDE.with(|o| o.get()).map_or(p, |cap| cap.min(p))
+}
+
+/// Runs `f` with the row kernels called on this thread (not on rayon's workers) capped at `s`
+/// (for tests that compare the builds).
+pub fn with_simd<R>(s: Simd, f: impl FnOnce() -> R) -> R {
+    let prev = SIMD_OVERRIDE.with(|o| o.replace(Some(s)));
+    struct Restore(Option<Simd>);
+    impl Drop for Restore {
+        fn drop(&mut self) {
+            SIMD_OVERRIDE.with(|o| o.set(self.0));
+        }
+    }
+    let _restore = Restore(prev);
+    f()
+}
 
 /// Below this mean (e⁻) shot noise is sampled exactly by inversion of the Poisson CDF.
 pub const EXACT_POISSON_BELOW: f64 = 16.0;
@@ -654,8 +739,8 @@ fn row_body(
     }
 }
 
-avx2_dispatch! {
-    /// [`row_body`], built for AVX2 and FMA when the CPU has them.
+simd_dispatch! {
+    /// [`row_body`], built for the best instruction set the CPU has ([`simd`]).
     fn row_kernel = row_body(
         fc: &FrameConsts,
         folded: bool,
@@ -678,15 +763,10 @@ fn normals_body(key: &NoiseKey, idx0: u32, z: &mut [f32]) {
     }
 }
 
-avx2_dispatch! {
+simd_dispatch! {
     /// [`normal_from_bits`] of `key.bits(idx0 + i)` for every i of `z` (any length), vectorised
-    /// with AVX2 where the CPU has it; the same bits either way.
+    /// with the best instruction set the CPU has; the same bits in every one.
     pub(crate) fn normals_into = normals_body(key: &NoiseKey, idx0: u32, z: &mut [f32])
-}
-
-#[cfg(target_arch = "x86_64")]
-pub(crate) fn has_avx2_fma() -> bool {
-    std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
 }
 
 /// Output of [`render_codes`].
@@ -849,6 +929,111 @@ mod tests {
         let shifted = (0..1_000_000u32).any(|s| b.bits(s) == first[0] && b.bits(s + 1) == first[1]);
         assert!(!shifted);
     }
+    /// The levels this CPU can run, plain first.
+    pub(crate) fn levels() -> Vec<Simd> {
+        [Simd::Plain, Simd::Avx2, Simd::Avx512]
+            .into_iter()
+            .filter(|&l| l <= Simd::detected())
+            .collect()
+    }
+
+    /// The row kernel and the normals give the same bits in every instruction set the CPU has
+    /// (plain, AVX2, AVX-512), folded and unfolded, over means from 0 to past the full well.
+    #[test]
+    fn simd_paths_agree() {
+        let w = 1000usize; // not a multiple of the block or of any vector width
+        let key = NoiseKey::new(5, 9, 1);
+        // a spread of Stokes values: dark, low (exact Poisson), mid, near and past the full well,
+        // negative rates, a non-finite value
+        let s0: Vec<f32> = (0..w)
+            .map(|i| match i % 97 {
+                0 => 0.0,
+                1 => f32::NAN,
+                2 => -1e-3,
+                _ => 1e-6 * 1.2f32.powi((i % 89) as i32),
+            })
+            .collect();
+        let s1: Vec<f32> = (0..w).map(|i| s0[i] * (0.4 - (i % 7) as f32 * 0.1)).collect();
+        let s2: Vec<f32> = (0..w).map(|i| s0[i] * (0.3 - (i % 5) as f32 * 0.12)).collect();
+        let gain: Vec<u16> = (0..w).map(|i| 31_000 + (i * 37 % 3_000) as u16).collect();
+        let delta: Vec<i16> = (0..w).map(|i| (i * 53 % 4_001) as i16 - 2_000).collect();
+        let dsnu: Vec<i16> = (0..w).map(|i| (i * 71 % 2_001) as i16 - 1_000).collect();
+        let cos0: Vec<f32> = (0..w).map(|i| [1.0, 0.0, -1.0, 0.0][i % 4]).collect();
+        let sin0: Vec<f32> = (0..w).map(|i| [0.0, 1.0, 0.0, -1.0][i % 4]).collect();
+        let sr = StaticRow {
+            gain: &gain,
+            delta: &delta,
+            dsnu: &dsnu,
+            cos0: &cos0,
+            sin0: &sin0,
+            scale: 1.0e7,
+            b: 0.98,
+        };
+        let run = |fc: &FrameConsts| -> Vec<(Vec<u32>, Vec<u16>, [u32; 4])> {
+            let (folded, mu_hi) = (fc.folded(), fc.mu_high() as f32);
+            levels()
+                .into_iter()
+                .map(|l| {
+                    with_simd(l, || {
+                        let mut mu = vec![0f32; w];
+                        let mut out = vec![0u16; w];
+                        let mut sat = [0u32; 4];
+                        let mut mus = Vec::new();
+                        let mut outs = Vec::new();
+                        for r in 0..6 {
+                            let s = [&s0[..], &s1[..], &s2[..]];
+                            row_kernel(
+                                fc, folded, mu_hi, s, &sr, r * w, r, &mut mu, &mut out, &mut sat,
+                            );
+                            mus.extend(mu.iter().map(|m| m.to_bits()));
+                            outs.extend_from_slice(&out);
+                        }
+                        (mus, outs, sat)
+                    })
+                })
+                .collect()
+        };
+        let base = FrameConsts {
+            t: 1e-3,
+            dark_e: 0.3,
+            fwc: 10500.0,
+            fwc_clip: true,
+            shot: true,
+            sigma_read: 2.5,
+            kg: 0.39,
+            black: 4.0,
+            max: 4095,
+            shot_key: key,
+            read_key: NoiseKey::new(5, 9, 2),
+        };
+        let low_read = FrameConsts {
+            sigma_read: 0.5, // not folded: every pixel through the unfolded kernel
+            ..base
+        };
+        let no_shot = FrameConsts {
+            shot: false,
+            ..base
+        };
+        for (name, fc) in [("folded", base), ("unfolded", low_read), ("no shot", no_shot)] {
+            let r = run(&fc);
+            assert!(r[0].1.iter().any(|&c| c == fc.max), "{name}: no saturated pixel");
+            assert!(r[0].1.iter().any(|&c| c > 0 && c < 40), "{name}: no dark pixel");
+            for (l, x) in levels().iter().zip(&r).skip(1) {
+                assert!(x == &r[0], "{name}: {l:?} differs from plain");
+            }
+        }
+        let z: Vec<Vec<u32>> = levels()
+            .into_iter()
+            .map(|l| {
+                with_simd(l, || {
+                    let mut z = vec![0f32; 100_003];
+                    normals_into(&key, 17, &mut z);
+                    z.iter().map(|v| v.to_bits()).collect()
+                })
+            })
+            .collect();
+        assert!(z.iter().all(|x| x == &z[0]));
+    }
 }
 
 #[cfg(test)]
@@ -895,56 +1080,54 @@ mod speed {
         let mut out = vec![0u16; w];
         let mut sat = [0u32; 4];
         let rows = 2000;
-        let t0 = std::time::Instant::now();
-        for r in 0..rows {
-            let s = [&s0[..], &s1[..], &s2[..]];
-            row_kernel(
-                &fc,
-                true,
-                f32::MAX,
-                s,
-                &sr,
-                r * w,
-                r,
-                &mut mu,
-                &mut out,
-                &mut sat,
-            );
+        for level in super::tests::levels() {
+            with_simd(level, || {
+                let t0 = std::time::Instant::now();
+                for r in 0..rows {
+                    let s = [&s0[..], &s1[..], &s2[..]];
+                    row_kernel(
+                        &fc,
+                        true,
+                        f32::MAX,
+                        s,
+                        &sr,
+                        r * w,
+                        r,
+                        &mut mu,
+                        &mut out,
+                        &mut sat,
+                    );
+                }
+                let ns = t0.elapsed().as_secs_f64() * 1e9 / (rows * w) as f64;
+                println!("{level:?} folded: {ns:.2} ns/pixel (mu {})", mu[0]);
+                let t0 = std::time::Instant::now();
+                for r in 0..rows / 10 {
+                    let s = [&s0[..], &s1[..], &s2[..]];
+                    row_kernel(
+                        &fc,
+                        false,
+                        0.0,
+                        s,
+                        &sr,
+                        r * w,
+                        r,
+                        &mut mu,
+                        &mut out,
+                        &mut sat,
+                    );
+                }
+                let ns = t0.elapsed().as_secs_f64() * 1e9 / (rows / 10 * w) as f64;
+                println!("{level:?} unfolded: {ns:.2} ns/pixel");
+                let mut z = vec![0f32; w];
+                let mut a = 0f32;
+                let t0 = std::time::Instant::now();
+                for r in 0..rows {
+                    normals_into(&fc.shot_key, (r * w) as u32, &mut z);
+                    a += z[7];
+                }
+                let ns = t0.elapsed().as_secs_f64() * 1e9 / (rows * w) as f64;
+                println!("{level:?} normals: {ns:.2} ns/pixel ({a})");
+            });
         }
-        let ns = t0.elapsed().as_secs_f64() * 1e9 / (rows * w) as f64;
-        println!("folded: {ns:.2} ns/pixel (mu {})", mu[0]);
-        let t0 = std::time::Instant::now();
-        for r in 0..rows / 10 {
-            let s = [&s0[..], &s1[..], &s2[..]];
-            row_kernel(
-                &fc,
-                false,
-                0.0,
-                s,
-                &sr,
-                r * w,
-                r,
-                &mut mu,
-                &mut out,
-                &mut sat,
-            );
-        }
-        let ns = t0.elapsed().as_secs_f64() * 1e9 / (rows / 10 * w) as f64;
-        println!("unfolded: {ns:.2} ns/pixel");
-        #[target_feature(enable = "avx2,fma")]
-        unsafe fn normals_avx2(key: &NoiseKey, n: usize) -> f32 {
-            let mut z = [0f32; BLOCK];
-            let mut acc = 0f32;
-            for b in (0..n).step_by(BLOCK) {
-                normals(key, b as u32, &mut z);
-                acc += z[7];
-            }
-            acc
-        }
-        let n = rows * w;
-        let t0 = std::time::Instant::now();
-        let a = unsafe { normals_avx2(&fc.shot_key, n) };
-        let ns = t0.elapsed().as_secs_f64() * 1e9 / n as f64;
-        println!("normals: {ns:.2} ns/pixel ({a})");
     }
 }

@@ -165,7 +165,7 @@ pub fn auto_kappa(stokes: &StokesImage, ri: Option<&[f32]>, full: f64) -> f64 {
     }
 }
 
-super::fast::avx2_dispatch!(fn psns_row_dispatch = psns_row(
+super::fast::simd_dispatch!(fn psns_row_dispatch = psns_row(
     row: &mut [u16],
     s: [&[f32]; 3],
     g: &[f64],
@@ -174,7 +174,7 @@ super::fast::avx2_dispatch!(fn psns_row_dispatch = psns_row(
     sigma: f64,
     max: u16,
 ));
-super::fast::avx2_dispatch!(fn kappa_row_dispatch = kappa_row(
+super::fast::simd_dispatch!(fn kappa_row_dispatch = kappa_row(
     a: &[f32],
     b: &[f32],
     c: &[f32],
