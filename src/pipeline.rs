@@ -34,6 +34,9 @@ pub struct RawPipeline {
     cfg: SceneConfig,
     sensor_cfg: SensorConfig,
     sensor: Sensor,
+    /// The last sky prepared, with its sun: a stream whose sun stands still (only the attitude
+    /// changes) prepares it once.
+    sky: std::sync::Mutex<Option<(SunPosition, std::sync::Arc<Sky>)>>,
 }
 
 impl RawPipeline {
@@ -68,6 +71,7 @@ impl RawPipeline {
             cfg,
             sensor_cfg,
             sensor,
+            sky: std::sync::Mutex::new(None),
         })
     }
 
@@ -84,6 +88,20 @@ impl RawPipeline {
     /// The sensor.
     pub fn sensor(&self) -> &Sensor {
         &self.sensor
+    }
+
+    /// The scene's sky for `sun`: the one prepared for the previous call when the sun is the
+    /// same (`Sky::new` is a pure function of the sun and the sky parameters).
+    fn sky_for(&self, sun: SunPosition) -> Result<std::sync::Arc<Sky>> {
+        let mut last = self.sky.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((s, sky)) = last.as_ref() {
+            if *s == sun {
+                return Ok(sky.clone());
+            }
+        }
+        let sky = std::sync::Arc::new(Sky::new(sun, &self.cfg.sky)?);
+        *last = Some((sun, sky.clone()));
+        Ok(sky)
     }
 
     /// Sensor-frame Stokes radiance for a sun position and attitude (ignored for a flat field).
@@ -115,7 +133,7 @@ impl RawPipeline {
                     StokesImage::zeros(i.width, i.height)
                 } else {
                     info.sky_valid = true;
-                    let sky = Sky::new(sun, &self.cfg.sky)?;
+                    let sky = self.sky_for(sun)?;
                     let opts = StokesOptions {
                         sun_disc: raw.sun_disc_on(),
                     };
@@ -160,7 +178,7 @@ impl RawPipeline {
         if raw.scene == SceneKind::Sky && raw.soft_clouds.is_none() && raw.sky_grid >= 2 && up {
             let i = self.cfg.camera.intrinsics;
             let cam = Camera::new(i, attitude, sun.azimuth_deg)?;
-            let sky = Sky::new(sun, &self.cfg.sky)?;
+            let sky = self.sky_for(sun)?;
             let opts = StokesOptions {
                 sun_disc: raw.sun_disc_on(),
             };

@@ -630,6 +630,74 @@ fn lerp_span(
     }
 }
 
+/// The full-width cells 0..gw − 2 of row band `j` (columns 0..`full`): each plane bilinear
+/// between the nodes of rows j and j + 1 (weight `fy`), `fx[x]` = x/step across a cell.
+#[inline(always)]
+#[allow(clippy::too_many_arguments)]
+fn interp_cells_body(
+    s0: &mut [f32],
+    s1: &mut [f32],
+    s2: &mut [f32],
+    nodes: &[[f32; 3]],
+    gw: usize,
+    j: usize,
+    fy: f32,
+    step: usize,
+    fx: &[f32],
+    full: usize,
+) {
+    let (top, bottom) = (&nodes[j * gw..(j + 1) * gw], &nodes[(j + 1) * gw..(j + 2) * gw]);
+    for (p, out) in [s0, s1, s2].into_iter().enumerate() {
+        let out = &mut out[..full];
+        // the default grid's cells are one 16-lane vector wide: a loop of known length
+        if step == 16 {
+            interp_plane::<16>(out, top, bottom, p, fy, fx);
+        } else {
+            interp_plane::<0>(out, top, bottom, p, fy, fx);
+        }
+    }
+}
+
+/// One plane of [`interp_cells_body`]; `S` = the cell width when known at compile time, else 0.
+#[inline(always)]
+fn interp_plane<const S: usize>(
+    out: &mut [f32],
+    top: &[[f32; 3]],
+    bottom: &[[f32; 3]],
+    p: usize,
+    fy: f32,
+    fx: &[f32],
+) {
+    let step = if S > 0 { S } else { fx.len() };
+    let fx = &fx[..step];
+    // the same arithmetic as `lerp3`, one plane at a time
+    let mut left = top[0][p] + (bottom[0][p] - top[0][p]) * fy;
+    for (i, chunk) in out.chunks_exact_mut(step).enumerate() {
+        let right = top[i + 1][p] + (bottom[i + 1][p] - top[i + 1][p]) * fy;
+        let (l, d) = (left, right - left);
+        for (o, &f) in chunk.iter_mut().zip(fx) {
+            *o = l + d * f;
+        }
+        left = right;
+    }
+}
+
+crate::sensor::fast::simd_dispatch! {
+    /// [`interp_cells_body`] built for the best instruction set the CPU has.
+    fn interp_cells = interp_cells_body(
+        s0: &mut [f32],
+        s1: &mut [f32],
+        s2: &mut [f32],
+        nodes: &[[f32; 3]],
+        gw: usize,
+        j: usize,
+        fy: f32,
+        step: usize,
+        fx: &[f32],
+        full: usize,
+    )
+}
+
 #[inline(always)]
 fn lerp3(a: [f32; 3], b: [f32; 3], f: f32) -> [f32; 3] {
     [
@@ -664,25 +732,24 @@ impl StokesRows for SkyGrid<'_> {
             let (r0, r1) = (self.rows[j], self.rows[j + 1]);
             let fy = (r - r0) as f32 / (r1 - r0) as f32;
             // every cell by interpolation first (the full-width cells in one tight loop per
-            // plane), then the refined cells overwritten
-            let nodes = |ii: usize, jj: usize| self.nodes[jj * gw + ii];
-            let v: Vec<[f32; 3]> = (0..gw)
-                .map(|i| lerp3(nodes(i, j), nodes(i, j + 1), fy))
-                .collect();
+            // plane, built for the CPU's vector units), then the refined cells overwritten
             let full = (gw - 2) * step; // cells 0..gw−2 are `step` wide, the last one narrower
-            let fx: Vec<f32> = (0..step).map(|x| x as f32 / step as f32).collect();
-            for (p, out) in [&mut *s0, &mut *s1, &mut *s2].into_iter().enumerate() {
-                for (i, chunk) in out[..full].chunks_exact_mut(step).enumerate() {
-                    let (l, d) = (v[i][p], v[i + 1][p] - v[i][p]);
-                    for (o, &f) in chunk.iter_mut().zip(&fx) {
-                        *o = l + d * f;
-                    }
-                }
+            let (mut buf, mut heap) = ([0f32; 64], Vec::new());
+            let fx: &mut [f32] = if step <= buf.len() {
+                &mut buf[..step]
+            } else {
+                heap.resize(step, 0.0);
+                &mut heap
+            };
+            for (x, f) in fx.iter_mut().enumerate() {
+                *f = x as f32 / step as f32;
             }
+            interp_cells(s0, s1, s2, &self.nodes, gw, j, fy, step, fx, full);
+            let v = |i: usize| lerp3(self.nodes[j * gw + i], self.nodes[(j + 1) * gw + i], fy);
             lerp_span(
                 [&mut *s0, &mut *s1, &mut *s2],
-                v[gw - 2],
-                v[gw - 1],
+                v(gw - 2),
+                v(gw - 1),
                 self.cols[gw - 2],
                 self.cols[gw - 1],
                 w,

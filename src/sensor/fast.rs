@@ -329,7 +329,7 @@ impl FastStatics {
         let (w, h) = (s.intrinsics.width, s.intrinsics.height);
         let (a, b, base) = s.rate_coefficients();
         let cfg = &s.cfg;
-        let delta_deg = s.axis.as_ref().map(|_| {
+        let delta_deg = s.oriented.then(|| {
             super::noise::gaussian_map(
                 w,
                 h,
