@@ -645,7 +645,10 @@ fn interp_cells(
     fx: &[f32],
     full: usize,
 ) {
-    let (top, bottom) = (&nodes[j * gw..(j + 1) * gw], &nodes[(j + 1) * gw..(j + 2) * gw]);
+    let (top, bottom) = (
+        &nodes[j * gw..(j + 1) * gw],
+        &nodes[(j + 1) * gw..(j + 2) * gw],
+    );
     for (p, out) in [s0, s1, s2].into_iter().enumerate() {
         let out = &mut out[..full];
         // the default grid's 16-pixel cells as whole vectors, written out: left to itself the
@@ -732,7 +735,10 @@ fn interp16_avx2(
     use std::arch::x86_64::*;
     // SAFETY: 16 floats read from `fx` and written to each 16-float chunk
     unsafe {
-        let (fa, fb) = (_mm256_loadu_ps(fx.as_ptr()), _mm256_loadu_ps(fx.as_ptr().add(8)));
+        let (fa, fb) = (
+            _mm256_loadu_ps(fx.as_ptr()),
+            _mm256_loadu_ps(fx.as_ptr().add(8)),
+        );
         let mut left = node_at(top, bottom, 0, p, fy);
         for (i, chunk) in out.chunks_exact_mut(16).enumerate() {
             let right = node_at(top, bottom, i + 1, p, fy);

@@ -84,8 +84,7 @@ impl Simd {
         {
             use std::arch::is_x86_feature_detected as has;
             let avx2 = has!("avx2") && has!("fma");
-            if avx2 && has!("avx512f") && has!("avx512bw") && has!("avx512dq") && has!("avx512vl")
-            {
+            if avx2 && has!("avx512f") && has!("avx512bw") && has!("avx512dq") && has!("avx512vl") {
                 return Simd::Avx512;
             }
             if avx2 {
@@ -327,8 +326,48 @@ pub struct FastStatics {
     b: f32,
 }
 
+#[inline(always)]
 fn fixed<T>(v: f64, unit: f32, lo: f64, hi: f64, conv: impl Fn(f64) -> T) -> T {
     conv((v / unit as f64).round().clamp(lo, hi))
+}
+
+/// One row of [`FastStatics::new`] from the sensor's f32 maps (`None` = off): gain RI·g, the
+/// orientation error δ (degrees in, fixed-point radians out) and the DSNU.
+#[inline(always)]
+fn statics_row_body(
+    ri: Option<&[f32]>,
+    prnu: Option<&[f32]>,
+    delta_deg: Option<&[f32]>,
+    dsnu: Option<&[f32]>,
+    g: &mut [u16],
+    d: &mut [i16],
+    n: &mut [i16],
+) {
+    for c in 0..g.len() {
+        let gk = ri.map_or(1.0, |m| m[c] as f64) * prnu.map_or(1.0, |m| m[c] as f64);
+        g[c] = fixed(gk, GAIN_UNIT, 0.0, 65_535.0, |x| x as u16);
+        if let Some(dd) = delta_deg {
+            let rad = (dd[c] as f64).to_radians();
+            d[c] = fixed(rad, DELTA_UNIT, -32_768.0, 32_767.0, |x| x as i16);
+        }
+        if let Some(ds) = dsnu {
+            n[c] = fixed(ds[c] as f64, DSNU_UNIT, -32_768.0, 32_767.0, |x| x as i16);
+        }
+    }
+}
+
+simd_dispatch! {
+    /// [`statics_row_body`] built for the best instruction set the CPU has (`round` inline
+    /// from SSE4.1 on instead of a library call; the same values).
+    fn statics_row = statics_row_body(
+        ri: Option<&[f32]>,
+        prnu: Option<&[f32]>,
+        delta_deg: Option<&[f32]>,
+        dsnu: Option<&[f32]>,
+        g: &mut [u16],
+        d: &mut [i16],
+        n: &mut [i16],
+    )
 }
 
 impl FastStatics {
@@ -355,18 +394,19 @@ impl FastStatics {
             .zip(dsnu.par_chunks_mut(w))
             .enumerate()
             .for_each(|(r, ((g, d), n))| {
-                for c in 0..w {
-                    let k = r * w + c;
-                    let gk = s.ri_at(k) * s.prnu.as_ref().map_or(1.0, |m| m[k] as f64);
-                    g[c] = fixed(gk, GAIN_UNIT, 0.0, 65_535.0, |x| x as u16);
-                    if let Some(dd) = &delta_deg {
-                        let rad = (dd[k] as f64).to_radians();
-                        d[c] = fixed(rad, DELTA_UNIT, -32_768.0, 32_767.0, |x| x as i16);
-                    }
-                    if let Some(ds) = &s.dsnu {
-                        n[c] = fixed(ds[k] as f64, DSNU_UNIT, -32_768.0, 32_767.0, |x| x as i16);
-                    }
+                fn row(m: Option<&Vec<f32>>, r: usize, w: usize) -> Option<&[f32]> {
+                    m.map(|m| &m[r * w..(r + 1) * w])
                 }
+                let dd = delta_deg.as_ref();
+                statics_row(
+                    row(s.ri.as_ref(), r, w),
+                    row(s.prnu.as_ref(), r, w),
+                    row(dd, r, w),
+                    row(s.dsnu.as_ref(), r, w),
+                    g,
+                    d,
+                    n,
+                );
             });
         let axis = std::array::from_fn(|r| {
             let row = |k: usize| -> Vec<f32> {
@@ -805,21 +845,21 @@ pub(crate) fn render_codes(
     let sats: Vec<[u32; 4]> = codes
         .par_chunks_mut(w * BAND)
         .enumerate()
-        .map(|(band, out)| {
-            let mut s0 = vec![0f32; w];
-            let mut s1 = vec![0f32; w];
-            let mut s2 = vec![0f32; w];
-            let mut mu = vec![0f32; w];
-            let mut sat = [0u32; 4];
-            for (i, row) in out.chunks_mut(w).enumerate() {
-                let r = band * BAND + i;
-                src.fill_row(r, &mut s0, &mut s1, &mut s2);
-                let sr = st.row(r, w);
-                let s = [&s0[..], &s1[..], &s2[..]];
-                row_kernel(fc, folded, mu_hi, s, &sr, r * w, r, &mut mu, row, &mut sat);
-            }
-            sat
-        })
+        // row scratch per rayon job, not per band (every row overwrites it)
+        .map_init(
+            || [vec![0f32; w], vec![0f32; w], vec![0f32; w], vec![0f32; w]],
+            |[s0, s1, s2, mu], (band, out)| {
+                let mut sat = [0u32; 4];
+                for (i, row) in out.chunks_mut(w).enumerate() {
+                    let r = band * BAND + i;
+                    src.fill_row(r, s0, s1, s2);
+                    let sr = st.row(r, w);
+                    let s = [&s0[..], &s1[..], &s2[..]];
+                    row_kernel(fc, folded, mu_hi, s, &sr, r * w, r, mu, row, &mut sat);
+                }
+                sat
+            },
+        )
         .collect();
     let mut saturated = [0u32; 4];
     for s in &sats {
@@ -964,8 +1004,12 @@ mod tests {
                 _ => 1e-6 * 1.2f32.powi((i % 89) as i32),
             })
             .collect();
-        let s1: Vec<f32> = (0..w).map(|i| s0[i] * (0.4 - (i % 7) as f32 * 0.1)).collect();
-        let s2: Vec<f32> = (0..w).map(|i| s0[i] * (0.3 - (i % 5) as f32 * 0.12)).collect();
+        let s1: Vec<f32> = (0..w)
+            .map(|i| s0[i] * (0.4 - (i % 7) as f32 * 0.1))
+            .collect();
+        let s2: Vec<f32> = (0..w)
+            .map(|i| s0[i] * (0.3 - (i % 5) as f32 * 0.12))
+            .collect();
         let gain: Vec<u16> = (0..w).map(|i| 31_000 + (i * 37 % 3_000) as u16).collect();
         let delta: Vec<i16> = (0..w).map(|i| (i * 53 % 4_001) as i16 - 2_000).collect();
         let dsnu: Vec<i16> = (0..w).map(|i| (i * 71 % 2_001) as i16 - 1_000).collect();
@@ -994,7 +1038,16 @@ mod tests {
                         for r in 0..6 {
                             let s = [&s0[..], &s1[..], &s2[..]];
                             row_kernel(
-                                fc, folded, mu_hi, s, &sr, r * w, r, &mut mu, &mut out, &mut sat,
+                                fc,
+                                folded,
+                                mu_hi,
+                                s,
+                                &sr,
+                                r * w,
+                                r,
+                                &mut mu,
+                                &mut out,
+                                &mut sat,
                             );
                             mus.extend(mu.iter().map(|m| m.to_bits()));
                             outs.extend_from_slice(&out);
@@ -1025,10 +1078,20 @@ mod tests {
             shot: false,
             ..base
         };
-        for (name, fc) in [("folded", base), ("unfolded", low_read), ("no shot", no_shot)] {
+        for (name, fc) in [
+            ("folded", base),
+            ("unfolded", low_read),
+            ("no shot", no_shot),
+        ] {
             let r = run(&fc);
-            assert!(r[0].1.iter().any(|&c| c == fc.max), "{name}: no saturated pixel");
-            assert!(r[0].1.iter().any(|&c| c > 0 && c < 40), "{name}: no dark pixel");
+            assert!(
+                r[0].1.iter().any(|&c| c == fc.max),
+                "{name}: no saturated pixel"
+            );
+            assert!(
+                r[0].1.iter().any(|&c| c > 0 && c < 40),
+                "{name}: no dark pixel"
+            );
             for (l, x) in levels().iter().zip(&r).skip(1) {
                 assert!(x == &r[0], "{name}: {l:?} differs from plain");
             }

@@ -365,13 +365,19 @@ mod tests {
                 _ => 1e-3 * 1.16f32.powi((i % 59) as i32),
             })
             .collect();
-        let s1: Vec<f32> = (0..n).map(|i| s0[i] * (0.5 - (i % 9) as f32 * 0.11)).collect();
-        let s2: Vec<f32> = (0..n).map(|i| s0[i] * (0.2 - (i % 4) as f32 * 0.1)).collect();
+        let s1: Vec<f32> = (0..n)
+            .map(|i| s0[i] * (0.5 - (i % 9) as f32 * 0.11))
+            .collect();
+        let s2: Vec<f32> = (0..n)
+            .map(|i| s0[i] * (0.2 - (i % 4) as f32 * 0.1))
+            .collect();
         let g: Vec<f64> = (0..n).map(|i| 900.0 + (i % 13) as f64 * 7.3).collect();
         let ri: Vec<f32> = (0..n).map(|i| 1.0 - (i % 17) as f32 * 0.01).collect();
         let co: Vec<f64> = (0..n).map(|i| ((i % 8) as f64 * 0.7).cos()).collect();
         let si: Vec<f64> = (0..n).map(|i| ((i % 8) as f64 * 0.7).sin()).collect();
-        let z: Vec<f32> = (0..n).map(|i| ((i * 7919 % 1000) as f32 - 500.0) * 0.006).collect();
+        let z: Vec<f32> = (0..n)
+            .map(|i| ((i * 7919 % 1000) as f32 - 500.0) * 0.006)
+            .collect();
         let run = |l: Simd| {
             with_simd(l, || {
                 let mut rows = Vec::new();
