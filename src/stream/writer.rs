@@ -208,6 +208,12 @@ impl FileStreamWriter {
         self.inner.frames_written()
     }
 
+    /// The open file's descriptor (to tune a FIFO's buffer).
+    #[cfg(unix)]
+    pub fn as_raw_fd(&self) -> std::os::fd::RawFd {
+        std::os::fd::AsRawFd::as_raw_fd(&self.inner.w)
+    }
+
     /// Flushes; for a regular file rewrites the header with the frame count. Returns the count.
     pub fn finish(self) -> Result<u64> {
         let n = self.inner.frames_written();
