@@ -93,14 +93,15 @@ impl RawPipeline {
     /// The scene's sky for `sun`: the one prepared for the previous call when the sun is the
     /// same (`Sky::new` is a pure function of the sun and the sky parameters).
     fn sky_for(&self, sun: SunPosition) -> Result<std::sync::Arc<Sky>> {
-        let mut last = self.sky.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((s, sky)) = last.as_ref() {
+        let lock = || self.sky.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((s, sky)) = lock().as_ref() {
             if *s == sun {
                 return Ok(sky.clone());
             }
         }
+        // prepared outside the lock: threads rendering different suns do not wait for each other
         let sky = std::sync::Arc::new(Sky::new(sun, &self.cfg.sky)?);
-        *last = Some((sun, sky.clone()));
+        *lock() = Some((sun, sky.clone()));
         Ok(sky)
     }
 

@@ -1085,7 +1085,7 @@ mod tests {
         ] {
             let r = run(&fc);
             assert!(
-                r[0].1.iter().any(|&c| c == fc.max),
+                r[0].1.contains(&fc.max),
                 "{name}: no saturated pixel"
             );
             assert!(

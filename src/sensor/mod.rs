@@ -552,6 +552,8 @@ impl Sensor {
     }
 
     /// Per-pixel pass-axis angle θ_k in degrees, [0, 180), including the orientation error.
+    /// The first call builds the per-pixel map with rayon: make it outside rayon jobs (a job
+    /// that builds it may pick up sibling jobs waiting for the same map).
     pub fn pass_axis_deg(&self, row: usize, col: usize) -> f64 {
         match self.axis_map() {
             Some(a) => {
