@@ -655,7 +655,7 @@ fn interp_cells(
         // loop vectoriser spreads the cells over the lanes and scatters (slower than scalar)
         #[cfg(target_arch = "x86_64")]
         if let Ok(fx) = <&[f32; 16]>::try_from(fx) {
-            use crate::sensor::fast::{simd, Simd};
+            use crate::simd::{simd, Simd};
             match simd() {
                 // SAFETY: `simd` never returns more than the CPU has
                 Simd::Avx512 => unsafe { interp16_avx512(out, top, bottom, p, fy, fx) },
@@ -945,7 +945,7 @@ mod tests {
     /// reference: bilinear by `lerp3` then `lerp_span` on every cell.
     #[test]
     fn sky_grid_rows_agree_across_simd() {
-        use crate::sensor::fast::{with_simd, Simd};
+        use crate::simd::{with_simd, Simd};
         let sun = SunPosition::new(40.0, 100.0);
         let sky = Sky::new(sun, &SkyParams::default()).unwrap();
         let intr = Intrinsics {

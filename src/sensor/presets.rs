@@ -165,7 +165,7 @@ pub fn auto_kappa(stokes: &StokesImage, ri: Option<&[f32]>, full: f64) -> f64 {
     }
 }
 
-super::fast::simd_dispatch!(fn psns_row_dispatch = psns_row(
+crate::simd::simd_dispatch!(fn psns_row_dispatch = psns_row(
     row: &mut [u16],
     s: [&[f32]; 3],
     g: &[f64],
@@ -174,7 +174,7 @@ super::fast::simd_dispatch!(fn psns_row_dispatch = psns_row(
     sigma: f64,
     max: u16,
 ));
-super::fast::simd_dispatch!(fn kappa_row_dispatch = kappa_row(
+crate::simd::simd_dispatch!(fn kappa_row_dispatch = kappa_row(
     a: &[f32],
     b: &[f32],
     c: &[f32],
@@ -352,7 +352,7 @@ mod tests {
     /// The PSNS row kernels give the same bits in every instruction set the CPU has.
     #[test]
     fn simd_paths_agree() {
-        use crate::sensor::fast::{with_simd, Simd};
+        use crate::simd::{with_simd, Simd};
         let levels: Vec<Simd> = [Simd::Plain, Simd::Avx2, Simd::Avx512]
             .into_iter()
             .filter(|&l| l <= Simd::detected())
