@@ -26,6 +26,7 @@ pub mod pipeline;
 pub mod render;
 pub mod rng;
 pub mod sensor;
+pub mod simd;
 pub mod sky;
 pub mod stokes;
 pub mod stream;

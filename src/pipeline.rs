@@ -34,6 +34,9 @@ pub struct RawPipeline {
     cfg: SceneConfig,
     sensor_cfg: SensorConfig,
     sensor: Sensor,
+    /// The last sky prepared, with its sun: a stream whose sun stands still (only the attitude
+    /// changes) prepares it once.
+    sky: std::sync::Mutex<Option<(SunPosition, SkyParams, std::sync::Arc<Sky>)>>,
 }
 
 impl RawPipeline {
@@ -68,6 +71,7 @@ impl RawPipeline {
             cfg,
             sensor_cfg,
             sensor,
+            sky: std::sync::Mutex::new(None),
         })
     }
 
@@ -84,6 +88,21 @@ impl RawPipeline {
     /// The sensor.
     pub fn sensor(&self) -> &Sensor {
         &self.sensor
+    }
+
+    /// The sky for `sun` and `params`: the one prepared for the previous call when both are the
+    /// same (`Sky::new` is a pure function of the sun and the sky parameters).
+    fn sky_for(&self, sun: SunPosition, params: &SkyParams) -> Result<std::sync::Arc<Sky>> {
+        let lock = || self.sky.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((s, p, sky)) = lock().as_ref() {
+            if *s == sun && p == params {
+                return Ok(sky.clone());
+            }
+        }
+        // prepared outside the lock: threads rendering different suns do not wait for each other
+        let sky = std::sync::Arc::new(Sky::new(sun, params)?);
+        *lock() = Some((sun, params.clone(), sky.clone()));
+        Ok(sky)
     }
 
     /// Sensor-frame Stokes radiance for a sun position and attitude (ignored for a flat field).
@@ -127,7 +146,7 @@ impl RawPipeline {
                     StokesImage::zeros(i.width, i.height)
                 } else {
                     info.sky_valid = true;
-                    let sky = Sky::new(sun, sky_params)?;
+                    let sky = self.sky_for(sun, sky_params)?;
                     let opts = StokesOptions {
                         sun_disc: raw.sun_disc_on(),
                     };
@@ -188,7 +207,7 @@ impl RawPipeline {
         if raw.scene == SceneKind::Sky && raw.soft_clouds.is_none() && raw.sky_grid >= 2 && up {
             let i = self.cfg.camera.intrinsics;
             let cam = Camera::new(i, attitude, sun.azimuth_deg)?;
-            let sky = Sky::new(sun, sky)?;
+            let sky = self.sky_for(sun, sky)?;
             let opts = StokesOptions {
                 sun_disc: raw.sun_disc_on(),
             };

@@ -227,7 +227,7 @@ pub fn least_squares_stokes<T: RawPixel>(
     block: usize,
 ) -> Result<StokesImage> {
     cal.validate()?;
-    if block < 2 || block % 2 != 0 {
+    if block < 2 || !block.is_multiple_of(2) {
         return Err(Error::range("block", block as f64, "an even number >= 2"));
     }
     if raw.width != cal.width

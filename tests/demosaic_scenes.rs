@@ -24,7 +24,11 @@ fn occluded(r: usize, c: usize) -> (f64, f64, f64) {
     let (s0, s1, s2) = sky(r, c);
     let line = 0.7 * H as f64
         + 10.0 * (c as f64 * 0.07).sin()
-        + if (c / 23) % 3 == 0 { -12.0 } else { 0.0 };
+        + if (c / 23).is_multiple_of(3) {
+            -12.0
+        } else {
+            0.0
+        };
     if r as f64 >= line {
         let g = 0.05 * s0;
         return (g, 0.05 * g, 0.0);

@@ -9,6 +9,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("angle", 0),
     ("image", 0),
     ("rng", 0),
+    ("simd", 0),
     ("sun", 1),
     ("sky", 2),
     ("camera", 3),

@@ -233,7 +233,14 @@ struct FrameMaker {
     codes: Vec<u16>,
     /// Payload buffers handed back by the writer, reused (no page faults on fresh memory).
     spare: Option<Receiver<Payload>>,
+    /// Payload buffers made so far (at most [`PAYLOAD_BUFFERS`]).
+    made: usize,
 }
+
+/// Payload buffers in circulation: one being rendered, one queued, one being written. When all
+/// are out the render thread waits for the writer to hand one back instead of allocating (a
+/// fresh 10 MB buffer costs its page faults and zeroing every frame).
+const PAYLOAD_BUFFERS: usize = 3;
 
 fn seconds_to_ns(t_s: f64) -> Result<i64> {
     let ns = (t_s * 1e9).round();
@@ -246,6 +253,20 @@ fn seconds_to_ns(t_s: f64) -> Result<i64> {
 }
 
 impl FrameMaker {
+    /// A payload buffer back from the writer; `None` = make a new one (the first
+    /// [`PAYLOAD_BUFFERS`] frames, or the writer is gone).
+    fn spare_payload(&mut self) -> Option<Payload> {
+        let rx = self.spare.as_ref()?;
+        if let Ok(p) = rx.try_recv() {
+            return Some(p);
+        }
+        if self.made < PAYLOAD_BUFFERS {
+            self.made += 1;
+            return None;
+        }
+        rx.recv().ok()
+    }
+
     fn sun_at(&self, pose: &Pose, mid_ns: i64) -> Result<SunPosition> {
         // a place in the trajectory always means SPA; otherwise the scene decides
         let place = match (pose.place, self.sun) {
@@ -276,7 +297,7 @@ impl FrameMaker {
         let sun = self.sun_at(pose, t_ns.saturating_add(self.half_exposure_ns))?;
         // buffers the writer has finished with come back: codes (Mono16) or packed bytes
         let mut bytes = Vec::new();
-        if let Some(p) = self.spare.as_ref().and_then(|r| r.try_recv().ok()) {
+        if let Some(p) = self.spare_payload() {
             match p {
                 Payload::Codes(c) => self.codes = c,
                 Payload::Bytes(b) => bytes = b,
@@ -507,13 +528,31 @@ enum Output {
     Path(FileStreamWriter),
 }
 
+/// Asks the kernel for a 1 MiB buffer on a pipe or FIFO (the default 64 KiB wakes the reader
+/// 160 times per 10 MB frame); anything else, or a refusal, leaves it as it is.
+fn grow_pipe(fd: std::os::fd::RawFd) {
+    #[cfg(target_os = "linux")]
+    // SAFETY: fcntl on a descriptor this process holds open; F_SETPIPE_SZ fails harmlessly
+    // (EBADF/EINVAL/EPERM) on non-pipes and over the limit
+    unsafe {
+        libc::fcntl(fd, libc::F_SETPIPE_SZ, 1 << 20);
+    }
+    #[cfg(not(target_os = "linux"))]
+    let _ = fd;
+}
+
 impl Output {
     fn open(path: &Path, header: &FileHeader) -> Result<Self> {
+        use std::os::fd::AsRawFd;
         if path.as_os_str() == "-" {
-            let w = BufWriter::with_capacity(1 << 20, std::io::stdout().lock());
+            let out = std::io::stdout().lock();
+            grow_pipe(out.as_raw_fd());
+            let w = BufWriter::with_capacity(1 << 20, out);
             Ok(Output::Stdout(StreamWriter::new(w, header)?))
         } else {
-            Ok(Output::Path(FileStreamWriter::create(path, header)?))
+            let w = FileStreamWriter::create(path, header)?;
+            grow_pipe(w.as_raw_fd());
+            Ok(Output::Path(w))
         }
     }
     fn write(&mut self, r: &Rendered) -> Result<()> {
@@ -645,11 +684,12 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
         albedo: cfg.sky.albedo as f32,
         codes: Vec::new(),
         spare: None,
+        made: 0,
         pipe,
     };
     // render thread: pose k+1 while frame k is written; written payloads come back for reuse
     let (tx, rx) = sync_channel::<Result<Rendered>>(1);
-    let (spare_tx, spare_rx) = sync_channel::<Payload>(2);
+    let (spare_tx, spare_rx) = sync_channel::<Payload>(PAYLOAD_BUFFERS);
     maker.spare = Some(spare_rx);
     let limit = opts.frames;
     let producer = std::thread::Builder::new()
@@ -709,6 +749,7 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
     let res = write_loop(&mut out, &rx, &spare_tx, opts, &mut progress);
     drop(progress);
     drop(rx); // a producer blocked on send ends now
+    drop(spare_tx); // and one waiting for a buffer
     let mut summary = StreamSummary::default();
     let err = match res {
         Ok((n, late)) => {

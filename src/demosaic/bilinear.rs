@@ -174,7 +174,7 @@ fn row_kernel<T: RawPixel, const R: usize>(
     vertical::<T, R>(raw, r, k, s);
     horizontal::<R>(s, w, k);
     let (o0, o1, o2, dl) = out;
-    let sr = if r % 2 == 0 { 1.0f32 } else { -1.0 };
+    let sr = if r.is_multiple_of(2) { 1.0f32 } else { -1.0 };
     // fold the row sign into the coefficients; the column sign comes from `signs`
     let m1 = [mix.s1[0] * sr, mix.s1[1], mix.s1[2] * sr];
     let m2 = [mix.s2[0] * sr, mix.s2[1], mix.s2[2] * sr];
@@ -327,7 +327,7 @@ fn chan_row<T: RawPixel, const R: usize>(
     let w = raw.width;
     vertical::<T, R>(raw, r, k, s);
     horizontal::<R>(s, w, k);
-    let sr = if r % 2 == 0 { 1.0f32 } else { -1.0 };
+    let sr = if r.is_multiple_of(2) { 1.0f32 } else { -1.0 };
     let [qb, qa, qc, qd] = &s.q;
     for c in 0..w {
         let sc = s.signs[c];

@@ -28,31 +28,8 @@ use super::Sensor;
 use crate::image::StokesRows;
 use rayon::prelude::*;
 
-/// Defines `$vis fn $name(args) -> ret` that calls the `#[inline(always)]` kernel `$body` with AVX2
-/// and FMA enabled where the CPU has them (its loops then vectorise), plainly otherwise. Both give
-/// the same bits: the kernels' `mul_add` is exactly rounded with or without the instruction, and
-/// plain `*` and `+` are never fused. Used by every row kernel of the fast path and the PSNS
-/// presets.
-macro_rules! avx2_dispatch {
-    ($(#[$m:meta])* $vis:vis fn $name:ident = $body:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)?) => {
-        $(#[$m])*
-        #[allow(clippy::too_many_arguments)]
-        $vis fn $name($($arg: $ty),*) $(-> $ret)? {
-            #[cfg(target_arch = "x86_64")]
-            if $crate::sensor::fast::has_avx2_fma() {
-                #[target_feature(enable = "avx2,fma")]
-                #[allow(clippy::too_many_arguments)]
-                unsafe fn avx2($($arg: $ty),*) $(-> $ret)? {
-                    $body($($arg),*)
-                }
-                // SAFETY: the CPU has AVX2 and FMA (checked above)
-                return unsafe { avx2($($arg),*) };
-            }
-            $body($($arg),*)
-        }
-    };
-}
-pub(crate) use avx2_dispatch;
+use crate::simd::simd_dispatch;
+pub use crate::simd::{simd, with_simd, Simd};
 
 /// Below this mean (e⁻) shot noise is sampled exactly by inversion of the Poisson CDF.
 pub const EXACT_POISSON_BELOW: f64 = 16.0;
@@ -192,8 +169,16 @@ fn normals(key: &NoiseKey, idx0: u32, z: &mut [f32]) {
     let n = z.len().min(BLOCK);
     let mut x = [0f32; BLOCK];
     let mut w = [0f32; BLOCK];
+    // `erfinv_args` in two passes (hash to 4ab, then the logarithm): shorter dependency chains
+    // per loop, so more vector iterations are in flight at once; the same operations
     for i in 0..n {
-        (x[i], w[i]) = erfinv_args(key.bits(idx0.wrapping_add(i as u32)));
+        let a = uniform_from_bits(key.bits(idx0.wrapping_add(i as u32)));
+        let b = 1.0 - a;
+        x[i] = a - b; // exact
+        w[i] = 4.0 * a * b;
+    }
+    for v in &mut w[..n] {
+        *v = -ln_f32(*v);
     }
     let mut tail = false;
     for i in 0..n {
@@ -234,8 +219,48 @@ pub struct FastStatics {
     b: f32,
 }
 
+#[inline(always)]
 fn fixed<T>(v: f64, unit: f32, lo: f64, hi: f64, conv: impl Fn(f64) -> T) -> T {
     conv((v / unit as f64).round().clamp(lo, hi))
+}
+
+/// One row of [`FastStatics::new`] from the sensor's f32 maps (`None` = off): gain RI·g, the
+/// orientation error δ (degrees in, fixed-point radians out) and the DSNU.
+#[inline(always)]
+fn statics_row_body(
+    ri: Option<&[f32]>,
+    prnu: Option<&[f32]>,
+    delta_deg: Option<&[f32]>,
+    dsnu: Option<&[f32]>,
+    g: &mut [u16],
+    d: &mut [i16],
+    n: &mut [i16],
+) {
+    for c in 0..g.len() {
+        let gk = ri.map_or(1.0, |m| m[c] as f64) * prnu.map_or(1.0, |m| m[c] as f64);
+        g[c] = fixed(gk, GAIN_UNIT, 0.0, 65_535.0, |x| x as u16);
+        if let Some(dd) = delta_deg {
+            let rad = (dd[c] as f64).to_radians();
+            d[c] = fixed(rad, DELTA_UNIT, -32_768.0, 32_767.0, |x| x as i16);
+        }
+        if let Some(ds) = dsnu {
+            n[c] = fixed(ds[c] as f64, DSNU_UNIT, -32_768.0, 32_767.0, |x| x as i16);
+        }
+    }
+}
+
+simd_dispatch! {
+    /// [`statics_row_body`] built for the best instruction set the CPU has (`round` inline
+    /// from SSE4.1 on instead of a library call; the same values).
+    fn statics_row = statics_row_body(
+        ri: Option<&[f32]>,
+        prnu: Option<&[f32]>,
+        delta_deg: Option<&[f32]>,
+        dsnu: Option<&[f32]>,
+        g: &mut [u16],
+        d: &mut [i16],
+        n: &mut [i16],
+    )
 }
 
 impl FastStatics {
@@ -244,7 +269,7 @@ impl FastStatics {
         let (w, h) = (s.intrinsics.width, s.intrinsics.height);
         let (a, b, base) = s.rate_coefficients();
         let cfg = &s.cfg;
-        let delta_deg = s.axis.as_ref().map(|_| {
+        let delta_deg = s.oriented.then(|| {
             super::noise::gaussian_map(
                 w,
                 h,
@@ -262,18 +287,19 @@ impl FastStatics {
             .zip(dsnu.par_chunks_mut(w))
             .enumerate()
             .for_each(|(r, ((g, d), n))| {
-                for c in 0..w {
-                    let k = r * w + c;
-                    let gk = s.ri_at(k) * s.prnu.as_ref().map_or(1.0, |m| m[k] as f64);
-                    g[c] = fixed(gk, GAIN_UNIT, 0.0, 65_535.0, |x| x as u16);
-                    if let Some(dd) = &delta_deg {
-                        let rad = (dd[k] as f64).to_radians();
-                        d[c] = fixed(rad, DELTA_UNIT, -32_768.0, 32_767.0, |x| x as i16);
-                    }
-                    if let Some(ds) = &s.dsnu {
-                        n[c] = fixed(ds[k] as f64, DSNU_UNIT, -32_768.0, 32_767.0, |x| x as i16);
-                    }
+                fn row(m: Option<&Vec<f32>>, r: usize, w: usize) -> Option<&[f32]> {
+                    m.map(|m| &m[r * w..(r + 1) * w])
                 }
+                let dd = delta_deg.as_ref();
+                statics_row(
+                    row(s.ri.as_ref(), r, w),
+                    row(s.prnu.as_ref(), r, w),
+                    row(dd, r, w),
+                    row(s.dsnu.as_ref(), r, w),
+                    g,
+                    d,
+                    n,
+                );
             });
         let axis = std::array::from_fn(|r| {
             let row = |k: usize| -> Vec<f32> {
@@ -558,9 +584,12 @@ fn row_folded_body(
         };
         let (s0, s1, s2) = (&s0[b0..b1], &s1[b0..b1], &s2[b0..b1]);
         let (mu, out, z) = (&mut mu[b0..b1], &mut out[b0..b1], &z[..len]);
+        // the mean first, then the draw: two shorter dependency chains (the same operations)
         for i in 0..len {
-            let m = blk.rate(i, s0[i], s1[i], s2[i]).mul_add(t, dark);
-            mu[i] = m;
+            mu[i] = blk.rate(i, s0[i], s1[i], s2[i]).mul_add(t, dark);
+        }
+        for i in 0..len {
+            let m = mu[i];
             let z = z[i];
             let var = m + var_r;
             let sd = var.sqrt();
@@ -654,8 +683,8 @@ fn row_body(
     }
 }
 
-avx2_dispatch! {
-    /// [`row_body`], built for AVX2 and FMA when the CPU has them.
+simd_dispatch! {
+    /// [`row_body`], built for the best instruction set the CPU has ([`simd`]).
     fn row_kernel = row_body(
         fc: &FrameConsts,
         folded: bool,
@@ -678,15 +707,10 @@ fn normals_body(key: &NoiseKey, idx0: u32, z: &mut [f32]) {
     }
 }
 
-avx2_dispatch! {
+simd_dispatch! {
     /// [`normal_from_bits`] of `key.bits(idx0 + i)` for every i of `z` (any length), vectorised
-    /// with AVX2 where the CPU has it; the same bits either way.
+    /// with the best instruction set the CPU has; the same bits in every one.
     pub(crate) fn normals_into = normals_body(key: &NoiseKey, idx0: u32, z: &mut [f32])
-}
-
-#[cfg(target_arch = "x86_64")]
-pub(crate) fn has_avx2_fma() -> bool {
-    std::arch::is_x86_feature_detected!("avx2") && std::arch::is_x86_feature_detected!("fma")
 }
 
 /// Output of [`render_codes`].
@@ -714,21 +738,21 @@ pub(crate) fn render_codes(
     let sats: Vec<[u32; 4]> = codes
         .par_chunks_mut(w * BAND)
         .enumerate()
-        .map(|(band, out)| {
-            let mut s0 = vec![0f32; w];
-            let mut s1 = vec![0f32; w];
-            let mut s2 = vec![0f32; w];
-            let mut mu = vec![0f32; w];
-            let mut sat = [0u32; 4];
-            for (i, row) in out.chunks_mut(w).enumerate() {
-                let r = band * BAND + i;
-                src.fill_row(r, &mut s0, &mut s1, &mut s2);
-                let sr = st.row(r, w);
-                let s = [&s0[..], &s1[..], &s2[..]];
-                row_kernel(fc, folded, mu_hi, s, &sr, r * w, r, &mut mu, row, &mut sat);
-            }
-            sat
-        })
+        // row scratch per rayon job, not per band (every row overwrites it)
+        .map_init(
+            || [vec![0f32; w], vec![0f32; w], vec![0f32; w], vec![0f32; w]],
+            |[s0, s1, s2, mu], (band, out)| {
+                let mut sat = [0u32; 4];
+                for (i, row) in out.chunks_mut(w).enumerate() {
+                    let r = band * BAND + i;
+                    src.fill_row(r, s0, s1, s2);
+                    let sr = st.row(r, w);
+                    let s = [&s0[..], &s1[..], &s2[..]];
+                    row_kernel(fc, folded, mu_hi, s, &sr, r * w, r, mu, row, &mut sat);
+                }
+                sat
+            },
+        )
         .collect();
     let mut saturated = [0u32; 4];
     for s in &sats {
@@ -849,6 +873,131 @@ mod tests {
         let shifted = (0..1_000_000u32).any(|s| b.bits(s) == first[0] && b.bits(s + 1) == first[1]);
         assert!(!shifted);
     }
+    /// The levels this CPU can run, plain first.
+    pub(crate) fn levels() -> Vec<Simd> {
+        [Simd::Plain, Simd::Avx2, Simd::Avx512]
+            .into_iter()
+            .filter(|&l| l <= Simd::detected())
+            .collect()
+    }
+
+    /// The row kernel and the normals give the same bits in every instruction set the CPU has
+    /// (plain, AVX2, AVX-512), folded and unfolded, over means from 0 to past the full well.
+    #[test]
+    fn simd_paths_agree() {
+        let w = 1000usize; // not a multiple of the block or of any vector width
+        let key = NoiseKey::new(5, 9, 1);
+        // a spread of Stokes values: dark, low (exact Poisson), mid, near and past the full well,
+        // negative rates, a non-finite value
+        let s0: Vec<f32> = (0..w)
+            .map(|i| match i % 97 {
+                0 => 0.0,
+                1 => f32::NAN,
+                2 => -1e-3,
+                _ => 1e-6 * 1.2f32.powi((i % 89) as i32),
+            })
+            .collect();
+        let s1: Vec<f32> = (0..w)
+            .map(|i| s0[i] * (0.4 - (i % 7) as f32 * 0.1))
+            .collect();
+        let s2: Vec<f32> = (0..w)
+            .map(|i| s0[i] * (0.3 - (i % 5) as f32 * 0.12))
+            .collect();
+        let gain: Vec<u16> = (0..w).map(|i| 31_000 + (i * 37 % 3_000) as u16).collect();
+        let delta: Vec<i16> = (0..w).map(|i| (i * 53 % 4_001) as i16 - 2_000).collect();
+        let dsnu: Vec<i16> = (0..w).map(|i| (i * 71 % 2_001) as i16 - 1_000).collect();
+        let cos0: Vec<f32> = (0..w).map(|i| [1.0, 0.0, -1.0, 0.0][i % 4]).collect();
+        let sin0: Vec<f32> = (0..w).map(|i| [0.0, 1.0, 0.0, -1.0][i % 4]).collect();
+        let sr = StaticRow {
+            gain: &gain,
+            delta: &delta,
+            dsnu: &dsnu,
+            cos0: &cos0,
+            sin0: &sin0,
+            scale: 1.0e7,
+            b: 0.98,
+        };
+        let run = |fc: &FrameConsts| -> Vec<(Vec<u32>, Vec<u16>, [u32; 4])> {
+            let (folded, mu_hi) = (fc.folded(), fc.mu_high() as f32);
+            levels()
+                .into_iter()
+                .map(|l| {
+                    with_simd(l, || {
+                        let mut mu = vec![0f32; w];
+                        let mut out = vec![0u16; w];
+                        let mut sat = [0u32; 4];
+                        let mut mus = Vec::new();
+                        let mut outs = Vec::new();
+                        for r in 0..6 {
+                            let s = [&s0[..], &s1[..], &s2[..]];
+                            row_kernel(
+                                fc,
+                                folded,
+                                mu_hi,
+                                s,
+                                &sr,
+                                r * w,
+                                r,
+                                &mut mu,
+                                &mut out,
+                                &mut sat,
+                            );
+                            mus.extend(mu.iter().map(|m| m.to_bits()));
+                            outs.extend_from_slice(&out);
+                        }
+                        (mus, outs, sat)
+                    })
+                })
+                .collect()
+        };
+        let base = FrameConsts {
+            t: 1e-3,
+            dark_e: 0.3,
+            fwc: 10500.0,
+            fwc_clip: true,
+            shot: true,
+            sigma_read: 2.5,
+            kg: 0.39,
+            black: 4.0,
+            max: 4095,
+            shot_key: key,
+            read_key: NoiseKey::new(5, 9, 2),
+        };
+        let low_read = FrameConsts {
+            sigma_read: 0.5, // not folded: every pixel through the unfolded kernel
+            ..base
+        };
+        let no_shot = FrameConsts {
+            shot: false,
+            ..base
+        };
+        for (name, fc) in [
+            ("folded", base),
+            ("unfolded", low_read),
+            ("no shot", no_shot),
+        ] {
+            let r = run(&fc);
+            assert!(r[0].1.contains(&fc.max), "{name}: no saturated pixel");
+            assert!(
+                r[0].1.iter().any(|&c| c > 0 && c < 40),
+                "{name}: no dark pixel"
+            );
+            for (l, x) in levels().iter().zip(&r).skip(1) {
+                assert!(x == &r[0], "{name}: {l:?} differs from plain");
+            }
+        }
+        let z: Vec<Vec<u32>> = levels()
+            .into_iter()
+            .map(|l| {
+                with_simd(l, || {
+                    let mut z = vec![0f32; 100_003];
+                    normals_into(&key, 17, &mut z);
+                    z.iter().map(|v| v.to_bits()).collect()
+                })
+            })
+            .collect();
+        assert!(z.iter().all(|x| x == &z[0]));
+    }
 }
 
 #[cfg(test)]
@@ -895,56 +1044,54 @@ mod speed {
         let mut out = vec![0u16; w];
         let mut sat = [0u32; 4];
         let rows = 2000;
-        let t0 = std::time::Instant::now();
-        for r in 0..rows {
-            let s = [&s0[..], &s1[..], &s2[..]];
-            row_kernel(
-                &fc,
-                true,
-                f32::MAX,
-                s,
-                &sr,
-                r * w,
-                r,
-                &mut mu,
-                &mut out,
-                &mut sat,
-            );
+        for level in super::tests::levels() {
+            with_simd(level, || {
+                let t0 = std::time::Instant::now();
+                for r in 0..rows {
+                    let s = [&s0[..], &s1[..], &s2[..]];
+                    row_kernel(
+                        &fc,
+                        true,
+                        f32::MAX,
+                        s,
+                        &sr,
+                        r * w,
+                        r,
+                        &mut mu,
+                        &mut out,
+                        &mut sat,
+                    );
+                }
+                let ns = t0.elapsed().as_secs_f64() * 1e9 / (rows * w) as f64;
+                println!("{level:?} folded: {ns:.2} ns/pixel (mu {})", mu[0]);
+                let t0 = std::time::Instant::now();
+                for r in 0..rows / 10 {
+                    let s = [&s0[..], &s1[..], &s2[..]];
+                    row_kernel(
+                        &fc,
+                        false,
+                        0.0,
+                        s,
+                        &sr,
+                        r * w,
+                        r,
+                        &mut mu,
+                        &mut out,
+                        &mut sat,
+                    );
+                }
+                let ns = t0.elapsed().as_secs_f64() * 1e9 / (rows / 10 * w) as f64;
+                println!("{level:?} unfolded: {ns:.2} ns/pixel");
+                let mut z = vec![0f32; w];
+                let mut a = 0f32;
+                let t0 = std::time::Instant::now();
+                for r in 0..rows {
+                    normals_into(&fc.shot_key, (r * w) as u32, &mut z);
+                    a += z[7];
+                }
+                let ns = t0.elapsed().as_secs_f64() * 1e9 / (rows * w) as f64;
+                println!("{level:?} normals: {ns:.2} ns/pixel ({a})");
+            });
         }
-        let ns = t0.elapsed().as_secs_f64() * 1e9 / (rows * w) as f64;
-        println!("folded: {ns:.2} ns/pixel (mu {})", mu[0]);
-        let t0 = std::time::Instant::now();
-        for r in 0..rows / 10 {
-            let s = [&s0[..], &s1[..], &s2[..]];
-            row_kernel(
-                &fc,
-                false,
-                0.0,
-                s,
-                &sr,
-                r * w,
-                r,
-                &mut mu,
-                &mut out,
-                &mut sat,
-            );
-        }
-        let ns = t0.elapsed().as_secs_f64() * 1e9 / (rows / 10 * w) as f64;
-        println!("unfolded: {ns:.2} ns/pixel");
-        #[target_feature(enable = "avx2,fma")]
-        unsafe fn normals_avx2(key: &NoiseKey, n: usize) -> f32 {
-            let mut z = [0f32; BLOCK];
-            let mut acc = 0f32;
-            for b in (0..n).step_by(BLOCK) {
-                normals(key, b as u32, &mut z);
-                acc += z[7];
-            }
-            acc
-        }
-        let n = rows * w;
-        let t0 = std::time::Instant::now();
-        let a = unsafe { normals_avx2(&fc.shot_key, n) };
-        let ns = t0.elapsed().as_secs_f64() * 1e9 / n as f64;
-        println!("normals: {ns:.2} ns/pixel ({a})");
     }
 }

@@ -445,8 +445,11 @@ pub struct Sensor {
     seed: u64,
     /// RI per pixel, `None` when off (= 1).
     ri: Option<Vec<f32>>,
-    /// Per-pixel (cos 2θ_k, sin 2θ_k) with the orientation error; `None` = nominal angles.
-    axis: Option<Vec<[f32; 2]>>,
+    /// The polarizer orientation error is modelled (else nominal angles).
+    oriented: bool,
+    /// Per-pixel (cos 2θ_k, sin 2θ_k) with the orientation error, built on first use by
+    /// [`Self::axis_map`].
+    axis: std::sync::OnceLock<Vec<[f32; 2]>>,
     /// PRNU gain g_k; `None` = 1.
     prnu: Option<Vec<f32>>,
     /// DSNU offset in e⁻; `None` = 0.
@@ -468,27 +471,8 @@ impl Sensor {
         let eff = cfg.effective_ri();
         let ri = (eff != RelativeIllumination::None).then(|| eff.map(intrinsics));
         let camera = cfg.psns.is_none();
-        let axis =
-            (camera && st.polarizer_orientation && cfg.orientation_sigma_deg > 0.0).then(|| {
-                let delta = noise::gaussian_map(
-                    w,
-                    h,
-                    seed,
-                    noise::MAP_ORIENTATION,
-                    0.0,
-                    cfg.orientation_sigma_deg,
-                );
-                let mut out = vec![[0f32; 2]; w * h];
-                out.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
-                    for (c, v) in row.iter_mut().enumerate() {
-                        let th =
-                            (cfg.layout.angle_deg(r, c) + delta[r * w + c] as f64).to_radians();
-                        let (s, co) = (2.0 * th).sin_cos();
-                        *v = [co as f32, s as f32];
-                    }
-                });
-                out
-            });
+        // the exact path's per-pixel axis map is built on first use: the fast path never needs it
+        let oriented = camera && st.polarizer_orientation && cfg.orientation_sigma_deg > 0.0;
         let prnu = (camera && st.prnu && cfg.prnu > 0.0)
             .then(|| noise::gaussian_map(w, h, seed, noise::MAP_PRNU, 1.0, cfg.prnu));
         let dsnu = (camera && st.dsnu && cfg.dsnu_e > 0.0)
@@ -506,7 +490,8 @@ impl Sensor {
             intrinsics: *intrinsics,
             seed,
             ri,
-            axis,
+            oriented,
+            axis: std::sync::OnceLock::new(),
             prnu,
             dsnu,
             photon_rate,
@@ -549,9 +534,41 @@ impl Sensor {
         self.dsnu.as_deref()
     }
 
+    /// Per-pixel (cos 2θ_k, sin 2θ_k) with the orientation error (row-major), `None` when the
+    /// error is off (nominal angles). Built on first call: only the exact path reads it.
+    fn axis_map(&self) -> Option<&[[f32; 2]]> {
+        if !self.oriented {
+            return None;
+        }
+        let m = self.axis.get_or_init(|| {
+            let (w, h) = (self.intrinsics.width, self.intrinsics.height);
+            let cfg = &self.cfg;
+            let delta = noise::gaussian_map(
+                w,
+                h,
+                self.seed,
+                noise::MAP_ORIENTATION,
+                0.0,
+                cfg.orientation_sigma_deg,
+            );
+            let mut out = vec![[0f32; 2]; w * h];
+            out.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
+                for (c, v) in row.iter_mut().enumerate() {
+                    let th = (cfg.layout.angle_deg(r, c) + delta[r * w + c] as f64).to_radians();
+                    let (s, co) = (2.0 * th).sin_cos();
+                    *v = [co as f32, s as f32];
+                }
+            });
+            out
+        });
+        Some(m)
+    }
+
     /// Per-pixel pass-axis angle θ_k in degrees, [0, 180), including the orientation error.
+    /// The first call builds the per-pixel map with rayon: make it outside rayon jobs (a job
+    /// that builds it may pick up sibling jobs waiting for the same map).
     pub fn pass_axis_deg(&self, row: usize, col: usize) -> f64 {
-        match &self.axis {
+        match self.axis_map() {
             Some(a) => {
                 let [c, s] = a[row * self.intrinsics.width + col];
                 crate::angle::SensorAngle::from_deg(0.5 * (s as f64).atan2(c as f64).to_degrees())
@@ -567,8 +584,8 @@ impl Sensor {
     }
 
     #[inline]
-    fn axis_at(&self, row: usize, col: usize) -> (f64, f64) {
-        match &self.axis {
+    fn axis_at(&self, axis: Option<&[[f32; 2]]>, row: usize, col: usize) -> (f64, f64) {
+        match axis {
             Some(a) => {
                 let [c, s] = a[row * self.intrinsics.width + col];
                 (c as f64, s as f64)
@@ -608,10 +625,11 @@ impl Sensor {
         self.check_input(stokes)?;
         let (a, b, base) = self.rate_coefficients();
         let w = self.intrinsics.width;
+        let axis = self.axis_map();
         let mut out = vec![0f64; w * self.intrinsics.height];
         out.par_chunks_mut(w).enumerate().for_each(|(r, row)| {
             for (c, v) in row.iter_mut().enumerate() {
-                *v = self.rate_at(stokes, r, c, a, b, base);
+                *v = self.rate_at(stokes, axis, r, c, a, b, base);
             }
         });
         Ok(out)
@@ -632,10 +650,20 @@ impl Sensor {
     /// Electron rate of pixel (r, c); the one formula behind [`Sensor::electron_rate`] and the
     /// fused single-pass frame path, so both give the same bits.
     #[inline(always)]
-    fn rate_at(&self, stokes: &StokesImage, r: usize, c: usize, a: f64, b: f64, base: f64) -> f64 {
+    #[allow(clippy::too_many_arguments)]
+    fn rate_at(
+        &self,
+        stokes: &StokesImage,
+        axis: Option<&[[f32; 2]]>,
+        r: usize,
+        c: usize,
+        a: f64,
+        b: f64,
+        base: f64,
+    ) -> f64 {
         let k = r * self.intrinsics.width + c;
         let (s0, s1, s2) = finite3(stokes, k);
-        let (co, si) = self.axis_at(r, c);
+        let (co, si) = self.axis_at(axis, r, c);
         let g = self.prnu.as_ref().map_or(1.0, |m| m[k] as f64);
         base * self.ri_at(k) * g * polarizer::reading(s0, s1, s2, co, si, a, b)
     }
@@ -854,6 +882,7 @@ impl Sensor {
             }
         };
         let (pa, pb, pbase) = self.rate_coefficients();
+        let axis = self.axis_map(); // built here, before the parallel loop, if still unbuilt
         let t = t_us * 1e-6;
         let dark_e = if st.dark {
             cfg.dark_current_at_temperature() * t
@@ -892,7 +921,7 @@ impl Sensor {
                         let k = r * w + c;
                         let rate_k = match &rate {
                             Some(rate) => rate[k],
-                            None => self.rate_at(stokes, r, c, pa, pb, pbase),
+                            None => self.rate_at(stokes, axis, r, c, pa, pb, pbase),
                         };
                         let mean = rate_k * t + dark_e;
                         let mut n = if st.shot {

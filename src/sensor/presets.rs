@@ -217,7 +217,7 @@ fn kappa_of(src: PsnsSource, ri: Option<&[f32]>, full: f64) -> f64 {
     }
 }
 
-super::fast::avx2_dispatch!(fn psns_row_dispatch = psns_row(
+crate::simd::simd_dispatch!(fn psns_row_dispatch = psns_row(
     row: &mut [u16],
     s: [&[f32]; 3],
     ri: &[f32],
@@ -227,7 +227,7 @@ super::fast::avx2_dispatch!(fn psns_row_dispatch = psns_row(
     sigma: f64,
     max: u16,
 ));
-super::fast::avx2_dispatch!(fn kappa_row_dispatch = kappa_row(
+crate::simd::simd_dispatch!(fn kappa_row_dispatch = kappa_row(
     a: &[f32],
     b: &[f32],
     c: &[f32],
@@ -458,6 +458,57 @@ pub(crate) fn psns_frame(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The PSNS row kernels give the same bits in every instruction set the CPU has.
+    #[test]
+    fn simd_paths_agree() {
+        use crate::simd::{with_simd, Simd};
+        let levels: Vec<Simd> = [Simd::Plain, Simd::Avx2, Simd::Avx512]
+            .into_iter()
+            .filter(|&l| l <= Simd::detected())
+            .collect();
+        let n = 1001;
+        let s0: Vec<f32> = (0..n)
+            .map(|i| match i % 61 {
+                0 => f32::NAN,
+                1 => f32::INFINITY,
+                _ => 1e-3 * 1.16f32.powi((i % 59) as i32),
+            })
+            .collect();
+        let s1: Vec<f32> = (0..n)
+            .map(|i| s0[i] * (0.5 - (i % 9) as f32 * 0.11))
+            .collect();
+        let s2: Vec<f32> = (0..n)
+            .map(|i| s0[i] * (0.2 - (i % 4) as f32 * 0.1))
+            .collect();
+        let g: Vec<f64> = (0..n).map(|i| 900.0 + (i % 13) as f64 * 7.3).collect();
+        let ri: Vec<f32> = (0..n).map(|i| 1.0 - (i % 17) as f32 * 0.01).collect();
+        let co: Vec<f64> = (0..n).map(|i| ((i % 8) as f64 * 0.7).cos()).collect();
+        let si: Vec<f64> = (0..n).map(|i| ((i % 8) as f64 * 0.7).sin()).collect();
+        let z: Vec<f32> = (0..n)
+            .map(|i| ((i * 7919 % 1000) as f32 - 500.0) * 0.006)
+            .collect();
+        let run = |l: Simd| {
+            with_simd(l, || {
+                let mut rows = Vec::new();
+                for zs in [&z[..], &[][..]] {
+                    let mut row = vec![0u16; n];
+                    psns_row_dispatch(&mut row, [&s0, &s1, &s2], &g, [&co, &si], zs, 12.5, 4095);
+                    rows.push(row);
+                }
+                let k = [
+                    kappa_row_dispatch(&s0, &s1, &s2, Some(&ri)).to_bits(),
+                    kappa_row_dispatch(&s0, &s1, &s2, None).to_bits(),
+                ];
+                (rows, k)
+            })
+        };
+        let base = run(Simd::Plain);
+        assert!(base.0[0].contains(&4095) && base.0[0].iter().any(|&c| c > 0 && c < 4095));
+        for &l in &levels[1..] {
+            assert!(run(l) == base, "{l:?} differs from plain");
+        }
+    }
 
     #[test]
     fn names_round_trip() {

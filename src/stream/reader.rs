@@ -297,15 +297,15 @@ fn infer_header(
     }
     if let (None, Some(a)) = (stride, found.first()) {
         let off = a.pos as u64;
-        if a.index > 0 && off > page && (off - page) % a.index == 0 {
+        if a.index > 0 && off > page && (off - page).is_multiple_of(a.index) {
             let s = (off - page) / a.index;
-            if s % page == 0 && s > 0 {
+            if s.is_multiple_of(page) && s > 0 {
                 stride = Some(s);
                 how.push(format!("stride {s} B from frame {} at byte {off}", a.index));
             }
         } else if eof && found.len() == 1 {
             let s = (buf.len() - a.pos) as u64;
-            if s % page == 0 && s > 0 {
+            if s.is_multiple_of(page) && s > 0 {
                 stride = Some(s);
                 how.push(format!("stride {s} B from the single frame's record"));
             }
@@ -359,7 +359,7 @@ fn infer_header(
         match f {
             PixelFormat::Mono8 => vec![p],
             PixelFormat::Mono16 => {
-                if p % 2 == 0 {
+                if p.is_multiple_of(2) {
                     vec![p / 2]
                 } else {
                     vec![]

@@ -1,11 +1,11 @@
-//! Stream writer: file header, then whole records (header | payload | zero pad), one `write_all`
-//! and one flush per frame so a reader can follow the stream as it grows.
+//! Stream writer: file header, then whole records (header | payload | zero pad), one vectored
+//! write and one flush per frame so a reader can follow the stream as it grows.
 
 use super::{crc32, FileHeader, FrameMeta, FILE_HEADER_SIZE, FLAG_DROPPED, FRAME_HEADER_SIZE};
 use crate::error::{Error, Result};
 use crate::sensor::packing::{pack, payload_size};
 use std::fs::File;
-use std::io::{Seek, SeekFrom, Write};
+use std::io::{IoSlice, Seek, SeekFrom, Write};
 use std::path::Path;
 
 /// Writes a stream to any `Write` (file, FIFO, stdout). Never seeks.
@@ -15,7 +15,8 @@ use std::path::Path;
 pub struct StreamWriter<W: Write> {
     w: W,
     header: FileHeader,
-    record: Vec<u8>,
+    /// Zeros for the pad after each payload.
+    pad: Vec<u8>,
     packed: Vec<u8>,
     last_index: Option<u64>,
     frames: u64,
@@ -33,11 +34,15 @@ impl<W: Write> StreamWriter<W> {
         w.write_all(&b)
             .and_then(|_| w.flush())
             .map_err(|e| Error::io("writing stream file header", e))?;
-        let stride = header.stride() as usize;
+        let p = payload_size(
+            header.pixel_format,
+            header.width as usize,
+            header.height as usize,
+        );
         Ok(StreamWriter {
             w,
             header: header.clone(),
-            record: vec![0u8; stride],
+            pad: vec![0u8; header.stride() as usize - FRAME_HEADER_SIZE - p],
             packed: Vec::new(),
             last_index: None,
             frames: 0,
@@ -119,11 +124,9 @@ impl<W: Write> StreamWriter<W> {
             }
         }
         let hdr = meta.encode(crc32(payload));
-        self.record[..FRAME_HEADER_SIZE].copy_from_slice(&hdr);
-        self.record[FRAME_HEADER_SIZE..FRAME_HEADER_SIZE + p].copy_from_slice(payload);
-        // the pad stays zero: the record buffer is only ever written at the same places
-        self.w
-            .write_all(&self.record)
+        // header, payload and zero pad gathered by one vectored write: the payload is not copied
+        let pad = &self.pad[..self.header.stride() as usize - FRAME_HEADER_SIZE - p];
+        write_all_vectored(&mut self.w, &[&hdr[..], payload, pad])
             .and_then(|_| self.w.flush())
             .map_err(|e| Error::io(format!("writing stream frame {}", meta.index), e))?;
         self.last_index = Some(meta.index);
@@ -138,6 +141,28 @@ impl<W: Write> StreamWriter<W> {
             .map_err(|e| Error::io("flushing stream", e))?;
         Ok(self.w)
     }
+}
+
+/// Writes every byte of `parts`, in order, with as few `write_vectored` calls as the writer
+/// allows (`Write::write_all_vectored` is not stable).
+fn write_all_vectored<W: Write>(w: &mut W, parts: &[&[u8]]) -> std::io::Result<()> {
+    let mut bufs: Vec<IoSlice<'_>> = parts.iter().map(|p| IoSlice::new(p)).collect();
+    let mut bufs = &mut bufs[..];
+    IoSlice::advance_slices(&mut bufs, 0); // drop leading empty slices
+    while !bufs.is_empty() {
+        match w.write_vectored(bufs) {
+            Ok(0) => {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::WriteZero,
+                    "failed to write whole buffer",
+                ))
+            }
+            Ok(n) => IoSlice::advance_slices(&mut bufs, n),
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(())
 }
 
 /// A stream written to a path. On [`finish`](Self::finish) the frame count is patched into the
@@ -181,6 +206,12 @@ impl FileStreamWriter {
     /// Frames written so far.
     pub fn frames_written(&self) -> u64 {
         self.inner.frames_written()
+    }
+
+    /// The open file's descriptor (to tune a FIFO's buffer).
+    #[cfg(unix)]
+    pub fn as_raw_fd(&self) -> std::os::fd::RawFd {
+        std::os::fd::AsRawFd::as_raw_fd(&self.inner.w)
     }
 
     /// Flushes; for a regular file rewrites the header with the frame count. Returns the count.

@@ -1,0 +1,112 @@
+//! Run-time choice of the instruction set for the row kernels ([`simd_dispatch`]): AVX-512,
+//! AVX2 + FMA or plain x86-64, the same bits in every one (`docs/performance.md`).
+
+/// Defines `$vis fn $name(args) -> ret` that calls the `#[inline(always)]` kernel `$body` built
+/// for the instruction set [`simd`] chooses: AVX-512 (F, BW, DQ, VL with AVX2 and FMA), AVX2 with
+/// FMA, or plain x86-64. The loops vectorise in each build; all give the same bits: the kernels'
+/// `mul_add` is exactly rounded with or without the instruction, plain `*` and `+` are never
+/// fused, and division, square root, min, max and conversions are exact IEEE operations in every
+/// instruction set (the `simd_paths_agree` tests check it). Used by every row kernel of the fast
+/// path and the PSNS presets.
+macro_rules! simd_dispatch {
+    ($(#[$m:meta])* $vis:vis fn $name:ident = $body:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)?) => {
+        $(#[$m])*
+        #[allow(clippy::too_many_arguments)]
+        $vis fn $name($($arg: $ty),*) $(-> $ret)? {
+            #[cfg(target_arch = "x86_64")]
+            {
+                #[target_feature(enable = "avx512f,avx512bw,avx512dq,avx512vl,avx2,fma")]
+                #[allow(clippy::too_many_arguments)]
+                unsafe fn avx512($($arg: $ty),*) $(-> $ret)? {
+                    $body($($arg),*)
+                }
+                #[target_feature(enable = "avx2,fma")]
+                #[allow(clippy::too_many_arguments)]
+                unsafe fn avx2($($arg: $ty),*) $(-> $ret)? {
+                    $body($($arg),*)
+                }
+                match $crate::simd::simd() {
+                    // SAFETY: `simd` never returns more than the CPU has
+                    $crate::simd::Simd::Avx512 => return unsafe { avx512($($arg),*) },
+                    // SAFETY: as above
+                    $crate::simd::Simd::Avx2 => return unsafe { avx2($($arg),*) },
+                    $crate::simd::Simd::Plain => {}
+                }
+            }
+            $body($($arg),*)
+        }
+    };
+}
+pub(crate) use simd_dispatch;
+
+/// Instruction sets the row kernels are built for ([`simd_dispatch`]), in increasing order.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
+pub enum Simd {
+    /// Baseline x86-64 (SSE2), and every other architecture.
+    Plain,
+    /// AVX2 and FMA.
+    Avx2,
+    /// AVX-512 F, BW, DQ and VL (with AVX2 and FMA).
+    Avx512,
+}
+
+impl Simd {
+    /// The best the CPU has.
+    pub fn detected() -> Simd {
+        #[cfg(target_arch = "x86_64")]
+        {
+            use std::arch::is_x86_feature_detected as has;
+            let avx2 = has!("avx2") && has!("fma");
+            if avx2 && has!("avx512f") && has!("avx512bw") && has!("avx512dq") && has!("avx512vl") {
+                return Simd::Avx512;
+            }
+            if avx2 {
+                return Simd::Avx2;
+            }
+        }
+        Simd::Plain
+    }
+
+    /// Parses `plain`, `avx2` or `avx512`.
+    pub fn parse(s: &str) -> Option<Simd> {
+        match s.trim().to_ascii_lowercase().as_str() {
+            "plain" => Some(Simd::Plain),
+            "avx2" => Some(Simd::Avx2),
+            "avx512" => Some(Simd::Avx512),
+            _ => None,
+        }
+    }
+}
+
+thread_local! {
+    static SIMD_OVERRIDE: std::cell::Cell<Option<Simd>> = const { std::cell::Cell::new(None) };
+}
+
+/// The instruction set of the row kernels: the best the CPU has, capped by the environment
+/// variable `PSNS_SIMD` (`plain`, `avx2` or `avx512`, read once; for comparing and timing the
+/// builds) and, on the calling thread only, by [`with_simd`]. Every choice gives the same bits.
+pub fn simd() -> Simd {
+    static PROCESS: std::sync::OnceLock<Simd> = std::sync::OnceLock::new();
+    let p = *PROCESS.get_or_init(|| {
+        let cpu = Simd::detected();
+        std::env::var("PSNS_SIMD")
+            .ok()
+            .and_then(|v| Simd::parse(&v))
+            .map_or(cpu, |cap| cap.min(cpu))
+    });
+    SIMD_OVERRIDE.with(|o| o.get()).map_or(p, |cap| cap.min(p))
+}
+
+/// Runs `f` with the row kernels called on this thread (not on rayon's workers) capped at `s`
+/// (for tests that compare the builds).
+pub fn with_simd<R>(s: Simd, f: impl FnOnce() -> R) -> R {
+    let prev = SIMD_OVERRIDE.with(|o| o.replace(Some(s)));
+    struct Restore(Option<Simd>);
+    impl Drop for Restore {
+        fn drop(&mut self) {
+            SIMD_OVERRIDE.with(|o| o.set(self.0));
+        }
+    }
+    let _restore = Restore(prev);
+    f()
+}
