@@ -481,7 +481,8 @@ mod tests {
         let s2: Vec<f32> = (0..n)
             .map(|i| s0[i] * (0.2 - (i % 4) as f32 * 0.1))
             .collect();
-        let g: Vec<f64> = (0..n).map(|i| 900.0 + (i % 13) as f64 * 7.3).collect();
+        // gain ½κ·RI = 1000 · (0.9 .. 0.99)
+        let g: Vec<f32> = (0..n).map(|i| 0.9 + (i % 13) as f32 * 0.0073).collect();
         let ri: Vec<f32> = (0..n).map(|i| 1.0 - (i % 17) as f32 * 0.01).collect();
         let co: Vec<f64> = (0..n).map(|i| ((i % 8) as f64 * 0.7).cos()).collect();
         let si: Vec<f64> = (0..n).map(|i| ((i % 8) as f64 * 0.7).sin()).collect();
@@ -493,7 +494,16 @@ mod tests {
                 let mut rows = Vec::new();
                 for zs in [&z[..], &[][..]] {
                     let mut row = vec![0u16; n];
-                    psns_row_dispatch(&mut row, [&s0, &s1, &s2], &g, [&co, &si], zs, 12.5, 4095);
+                    psns_row_dispatch(
+                        &mut row,
+                        [&s0, &s1, &s2],
+                        &g,
+                        1000.0,
+                        [&co, &si],
+                        zs,
+                        12.5,
+                        4095,
+                    );
                     rows.push(row);
                 }
                 let k = [
