@@ -460,6 +460,18 @@ pub struct Sensor {
     fast: std::sync::OnceLock<fast::FastStatics>,
 }
 
+/// The value of `cell`, built by `f` if it is still empty. `f` runs outside the cell's lock: the
+/// per-camera maps are built with rayon, and a thread waiting in a rayon join may run a sibling
+/// job that asks for the same map; inside `OnceLock::get_or_init` that nested call would
+/// deadlock. Here two callers may both build the map once (same value, the later one dropped).
+fn get_or_build<T>(cell: &std::sync::OnceLock<T>, f: impl FnOnce() -> T) -> &T {
+    if let Some(v) = cell.get() {
+        return v;
+    }
+    let _ = cell.set(f());
+    cell.get().expect("set above or by another caller")
+}
+
 impl Sensor {
     /// Validates and builds the fixed-pattern maps of camera `seed`.
     pub fn new(cfg: &SensorConfig, intrinsics: &Intrinsics, seed: u64) -> Result<Self> {
@@ -540,7 +552,7 @@ impl Sensor {
         if !self.oriented {
             return None;
         }
-        let m = self.axis.get_or_init(|| {
+        let m = get_or_build(&self.axis, || {
             let (w, h) = (self.intrinsics.width, self.intrinsics.height);
             let cfg = &self.cfg;
             let delta = noise::gaussian_map(
@@ -565,8 +577,7 @@ impl Sensor {
     }
 
     /// Per-pixel pass-axis angle θ_k in degrees, [0, 180), including the orientation error.
-    /// The first call builds the per-pixel map with rayon: make it outside rayon jobs (a job
-    /// that builds it may pick up sibling jobs waiting for the same map).
+    /// The first call builds the per-pixel map (with rayon; see [`get_or_build`]).
     pub fn pass_axis_deg(&self, row: usize, col: usize) -> f64 {
         match self.axis_map() {
             Some(a) => {
@@ -725,7 +736,7 @@ impl Sensor {
 
     /// The fast path's per-pixel coefficients (built on first call, ~16 bytes per pixel).
     pub fn fast_statics(&self) -> &fast::FastStatics {
-        self.fast.get_or_init(|| fast::FastStatics::new(self))
+        get_or_build(&self.fast, || fast::FastStatics::new(self))
     }
 
     /// Frame `frame_index` by the fast path ([`fast`]: counter-based noise, Cornish–Fisher shot
