@@ -256,16 +256,21 @@ pub fn quantize_polarizer_images(
         .flat_map(|i| i.data.iter())
         .fold(0.0f32, |m, &v| m.max(v)) as f64;
     let kappa = if max > 0.0 { full_scale / max } else { 0.0 };
+    // round(v κ) clipped to [0, full scale], as `round().clamp()` gives it (NaN to 0) but without
+    // libm's round call (no SSE4.1 in the baseline target): clip first, then the truncation
+    // and the fraction are exact
     let q = std::array::from_fn(|k| {
         let i = &imgs[k];
-        Image::from_vec(
-            i.width,
-            i.height,
-            i.data
-                .iter()
-                .map(|&v| (v as f64 * kappa).round().clamp(0.0, full_scale) as u16)
-                .collect(),
-        )
+        let data = i
+            .data
+            .par_iter()
+            .map(|&v| {
+                let x = (v as f64 * kappa).max(0.0).min(full_scale);
+                let t = x as u32;
+                (t + (x - t as f64 >= 0.5) as u32).min(65_535) as u16 // `as u16` saturated
+            })
+            .collect();
+        Image::from_vec(i.width, i.height, data)
     });
     (kappa, q)
 }
@@ -850,6 +855,48 @@ impl StokesRows for SkyGrid<'_> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The quantisation without libm's round equals `round().clamp()` + `as u16` at every
+    /// awkward value: halves, just below halves, negatives, NaN, −∞, and above 65535 (saturated).
+    #[test]
+    fn polarizer_quantisation_is_round_then_clamp() {
+        let vals: Vec<f32> = [
+            0.0,
+            0.5,
+            1.5,
+            2.5,
+            0.499_999_97,
+            -0.5,
+            -3.0,
+            254.5,
+            255.49,
+            300.0,
+            254.999_98,
+            f32::NAN,
+            f32::NEG_INFINITY,
+            65_535.5,
+            70_000.0,
+            7.3,
+            100.5,
+        ]
+        .into_iter()
+        .chain((0..2000).map(|k| k as f32 * 0.25 + 0.125))
+        .collect();
+        for fs in [255.0, 65_535.0, 1e6] {
+            // the brightest value is fs itself, so κ = 1 and v·κ = v: every awkward value is
+            // met as it is (those above fs would change the maximum and are left out)
+            let mut a: Vec<f32> = vals.iter().copied().filter(|v| !(*v > fs as f32)).collect();
+            a.push(fs as f32);
+            let imgs: [Image<f32>; 4] =
+                std::array::from_fn(|_| Image::from_vec(a.len(), 1, a.clone()));
+            let (kappa, q) = quantize_polarizer_images(&imgs, fs);
+            assert_eq!(kappa, 1.0);
+            for (k, &v) in a.iter().enumerate() {
+                let want = (v as f64 * kappa).round().clamp(0.0, fs) as u16;
+                assert_eq!(q[0].data[k], want, "v {v} full scale {fs}");
+            }
+        }
+    }
     use crate::camera::{Attitude, Intrinsics};
     use crate::sky::{SkyParams, SunPosition};
 
