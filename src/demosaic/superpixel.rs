@@ -173,7 +173,7 @@ pub fn superpixel_sampled<T: RawPixel>(
     black: f32,
 ) -> Result<super::PolarImages> {
     check_raw(raw)?;
-    if k < 2 || k % 2 != 0 {
+    if k < 2 || !k.is_multiple_of(2) {
         return Err(crate::error::Error::Invalid(format!(
             "superpixel sampling step {k}: must be even and at least 2"
         )));
