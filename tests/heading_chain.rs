@@ -716,10 +716,8 @@ fn stream_heading_uses_the_recorded_falloff() {
     }
     std::fs::write(&traj, t).unwrap();
     let stream = dir.path().join("s.psns");
-    let o = common::psns(&[
-        "stream",
-        "--preset",
-        "gniipi",
+    // the sun 2 degrees up and the frame size, for the stream and the image below
+    let scene = [
         "--sun-zenith",
         "88",
         "--sun-azimuth",
@@ -730,11 +728,12 @@ fn stream_heading_uses_the_recorded_falloff() {
         "256",
         "--pixel-pitch",
         "27.6",
-        "--trajectory",
-        traj.to_str().unwrap(),
-        "--out",
-        stream.to_str().unwrap(),
-    ]);
+    ];
+    let mut args = vec!["stream", "--preset", "gniipi"];
+    args.extend_from_slice(&scene);
+    args.extend_from_slice(&["--trajectory", traj.to_str().unwrap()]);
+    args.extend_from_slice(&["--out", stream.to_str().unwrap()]);
+    let o = common::psns(&args);
     assert!(o.status.success(), "{}", common::stderr(&o));
     let errors = |extra: &[&str]| -> Vec<f64> {
         let mut args = vec!["heading", stream.to_str().unwrap(), "--imu-tilt"];
@@ -754,22 +753,8 @@ fn stream_heading_uses_the_recorded_falloff() {
     // an image: --preset gniipi gives the preset's falloff (and lens), as psns render used them;
     // without it the camera preset's cos^1.5 flips this frame
     let out = dir.path().join("img");
-    let geo = [
-        "--sun-zenith",
-        "88",
-        "--sun-azimuth",
-        "200",
-        "--width",
-        "304",
-        "--height",
-        "256",
-        "--pixel-pitch",
-        "27.6",
-        "--pitch",
-        "5",
-        "--roll",
-        "-5",
-    ];
+    let mut geo = scene.to_vec();
+    geo.extend_from_slice(&["--pitch", "5", "--roll", "-5"]);
     let mut args = vec!["render", "--raw", "--preset", "gniipi", "--frame", "enu"];
     args.extend_from_slice(&["--yaw", "107", "--out", out.to_str().unwrap()]);
     args.extend_from_slice(&geo);
