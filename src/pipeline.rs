@@ -119,11 +119,10 @@ impl RawPipeline {
     /// scene otherwise): one pipeline serves scenes that differ only in the sky.
     pub fn stokes_in(
         &self,
-        sky: &SkyParams,
+        sky_params: &SkyParams,
         sun: SunPosition,
         attitude: &Attitude,
     ) -> Result<(StokesImage, SceneInfo)> {
-        let sky_params = sky;
         let raw: &RawConfig = &self.cfg.raw;
         let i = self.cfg.camera.intrinsics;
         let mut info = SceneInfo::default();

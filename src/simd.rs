@@ -67,6 +67,14 @@ impl Simd {
         Simd::Plain
     }
 
+    /// Every instruction set this CPU can run, plain first (for comparing the builds).
+    pub fn available() -> Vec<Simd> {
+        [Simd::Plain, Simd::Avx2, Simd::Avx512]
+            .into_iter()
+            .filter(|&l| l <= Simd::detected())
+            .collect()
+    }
+
     /// Parses `plain`, `avx2` or `avx512`.
     pub fn parse(s: &str) -> Option<Simd> {
         match s.trim().to_ascii_lowercase().as_str() {

@@ -873,14 +873,6 @@ mod tests {
         let shifted = (0..1_000_000u32).any(|s| b.bits(s) == first[0] && b.bits(s + 1) == first[1]);
         assert!(!shifted);
     }
-    /// The levels this CPU can run, plain first.
-    pub(crate) fn levels() -> Vec<Simd> {
-        [Simd::Plain, Simd::Avx2, Simd::Avx512]
-            .into_iter()
-            .filter(|&l| l <= Simd::detected())
-            .collect()
-    }
-
     /// The row kernel and the normals give the same bits in every instruction set the CPU has
     /// (plain, AVX2, AVX-512), folded and unfolded, over means from 0 to past the full well.
     #[test]
@@ -919,7 +911,7 @@ mod tests {
         };
         let run = |fc: &FrameConsts| -> Vec<(Vec<u32>, Vec<u16>, [u32; 4])> {
             let (folded, mu_hi) = (fc.folded(), fc.mu_high() as f32);
-            levels()
+            Simd::available()
                 .into_iter()
                 .map(|l| {
                     with_simd(l, || {
@@ -982,11 +974,11 @@ mod tests {
                 r[0].1.iter().any(|&c| c > 0 && c < 40),
                 "{name}: no dark pixel"
             );
-            for (l, x) in levels().iter().zip(&r).skip(1) {
+            for (l, x) in Simd::available().iter().zip(&r).skip(1) {
                 assert!(x == &r[0], "{name}: {l:?} differs from plain");
             }
         }
-        let z: Vec<Vec<u32>> = levels()
+        let z: Vec<Vec<u32>> = Simd::available()
             .into_iter()
             .map(|l| {
                 with_simd(l, || {
@@ -1044,7 +1036,7 @@ mod speed {
         let mut out = vec![0u16; w];
         let mut sat = [0u32; 4];
         let rows = 2000;
-        for level in super::tests::levels() {
+        for level in Simd::available() {
             with_simd(level, || {
                 let t0 = std::time::Instant::now();
                 for r in 0..rows {
