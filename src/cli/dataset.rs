@@ -428,10 +428,9 @@ fn pipeline_key(scene: &SceneConfig) -> SceneConfig {
 /// gniicpi) depends on the frame size, optics, preset and seed but not on the sky, which changes
 /// from sample to sample: that pipeline is kept in the cache keyed also without the sky and
 /// renders the sample's sky ([`RawPipeline::frame_at_in`]: read row by row from the sky grid,
-/// the codes of `psns render`'s planes). With `truth` the Stokes planes are made (the truth
-/// needs them) by a pipeline of the same scene with the nfpi preset, which builds no maps and
-/// draws the same scene (no PSNS preset draws the sun disc). The test that renders every sample
-/// again through `psns render` holds both to the same bytes.
+/// the codes of `psns render`'s planes; with `truth`, [`RawPipeline::stokes_in`]'s planes, which
+/// the truth needs). The test that renders every sample again through `psns render` holds both
+/// to the same bytes.
 fn render(
     cache: &PipelineCache,
     scene: &SceneConfig,
@@ -440,39 +439,28 @@ fn render(
     use psns::sensor::Preset;
     let sun = scene.sun.resolve()?;
     scene.sun.check_up(sun)?;
-    let frame = |pipe: &RawPipeline, st: &psns::image::StokesImage| {
+    let attitude = &scene.camera.attitude;
+    let index = scene.raw.frame_index;
+    let (pipe, f) = if scene.raw.preset == Preset::Camera {
+        let pipe = cache.get(scene)?;
+        let (st, _) = pipe.stokes(sun, attitude)?;
         // the path psns render --raw takes, so the images re-render byte for byte
-        let f = pipe.frame_of(st, scene.raw.frame_index, truth)?;
-        Ok::<_, Error>((f, pipe.sensor_config().layout))
+        let f = pipe.frame_of(&st, index, truth)?;
+        (pipe, f)
+    } else {
+        let mut key = scene.clone();
+        key.sky = Default::default();
+        let pipe = cache.get(&key)?;
+        let f = if truth {
+            let (st, _) = pipe.stokes_in(&scene.sky, sun, attitude)?;
+            pipe.frame_of(&st, index, true)?
+        } else {
+            pipe.frame_at_in(&scene.sky, sun, attitude, index, Vec::new())?
+                .0
+        };
+        (pipe, f)
     };
-    match scene.raw.preset {
-        Preset::Camera => {
-            let pipe = cache.get(scene)?;
-            let (st, _) = pipe.stokes(sun, &scene.camera.attitude)?;
-            frame(&pipe, &st)
-        }
-        _ if !truth => {
-            let mut key = scene.clone();
-            key.sky = Default::default();
-            let pipe = cache.get(&key)?;
-            let attitude = &scene.camera.attitude;
-            let (f, _) =
-                pipe.frame_at_in(&scene.sky, sun, attitude, scene.raw.frame_index, Vec::new())?;
-            Ok((f, pipe.sensor_config().layout))
-        }
-        preset => {
-            let mut sky_scene = scene.clone();
-            sky_scene.raw.preset = Preset::Nfpi;
-            let sky_pipe = RawPipeline::new(&sky_scene)?;
-            let (st, _) = sky_pipe.stokes(sun, &scene.camera.attitude)?;
-            if preset == Preset::Nfpi {
-                return frame(&sky_pipe, &st);
-            }
-            let mut key = scene.clone();
-            key.sky = Default::default();
-            frame(&*cache.get(&key)?, &st)
-        }
-    }
+    Ok((f, pipe.sensor_config().layout))
 }
 
 impl Worker<'_> {
