@@ -1116,7 +1116,15 @@ pub fn mask_saturated_sampled(
     k: usize,
 ) -> usize {
     let (w, h) = (codes.width, codes.height);
-    let hot = |r: usize| codes.row(r).iter().any(|&v| v >= full_scale);
+    // whether a code in rows r0..r1, columns c0..c1 (clamped to the frame) reads full scale
+    let any_full = |r0: usize, r1: usize, c0: usize, c1: usize| {
+        let (r1, c1) = (r1.min(h), c1.min(w));
+        (r0..r1).any(|r| {
+            codes.row(r)[c0.min(c1)..c1]
+                .iter()
+                .any(|&v| v >= full_scale)
+        })
+    };
     if !codes
         .data
         .par_chunks(w.max(1))
@@ -1127,11 +1135,7 @@ pub fn mask_saturated_sampled(
     for i in 0..dolp.height {
         for j in 0..dolp.width {
             let (r, c) = (k * i, k * j);
-            let bad = (r.saturating_sub(1)..(r + 3).min(h)).any(|rr| {
-                (c.saturating_sub(1)..(c + 3).min(w))
-                    .any(|cc| codes.data[rr * w + cc] >= full_scale)
-            });
-            if bad {
+            if any_full(r.saturating_sub(1), r + 3, c.saturating_sub(1), c + 3) {
                 dolp.data[i * dolp.width + j] = f32::NAN;
             }
         }
@@ -1140,16 +1144,12 @@ pub fn mask_saturated_sampled(
     (0..h)
         .into_par_iter()
         .map(|r| {
-            if !(r.saturating_sub(1)..(r + 2).min(h)).any(hot) {
+            let (r0, r1) = (r.saturating_sub(1), r + 2);
+            if !any_full(r0, r1, 0, w) {
                 return 0;
             }
             (0..w)
-                .filter(|&c| {
-                    (r.saturating_sub(1)..(r + 2).min(h)).any(|rr| {
-                        (c.saturating_sub(1)..(c + 2).min(w))
-                            .any(|cc| codes.data[rr * w + cc] >= full_scale)
-                    })
-                })
+                .filter(|&c| any_full(r0, r1, c.saturating_sub(1), c + 2))
                 .count()
         })
         .sum()
