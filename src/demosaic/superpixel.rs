@@ -13,6 +13,16 @@ fn offsets(layout: &MosaicLayout) -> [(usize, usize); 4] {
     std::array::from_fn(|k| layout.position_of(k))
 }
 
+/// Stokes (S0, S1, S2) of one 2 × 2 block from its 0°, 45°, 90°, 135° samples.
+#[inline(always)]
+fn block_stokes(v: [f32; 4]) -> (f32, f32, f32) {
+    (
+        0.5 * ((v[0] + v[2]) + (v[1] + v[3])),
+        v[0] - v[2],
+        v[1] - v[3],
+    )
+}
+
 /// Half-resolution Stokes planes, (width / 2) x (height / 2); block (i, j) covers rows 2i, 2i + 1
 /// and columns 2j, 2j + 1 (a trailing odd row or column is dropped).
 pub fn superpixel_half<T: RawPixel>(raw: &Image<T>, layout: MosaicLayout) -> Result<StokesImage> {
@@ -30,9 +40,7 @@ pub fn superpixel_half<T: RawPixel>(raw: &Image<T>, layout: MosaicLayout) -> Res
             let rows = [raw.row(2 * i), raw.row(2 * i + 1)];
             for j in 0..hw {
                 let v = off.map(|(dr, dc)| rows[dr][2 * j + dc].to_f32());
-                o0[j] = 0.5 * ((v[0] + v[2]) + (v[1] + v[3]));
-                o1[j] = v[0] - v[2];
-                o2[j] = v[1] - v[3];
+                (o0[j], o1[j], o2[j]) = block_stokes(v);
             }
         });
     Ok(st)
@@ -108,9 +116,7 @@ pub(crate) fn full_chain_into<T: RawPixel>(
             let rows = [raw.row(2 * bi), raw.row(2 * bi + 1)];
             for j in 0..hw {
                 let v = off.map(|(dr, dc)| rows[dr][2 * j + dc].to_f32());
-                let s0 = 0.5 * ((v[0] + v[2]) + (v[1] + v[3]));
-                let s1 = v[0] - v[2];
-                let s2 = v[1] - v[3];
+                let (s0, s1, s2) = block_stokes(v);
                 let d = crate::stokes::dolp(s0, s1, s2);
                 let a = crate::stokes::aolp_deg(s1, s2);
                 for (o, x) in [
@@ -195,11 +201,7 @@ pub fn superpixel_sampled<T: RawPixel>(
             let rows = [raw.row(k * i), raw.row(k * i + 1)];
             for j in 0..ow {
                 let v = off.map(|(dr, dc)| rows[dr][k * j + dc].to_f32() - black);
-                let (s0, s1, s2) = (
-                    0.5 * ((v[0] + v[2]) + (v[1] + v[3])),
-                    v[0] - v[2],
-                    v[1] - v[3],
-                );
+                let (s0, s1, s2) = block_stokes(v);
                 o0[j] = s0;
                 o1[j] = s1;
                 o2[j] = s2;

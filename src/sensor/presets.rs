@@ -169,6 +169,12 @@ impl PsnsSource<'_> {
             PsnsSource::Rows(s) => s.width(),
         }
     }
+    fn height(&self) -> usize {
+        match self {
+            PsnsSource::Planes(s) => s.height(),
+            PsnsSource::Rows(s) => s.height(),
+        }
+    }
     /// Row r of S0, S1, S2 (a grid's through `buf`).
     fn row<'b>(&'b self, r: usize, buf: &'b mut [Vec<f32>; 3]) -> [&'b [f32]; 3] {
         let w = self.width();
@@ -196,11 +202,7 @@ impl PsnsSource<'_> {
 /// [`auto_kappa`] of any [`PsnsSource`].
 fn kappa_of(src: PsnsSource, ri: Option<&[f32]>, full: f64) -> f64 {
     let w = src.width().max(1);
-    let h = match src {
-        PsnsSource::Planes(s) => s.height(),
-        PsnsSource::Rows(s) => s.height(),
-    };
-    let m = (0..h)
+    let m = (0..src.height())
         .into_par_iter()
         .map_init(
             || [Vec::new(), Vec::new(), Vec::new()],
