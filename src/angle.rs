@@ -25,6 +25,15 @@ impl SensorAngle {
     /// Wraps any angle in degrees to [0, 180).
     #[inline]
     pub fn from_deg(deg: f64) -> Self {
+        // |deg| < 180 (every AoLP from an atan2): rem_euclid's fmod returns deg itself, so this is
+        // its value without the call
+        if deg >= 0.0 && deg < 180.0 {
+            return SensorAngle(deg);
+        }
+        if deg > -180.0 && deg < 0.0 {
+            let a = deg + 180.0;
+            return SensorAngle(if a >= 180.0 { 0.0 } else { a });
+        }
         let mut a = deg.rem_euclid(180.0);
         if a >= 180.0 {
             a = 0.0; // rem_euclid can round up to the modulus
@@ -129,4 +138,49 @@ pub fn zenith_azimuth_deg(v: glam::DVec3) -> (f64, f64) {
     let z = v.z.clamp(-1.0, 1.0).acos().to_degrees();
     let a = CompassAzimuth::from_deg(v.x.atan2(v.y).to_degrees()).deg();
     (z, a)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::SensorAngle;
+
+    /// The wrap as it was written before the fast path: rem_euclid, 180 folded to 0.
+    fn reference(deg: f64) -> f64 {
+        let a = deg.rem_euclid(180.0);
+        if a >= 180.0 {
+            0.0
+        } else {
+            a
+        }
+    }
+
+    #[test]
+    fn from_deg_is_rem_euclid_bit_for_bit() {
+        let mut vals = vec![
+            0.0,
+            -0.0,
+            1e-300,
+            -1e-300,
+            -1e-20,
+            -f64::EPSILON,
+            90.0,
+            -90.0,
+            179.999_999_999_999_97,
+            180.0,
+            -180.0,
+            -179.999_999_999_999_97,
+            359.5,
+            -725.25,
+            1e17,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+        ];
+        // a dense sweep of (−360, 360) with awkward fractions
+        vals.extend((-720_000..720_000).map(|k| k as f64 * 0.000_5 + 1e-9 * (k % 7) as f64));
+        for v in vals {
+            let (got, want) = (SensorAngle::from_deg(v).deg(), reference(v));
+            assert_eq!(got.to_bits(), want.to_bits(), "{v:e}: {got:e} vs {want:e}");
+        }
+        assert!(SensorAngle::from_deg(f64::NAN).deg().is_nan());
+    }
 }

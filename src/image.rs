@@ -11,6 +11,25 @@ pub struct Image<T> {
     pub data: Vec<T>,
 }
 
+/// `x.round().clamp(0.0, hi) as u32` (NaN to 0) without libm's `round`, a call on the baseline
+/// x86-64 target (no SSE4.1): clipped first, the truncation and the fraction are exact. For
+/// 0 ≤ hi < 2³².
+///
+/// ```
+/// use psns::image::round_clamp;
+/// assert_eq!(round_clamp(2.5, 255.0), 3);
+/// assert_eq!(round_clamp(0.499_999_999_999_999_94, 255.0), 0);
+/// assert_eq!(round_clamp(-3.0, 255.0), 0);
+/// assert_eq!(round_clamp(f64::NAN, 255.0), 0);
+/// assert_eq!(round_clamp(1e9, 65_535.0), 65_535);
+/// ```
+#[inline]
+pub fn round_clamp(x: f64, hi: f64) -> u32 {
+    let x = x.max(0.0).min(hi); // max ignores NaN: NaN becomes 0
+    let t = x as u32;
+    t + (x - t as f64 >= 0.5) as u32
+}
+
 impl<T: Clone + Default> Image<T> {
     /// A `width` x `height` image filled with `T::default()`.
     pub fn new(width: usize, height: usize) -> Self {

@@ -9,7 +9,7 @@
 //! LI = DOP = AOP = 0 (ground: the ground radiance) and mask 0 (never NaN).
 
 use crate::camera::Camera;
-use crate::image::{Image, StokesImage, StokesRows};
+use crate::image::{round_clamp, Image, StokesImage, StokesRows};
 use crate::sky::hosek::{HosekWilkie, SUN_RADIUS_RAD};
 use crate::sky::Sky;
 use glam::DVec3;
@@ -97,6 +97,22 @@ pub struct IdealImages {
 
 /// Renders LI, DOP and AOP at every pixel centre.
 pub fn render_ideal(sky: &Sky, cam: &Camera) -> IdealImages {
+    render_ideal_rows(sky, cam, None)
+}
+
+/// [`render_ideal`] and the four polarizer images of [`polarizer_images`] in one pass. Here
+/// eq. (24) is evaluated from the pixel's f64 Stokes vector, LI(α) = ½ (S0 + S1 cos 2α + S2 sin 2α)
+/// with cos 2α, sin 2α ∈ {0, ±1} (the same value as ½ LI [1 + DOP cos 2(AOP − α)]), instead of
+/// from the stored f32 images: no cosine per pixel, and no rounding of AOP to f32 degrees first
+/// (the two agree to within a few f32 steps; tested).
+pub fn render_ideal_polarizers(sky: &Sky, cam: &Camera) -> (IdealImages, [Image<f32>; 4]) {
+    let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
+    let mut pol: [Image<f32>; 4] = std::array::from_fn(|_| Image::new(w, h));
+    let ideal = render_ideal_rows(sky, cam, Some(&mut pol));
+    (ideal, pol)
+}
+
+fn render_ideal_rows(sky: &Sky, cam: &Camera, pol: Option<&mut [Image<f32>; 4]>) -> IdealImages {
     let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
     let mut out = IdealImages {
         li: Image::new(w, h),
@@ -104,20 +120,45 @@ pub fn render_ideal(sky: &Sky, cam: &Camera) -> IdealImages {
         aop_deg: Image::new(w, h),
         valid: Image::new(w, h),
     };
-    out.li
-        .data
-        .par_chunks_mut(w)
-        .zip(out.dop.data.par_chunks_mut(w))
-        .zip(out.aop_deg.data.par_chunks_mut(w))
-        .zip(out.valid.data.par_chunks_mut(w))
+    // without polarizer images, four empty row iterators of the right length stand in
+    let mut none: [Vec<f32>; 4] = Default::default();
+    let (pw, [p0, p45, p90, p135]) = match pol {
+        Some([a, b, c, d]) => (w, [&mut a.data, &mut b.data, &mut c.data, &mut d.data]),
+        None => {
+            let [a, b, c, d] = &mut none;
+            for v in [&mut *a, &mut *b, &mut *c, &mut *d] {
+                v.resize(h, 0.0);
+            }
+            (1, [a, b, c, d])
+        }
+    };
+    (
+        out.li.data.par_chunks_mut(w),
+        out.dop.data.par_chunks_mut(w),
+        out.aop_deg.data.par_chunks_mut(w),
+        out.valid.data.par_chunks_mut(w),
+        p0.par_chunks_mut(pw),
+        p45.par_chunks_mut(pw),
+        p90.par_chunks_mut(pw),
+        p135.par_chunks_mut(pw),
+    )
+        .into_par_iter()
         .enumerate()
-        .for_each(|(r, (((li, dop), aop), valid))| {
+        .for_each(|(r, (li, dop, aop, valid, i0, i45, i90, i135))| {
+            let with_pol = pw == w;
             for c in 0..w {
                 let p = pixel_sky(sky, cam, c as f64, r as f64);
                 li[c] = p.li as f32;
                 dop[c] = p.dop as f32;
                 aop[c] = p.aop_deg() as f32;
                 valid[c] = p.valid as u8;
+                if with_pol {
+                    let [s0, s1, s2] = p.stokes();
+                    i0[c] = (0.5 * (s0 + s1)) as f32;
+                    i45[c] = (0.5 * (s0 + s2)) as f32;
+                    i90[c] = (0.5 * (s0 - s1)) as f32;
+                    i135[c] = (0.5 * (s0 - s2)) as f32;
+                }
             }
         });
     out
@@ -251,24 +292,19 @@ pub fn quantize_polarizer_images(
     imgs: &[Image<f32>; 4],
     full_scale: f64,
 ) -> (f64, [Image<u16>; 4]) {
+    // f32::max ignores NaN; the maximum is exact in any order
     let max = imgs
         .iter()
-        .flat_map(|i| i.data.iter())
-        .fold(0.0f32, |m, &v| m.max(v)) as f64;
+        .map(|i| i.data.par_iter().copied().reduce(|| 0.0f32, f32::max))
+        .fold(0.0f32, f32::max) as f64;
     let kappa = if max > 0.0 { full_scale / max } else { 0.0 };
-    // round(v κ) clipped to [0, full scale], as `round().clamp()` gives it (NaN to 0) but without
-    // libm's round call (no SSE4.1 in the baseline target): clip first, then the truncation
-    // and the fraction are exact
+    // round(v κ) clipped to [0, full scale]
     let q = std::array::from_fn(|k| {
         let i = &imgs[k];
         let data = i
             .data
             .par_iter()
-            .map(|&v| {
-                let x = (v as f64 * kappa).max(0.0).min(full_scale);
-                let t = x as u32;
-                (t + (x - t as f64 >= 0.5) as u32).min(65_535) as u16 // `as u16` saturated
-            })
+            .map(|&v| round_clamp(v as f64 * kappa, full_scale).min(65_535) as u16) // `as u16` saturated
             .collect();
         Image::from_vec(i.width, i.height, data)
     });
@@ -858,6 +894,52 @@ mod tests {
 
     /// The quantisation without libm's round equals `round().clamp()` + `as u16` at every
     /// awkward value: halves, just below halves, negatives, NaN, −∞, and above 65535 (saturated).
+    /// The one-pass polarizer images (from the f64 Stokes vector) against eq. (24) applied to the
+    /// stored f32 images: the same ideal images bit for bit, and polarizer images within the f32
+    /// rounding of AOP (≤ 1e-6 of the brightest), on a fisheye (ground and outside-circle pixels)
+    /// and a tilted pinhole frame with the horizon in view.
+    #[test]
+    fn one_pass_polarizer_images_are_eq_24() {
+        use crate::camera::Projection;
+        let sky = Sky::new(SunPosition::new(55.0, 130.0), &SkyParams::default()).unwrap();
+        let fisheye = Intrinsics {
+            projection: Projection::Equidistant,
+            focal_length_mm: 1.8,
+            pixel_pitch_um: 3.45 * 16.0,
+            ..Intrinsics::with_size(153, 128)
+        };
+        let pinhole = Intrinsics {
+            pixel_pitch_um: 3.45 * 16.0,
+            ..Intrinsics::with_size(160, 120)
+        };
+        for (intr, att) in [
+            (fisheye, Attitude::enu(30.0, 10.0, 0.0)),
+            (pinhole, Attitude::enu(200.0, 80.0, 5.0)),
+        ] {
+            let cam = Camera::new(intr, &att, 130.0).unwrap();
+            let (ideal, one_pass) = render_ideal_polarizers(&sky, &cam);
+            assert_eq!(ideal.li, render_ideal(&sky, &cam).li);
+            assert_eq!(ideal.aop_deg, render_ideal(&sky, &cam).aop_deg);
+            let want = polarizer_images(&ideal);
+            let top = want[0].data.iter().fold(0.0f32, |m, &v| m.max(v));
+            let (mut ground, mut sky_px) = (0, 0);
+            for k in 0..4 {
+                for (i, (&a, &b)) in one_pass[k].data.iter().zip(&want[k].data).enumerate() {
+                    assert!((a - b).abs() <= 1e-6 * top, "{k} px {i}: {a} vs {b}");
+                }
+            }
+            for (i, &v) in ideal.valid.data.iter().enumerate() {
+                if v == 0 {
+                    ground += 1;
+                    assert_eq!(one_pass[0].data[i], one_pass[2].data[i]);
+                } else {
+                    sky_px += 1;
+                }
+            }
+            assert!(ground > 100 && sky_px > 1000, "{ground} {sky_px}");
+        }
+    }
+
     #[test]
     fn polarizer_quantisation_is_round_then_clamp() {
         let vals: Vec<f32> = [

@@ -183,9 +183,8 @@ struct Ideal {
 /// Renders the ideal images (exact per pixel) and the values `scene.json` records.
 fn render_ideal(sky: &psns::sky::Sky, cam: &psns::camera::Camera) -> Ideal {
     let t0 = Instant::now();
-    let ideal = render::render_ideal(sky, cam);
+    let (ideal, pol) = render::render_ideal_polarizers(sky, cam);
     let render_s = t0.elapsed().as_secs_f64();
-    let pol = render::polarizer_images(&ideal);
     let (kappa8, q8) = render::quantize_polarizer_images(&pol, 255.0);
     let (_, q16) = render::quantize_polarizer_images(&pol, 65535.0);
     let valid = ideal.valid.data.iter().filter(|&&v| v != 0).count();
@@ -339,7 +338,7 @@ pub fn render_raw_to_dir(cfg: &SceneConfig, target: &Path) -> Result<RawSummary>
             codes
                 .data
                 .iter()
-                .map(|&v| (v as f64 / full * 255.0).round() as u8)
+                .map(|&v| psns::image::round_clamp(v as f64 / full * 255.0, 255.0) as u8)
                 .collect(),
         );
         io::write_png_gray8(p, &view)

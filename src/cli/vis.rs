@@ -1,7 +1,7 @@
 //! Colour visualisations for people: AOP as a cyclic hue, DOP with a perceptual map (viridis),
 //! radiance as grey. Purely for looking; the numbers live in the `.npy` files.
 
-use psns::image::Image;
+use psns::image::{round_clamp, Image};
 
 /// Viridis anchor colours at 0, 1/8, …, 1 (sampled from matplotlib's map).
 const VIRIDIS: [[f64; 3]; 9] = [
@@ -25,7 +25,7 @@ pub fn viridis(t: f64) -> [u8; 3] {
     } * 8.0;
     let i = (t.floor() as usize).min(7);
     let f = t - i as f64;
-    std::array::from_fn(|k| (VIRIDIS[i][k] * (1.0 - f) + VIRIDIS[i + 1][k] * f).round() as u8)
+    std::array::from_fn(|k| round_clamp(VIRIDIS[i][k] * (1.0 - f) + VIRIDIS[i + 1][k] * f, 255.0) as u8)
 }
 
 /// Fully saturated hue for an axial angle in degrees (period 180°): 0° red, 60° green, 120° blue.
@@ -70,7 +70,7 @@ pub fn aolp_dolp_rgb(aop_deg: &Image<f32>, dop: &Image<f32>, dolp_full: f64) -> 
             } else {
                 0.0
             };
-            cyclic_hue(a as f64).map(|c| (c as f64 * k).round() as u8)
+            cyclic_hue(a as f64).map(|c| round_clamp(c as f64 * k, 255.0) as u8)
         })
         .collect();
     Image::from_vec(aop_deg.width, aop_deg.height, data)
@@ -99,7 +99,7 @@ pub fn gray8(img: &Image<f32>, white: f64) -> Image<u8> {
     let data = img
         .data
         .iter()
-        .map(|&v| (v as f64 * k).round().clamp(0.0, 255.0) as u8)
+        .map(|&v| round_clamp(v as f64 * k, 255.0) as u8)
         .collect();
     Image::from_vec(img.width, img.height, data)
 }

@@ -419,19 +419,25 @@ impl RawFrame {
         let (w, h) = (t.width(), t.height());
         let mut dolp = Image::new(w, h);
         let mut aolp = Image::new(w, h);
-        for k in 0..w * h {
-            let (s0, s1, s2) = (
-                t.s0.data[k] as f64,
-                t.s1.data[k] as f64,
-                t.s2.data[k] as f64,
-            );
-            dolp.data[k] = if s0 > 0.0 {
-                (s1.hypot(s2) / s0) as f32
-            } else {
-                0.0
-            };
-            aolp.data[k] = crate::angle::SensorAngle::from_stokes(s1, s2).deg() as f32;
-        }
+        (
+            dolp.data.par_chunks_mut(w),
+            aolp.data.par_chunks_mut(w),
+            t.s0.data.par_chunks(w),
+            t.s1.data.par_chunks(w),
+            t.s2.data.par_chunks(w),
+        )
+            .into_par_iter()
+            .for_each(|(dolp, aolp, s0, s1, s2)| {
+                for k in 0..w {
+                    let (s0, s1, s2) = (s0[k] as f64, s1[k] as f64, s2[k] as f64);
+                    dolp[k] = if s0 > 0.0 {
+                        (s1.hypot(s2) / s0) as f32
+                    } else {
+                        0.0
+                    };
+                    aolp[k] = crate::angle::SensorAngle::from_stokes(s1, s2).deg() as f32;
+                }
+            });
         (dolp, aolp)
     }
 }
