@@ -151,9 +151,24 @@ fn python(args: &[&str]) -> String {
 }
 
 fn c_reader(dir: &Path) -> PathBuf {
-    let exe = dir.join("psns_stream_c");
+    c_reader_with(dir, "psns_stream_c", &[])
+}
+
+/// The C reader built twice: as shipped (with the PCLMULQDQ CRC where the compiler and CPU have
+/// it) and with the portable CRC only (`-DPSNS_PORTABLE_CRC`).
+fn c_readers(dir: &Path) -> [PathBuf; 2] {
+    [
+        c_reader(dir),
+        c_reader_with(dir, "psns_stream_c_portable", &["-DPSNS_PORTABLE_CRC"]),
+    ]
+}
+
+fn c_reader_with(dir: &Path, name: &str, flags: &[&str]) -> PathBuf {
+    let exe = dir.join(name);
     let st = Command::new("cc")
-        .args(["-std=c99", "-O2", "-Wall", "-o"])
+        .args(["-std=c99", "-O2", "-Wall", "-Werror"])
+        .args(flags)
+        .arg("-o")
         .arg(&exe)
         .arg(root().join("tools/psns_stream.c"))
         .status()
@@ -273,11 +288,16 @@ fn event_cases() -> Vec<(&'static str, Vec<u8>)> {
 #[test]
 fn c_reader_matches_rust() {
     let dir = tempfile::tempdir().unwrap();
-    let exe = c_reader(dir.path());
+    for exe in c_readers(dir.path()) {
+        matches_rust(&exe, dir.path());
+    }
+}
+
+fn matches_rust(exe: &Path, dir: &Path) {
     for (name, bytes) in cases() {
-        let p = dir.path().join(format!("{name}.psns"));
+        let p = dir.join(format!("{name}.psns"));
         std::fs::write(&p, &bytes).unwrap();
-        let out = Command::new(&exe).arg("dump").arg(&p).output().unwrap();
+        let out = Command::new(exe).arg("dump").arg(&p).output().unwrap();
         assert!(
             out.status.success(),
             "{name}: {}",
@@ -289,8 +309,8 @@ fn c_reader_matches_rust() {
             "{name}"
         );
         // frame dump equals Rust's codes
-        let raw = dir.path().join("f.raw");
-        let st = Command::new(&exe)
+        let raw = dir.join("f.raw");
+        let st = Command::new(exe)
             .arg("frame")
             .arg(&p)
             .arg("0")
@@ -310,7 +330,13 @@ fn c_reader_matches_rust() {
 #[test]
 fn c_reader_crc_equals_crc32fast() {
     let dir = tempfile::tempdir().unwrap();
-    let exe = c_reader(dir.path());
+    for exe in c_readers(dir.path()) {
+        crc_equals_crc32fast(&exe, dir.path());
+    }
+}
+
+fn crc_equals_crc32fast(exe: &Path, dir: &Path) {
+    let name = exe.file_name().unwrap().to_string_lossy().to_string();
     let mut x = 0x9E37_79B9_7F4A_7C15u64;
     let bytes: Vec<u8> = (0..10_027_008 + 19)
         .map(|_| {
@@ -332,9 +358,9 @@ fn c_reader_crc_equals_crc32fast() {
         bytes.len(),
     ]);
     let crc_of = |data: &[u8]| {
-        let p = dir.path().join("crc.bin");
+        let p = dir.join("crc.bin");
         std::fs::write(&p, data).unwrap();
-        let out = Command::new(&exe).arg("crc").arg(&p).output().unwrap();
+        let out = Command::new(exe).arg("crc").arg(&p).output().unwrap();
         assert!(
             out.status.success(),
             "{}",
@@ -346,7 +372,7 @@ fn c_reader_crc_equals_crc32fast() {
         assert_eq!(
             crc_of(&bytes[..n]),
             format!("{:08x}", crc32(&bytes[..n])),
-            "length {n}"
+            "{name}: length {n}"
         );
     }
     assert_eq!(crc_of(b"123456789"), "cbf43926");
@@ -355,15 +381,15 @@ fn c_reader_crc_equals_crc32fast() {
         let mut b = bytes[..100_003].to_vec();
         b[at] ^= 0x80;
         let got = crc_of(&b);
-        assert_eq!(got, format!("{:08x}", crc32(&b)), "flip at {at}");
+        assert_eq!(got, format!("{:08x}", crc32(&b)), "{name}: flip at {at}");
         assert_ne!(
             got,
             format!("{:08x}", crc32(&bytes[..100_003])),
-            "flip at {at}"
+            "{name}: flip at {at}"
         );
     }
     // from stdin, read in pieces
-    let mut child = Command::new(&exe)
+    let mut child = Command::new(exe)
         .args(["crc", "-"])
         .stdin(std::process::Stdio::piped())
         .stdout(std::process::Stdio::piped())
@@ -388,12 +414,10 @@ fn c_reader_crc_equals_crc32fast() {
 #[test]
 fn c_reader_full_size_frames_match_rust() {
     let dir = tempfile::tempdir().unwrap();
-    let exe = c_reader(dir.path());
+    let exes = c_readers(dir.path());
     for (name, bytes) in large_cases(2448, 2048) {
         let p = dir.path().join("full.psns");
         std::fs::write(&p, &bytes).unwrap();
-        let out = Command::new(&exe).arg("dump").arg(&p).output().unwrap();
-        assert!(out.status.success(), "{name}");
         let want = rust_dump(&bytes);
         let bad: Vec<&str> = want
             .lines()
@@ -401,7 +425,15 @@ fn c_reader_full_size_frames_match_rust() {
             .map(|l| l.split(' ').nth(1).unwrap())
             .collect();
         assert_eq!(bad, ["1", "2"], "{name}: payload CRC failures");
-        assert_eq!(String::from_utf8(out.stdout).unwrap(), want, "C: {name}");
+        for exe in &exes {
+            let out = Command::new(exe).arg("dump").arg(&p).output().unwrap();
+            assert!(out.status.success(), "{name}");
+            assert_eq!(
+                String::from_utf8(out.stdout).unwrap(),
+                want,
+                "{exe:?}: {name}"
+            );
+        }
     }
 }
 
