@@ -21,6 +21,22 @@ fn stream(fmt: PixelFormat, w: u32, h: u32, n: u64, msb: bool) -> Vec<u8> {
 
 /// A stream with the given frame indexes (a jump = dropped frames) and black level.
 fn stream_ix(fmt: PixelFormat, w: u32, h: u32, ix: &[u64], msb: bool, black: f64) -> Vec<u8> {
+    // (these codes are all even: the golden fixtures keep them; `large_cases` uses every bit)
+    stream_with(fmt, w, h, ix, msb, black, &|k, i| {
+        ((k * 37 + i * 1000 + k * k) % 4096) as u16
+    })
+}
+
+/// A stream whose frame `i` has code `code(k, i)` at pixel k.
+fn stream_with(
+    fmt: PixelFormat,
+    w: u32,
+    h: u32,
+    ix: &[u64],
+    msb: bool,
+    black: f64,
+    code: &dyn Fn(u64, u64) -> u16,
+) -> Vec<u8> {
     let hd = FileHeader {
         width: w,
         height: h,
@@ -54,9 +70,7 @@ fn stream_ix(fmt: PixelFormat, w: u32, h: u32, ix: &[u64], msb: bool, black: f64
             albedo: 0.1,
             ..Default::default()
         };
-        let c: Vec<u16> = (0..(w * h) as u64)
-            .map(|k| ((k * 37 + i * 1000 + k * k) % 4096) as u16)
-            .collect();
+        let c: Vec<u16> = (0..(w * h) as u64).map(|k| code(k, i)).collect();
         wr.write_frame(&m, &c).unwrap();
     }
     wr.finish().unwrap()
@@ -207,7 +221,9 @@ fn cases() -> Vec<(String, Vec<u8>)> {
 fn large_cases(w: u32, h: u32) -> Vec<(String, Vec<u8>)> {
     let mut v = Vec::new();
     for fmt in PixelFormat::ALL {
-        let mut b = stream(fmt, w, h, 3, false);
+        // codes that use all 12 bits (odd and even, every bit position)
+        let hash = |k: u64, i: u64| ((k.wrapping_mul(0x9E37_79B9) ^ (i << 20)) >> 9) as u16 & 0xFFF;
+        let mut b = stream_with(fmt, w, h, &[0, 1, 2], false, 0.0, &hash);
         let p = packing::payload_size(fmt, w as usize, h as usize);
         assert!(p >= 4096 || w * h < 4096, "{fmt}: payload {p}");
         let stride = stride_for(p as u64) as usize;

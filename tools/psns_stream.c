@@ -249,7 +249,15 @@ static void unpack(const stream_header *h, const uint8_t *restrict p, uint16_t *
     }
     default: { /* two pixels in three bytes; an odd count ends with a half group */
         int p12 = h->pfnc == 0x010C0047;
-        for (i = 0; i + 1 < n; i += 2, p += 3) {
+        i = 0;
+        if (p12) /* Mono12p is a little-endian bit stream: four pixels per 8-byte load (of which
+                    6 bytes are used; i + 6 <= n keeps the load inside the payload) */
+            for (; i + 6 <= n; i += 4, p += 6) {
+                uint64_t w = rd64(p), o = (w & 0xFFF) | (w >> 12 & 0xFFF) << 16 |
+                                          (w >> 24 & 0xFFF) << 32 | (w >> 36 & 0xFFF) << 48;
+                memcpy(v + i, &o, 8); /* little-endian host */
+            }
+        for (; i + 1 < n; i += 2, p += 3) {
             v[i] = p12 ? (uint16_t)(p[0] | ((p[1] & 0x0F) << 8))
                        : (uint16_t)((p[0] << 4) | (p[1] & 0x0F));
             v[i + 1] = (uint16_t)((p[1] >> 4) | (p[2] << 4));
