@@ -3,7 +3,7 @@
 
 mod common;
 
-use psns::sensor::packing::PixelFormat;
+use psns::sensor::packing::{self, PixelFormat};
 use psns::stream::*;
 use sha2::{Digest, Sha256};
 use std::io::Cursor;
@@ -21,6 +21,22 @@ fn stream(fmt: PixelFormat, w: u32, h: u32, n: u64, msb: bool) -> Vec<u8> {
 
 /// A stream with the given frame indexes (a jump = dropped frames) and black level.
 fn stream_ix(fmt: PixelFormat, w: u32, h: u32, ix: &[u64], msb: bool, black: f64) -> Vec<u8> {
+    // (these codes are all even: the golden fixtures keep them; `large_cases` uses every bit)
+    stream_with(fmt, w, h, ix, msb, black, &|k, i| {
+        ((k * 37 + i * 1000 + k * k) % 4096) as u16
+    })
+}
+
+/// A stream whose frame `i` has code `code(k, i)` at pixel k.
+fn stream_with(
+    fmt: PixelFormat,
+    w: u32,
+    h: u32,
+    ix: &[u64],
+    msb: bool,
+    black: f64,
+    code: &dyn Fn(u64, u64) -> u16,
+) -> Vec<u8> {
     let hd = FileHeader {
         width: w,
         height: h,
@@ -54,9 +70,7 @@ fn stream_ix(fmt: PixelFormat, w: u32, h: u32, ix: &[u64], msb: bool, black: f64
             albedo: 0.1,
             ..Default::default()
         };
-        let c: Vec<u16> = (0..(w * h) as u64)
-            .map(|k| ((k * 37 + i * 1000 + k * k) % 4096) as u16)
-            .collect();
+        let c: Vec<u16> = (0..(w * h) as u64).map(|k| code(k, i)).collect();
         wr.write_frame(&m, &c).unwrap();
     }
     wr.finish().unwrap()
@@ -151,9 +165,24 @@ fn python(args: &[&str]) -> String {
 }
 
 fn c_reader(dir: &Path) -> PathBuf {
-    let exe = dir.join("psns_stream_c");
+    c_reader_with(dir, "psns_stream_c", &[])
+}
+
+/// The C reader built twice: as shipped (with the PCLMULQDQ CRC where the compiler and CPU have
+/// it) and with the portable CRC only (`-DPSNS_PORTABLE_CRC`).
+fn c_readers(dir: &Path) -> [PathBuf; 2] {
+    [
+        c_reader(dir),
+        c_reader_with(dir, "psns_stream_c_portable", &["-DPSNS_PORTABLE_CRC"]),
+    ]
+}
+
+fn c_reader_with(dir: &Path, name: &str, flags: &[&str]) -> PathBuf {
+    let exe = dir.join(name);
     let st = Command::new("cc")
-        .args(["-std=c99", "-O2", "-Wall", "-o"])
+        .args(["-std=c99", "-O2", "-Wall", "-Werror"])
+        .args(flags)
+        .arg("-o")
         .arg(&exe)
         .arg(root().join("tools/psns_stream.c"))
         .status()
@@ -180,6 +209,28 @@ fn cases() -> Vec<(String, Vec<u8>)> {
     v.push(("damaged".into(), b));
     for (name, b) in event_cases() {
         v.push((name.into(), b));
+    }
+    v.extend(large_cases(333, 77));
+    v
+}
+
+/// Frames whose payload is long enough for the C reader's two-halves CRC (>= 4096 bytes), an odd
+/// pixel count, in every format: frame 1's payload damaged in its first half, frame 2's in its
+/// last byte (the tail after the halves), frame 0 intact. Every reader must report crc_ok = 0
+/// for frames 1 and 2 and the CRC of their (damaged) values as crc32fast computes it.
+fn large_cases(w: u32, h: u32) -> Vec<(String, Vec<u8>)> {
+    let mut v = Vec::new();
+    for fmt in PixelFormat::ALL {
+        // codes that use all 12 bits (odd and even, every bit position)
+        let hash = |k: u64, i: u64| ((k.wrapping_mul(0x9E37_79B9) ^ (i << 20)) >> 9) as u16 & 0xFFF;
+        let mut b = stream_with(fmt, w, h, &[0, 1, 2], false, 0.0, &hash);
+        let p = packing::payload_size(fmt, w as usize, h as usize);
+        assert!(p >= 4096 || w * h < 4096, "{fmt}: payload {p}");
+        let stride = stride_for(p as u64) as usize;
+        let payload = |k: usize| 4096 + k * stride + FRAME_HEADER_SIZE;
+        b[payload(1) + p / 3] ^= 0x20;
+        b[payload(2) + p - 1] ^= 0x01;
+        v.push((format!("{fmt}-{w}x{h}-damaged"), b));
     }
     v
 }
@@ -253,11 +304,16 @@ fn event_cases() -> Vec<(&'static str, Vec<u8>)> {
 #[test]
 fn c_reader_matches_rust() {
     let dir = tempfile::tempdir().unwrap();
-    let exe = c_reader(dir.path());
+    for exe in c_readers(dir.path()) {
+        matches_rust(&exe, dir.path());
+    }
+}
+
+fn matches_rust(exe: &Path, dir: &Path) {
     for (name, bytes) in cases() {
-        let p = dir.path().join(format!("{name}.psns"));
+        let p = dir.join(format!("{name}.psns"));
         std::fs::write(&p, &bytes).unwrap();
-        let out = Command::new(&exe).arg("dump").arg(&p).output().unwrap();
+        let out = Command::new(exe).arg("dump").arg(&p).output().unwrap();
         assert!(
             out.status.success(),
             "{name}: {}",
@@ -269,8 +325,8 @@ fn c_reader_matches_rust() {
             "{name}"
         );
         // frame dump equals Rust's codes
-        let raw = dir.path().join("f.raw");
-        let st = Command::new(&exe)
+        let raw = dir.join("f.raw");
+        let st = Command::new(exe)
             .arg("frame")
             .arg(&p)
             .arg("0")
@@ -281,6 +337,119 @@ fn c_reader_matches_rust() {
         let x = extract_frame(Cursor::new(&bytes), 0).unwrap();
         let want: Vec<u8> = x.codes.iter().flat_map(|c| c.to_le_bytes()).collect();
         assert_eq!(std::fs::read(&raw).unwrap(), want, "{name}");
+    }
+}
+
+/// The C reader's CRC-32 (slicing by 16, long buffers in two halves joined by crc32_combine)
+/// equals crc32fast's at every length around its thresholds, on random bytes, and a flipped bit
+/// anywhere changes it as it changes crc32fast's.
+#[test]
+fn c_reader_crc_equals_crc32fast() {
+    let dir = tempfile::tempdir().unwrap();
+    for exe in c_readers(dir.path()) {
+        crc_equals_crc32fast(&exe, dir.path());
+    }
+}
+
+fn crc_equals_crc32fast(exe: &Path, dir: &Path) {
+    let name = exe.file_name().unwrap().to_string_lossy().to_string();
+    let mut x = 0x9E37_79B9_7F4A_7C15u64;
+    let bytes: Vec<u8> = (0..10_027_008 + 19)
+        .map(|_| {
+            x ^= x << 13;
+            x ^= x >> 7;
+            x ^= x << 17;
+            (x >> 32) as u8
+        })
+        .collect();
+    let mut lens: Vec<usize> = (0..=40).collect();
+    lens.extend([
+        255, 256, 4095, 4096, 4097, 4111, 4112, 4113, 4127, 4128, 8191, 65_537,
+    ]);
+    lens.extend([
+        (1 << 20) - 1,
+        1 << 20,
+        (1 << 20) + 17,
+        3 * (1 << 20) + 5,
+        bytes.len(),
+    ]);
+    let crc_of = |data: &[u8]| {
+        let p = dir.join("crc.bin");
+        std::fs::write(&p, data).unwrap();
+        let out = Command::new(exe).arg("crc").arg(&p).output().unwrap();
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        String::from_utf8(out.stdout).unwrap().trim().to_string()
+    };
+    for n in lens {
+        assert_eq!(
+            crc_of(&bytes[..n]),
+            format!("{:08x}", crc32(&bytes[..n])),
+            "{name}: length {n}"
+        );
+    }
+    assert_eq!(crc_of(b"123456789"), "cbf43926");
+    // one flipped bit in the first half, the second half and the tail of a 100 003-byte buffer
+    for at in [0, 17, 50_000, 50_001, 99_990, 100_002] {
+        let mut b = bytes[..100_003].to_vec();
+        b[at] ^= 0x80;
+        let got = crc_of(&b);
+        assert_eq!(got, format!("{:08x}", crc32(&b)), "{name}: flip at {at}");
+        assert_ne!(
+            got,
+            format!("{:08x}", crc32(&bytes[..100_003])),
+            "{name}: flip at {at}"
+        );
+    }
+    // from stdin, read in pieces
+    let mut child = Command::new(exe)
+        .args(["crc", "-"])
+        .stdin(std::process::Stdio::piped())
+        .stdout(std::process::Stdio::piped())
+        .spawn()
+        .unwrap();
+    {
+        use std::io::Write;
+        let mut stdin = child.stdin.take().unwrap();
+        for part in bytes[..3_000_001].chunks(77_777) {
+            stdin.write_all(part).unwrap();
+        }
+    }
+    let out = child.wait_with_output().unwrap();
+    assert_eq!(
+        String::from_utf8(out.stdout).unwrap().trim(),
+        format!("{:08x}", crc32(&bytes[..3_000_001]))
+    );
+}
+
+/// Full-size frames (2448 x 2048) in every format, one damaged in the middle of its payload:
+/// the C reader prints the Rust reader's lines (payload CRC, pixel sum, CRC of the values).
+#[test]
+fn c_reader_full_size_frames_match_rust() {
+    let dir = tempfile::tempdir().unwrap();
+    let exes = c_readers(dir.path());
+    for (name, bytes) in large_cases(2448, 2048) {
+        let p = dir.path().join("full.psns");
+        std::fs::write(&p, &bytes).unwrap();
+        let want = rust_dump(&bytes);
+        let bad: Vec<&str> = want
+            .lines()
+            .filter(|l| l.starts_with("frame ") && l.split(' ').nth(3) == Some("0"))
+            .map(|l| l.split(' ').nth(1).unwrap())
+            .collect();
+        assert_eq!(bad, ["1", "2"], "{name}: payload CRC failures");
+        for exe in &exes {
+            let out = Command::new(exe).arg("dump").arg(&p).output().unwrap();
+            assert!(out.status.success(), "{name}");
+            assert_eq!(
+                String::from_utf8(out.stdout).unwrap(),
+                want,
+                "{exe:?}: {name}"
+            );
+        }
     }
 }
 

@@ -4,6 +4,7 @@
  *   cc -std=c99 -O2 -o psns_stream tools/psns_stream.c
  *   psns_stream dump FILE|-          canonical header/frame lines (used by the tests)
  *   psns_stream frame FILE|- N OUT   write frame N's values as raw uint16 little-endian
+ *   psns_stream crc FILE|-           CRC-32 of the whole input, 8 hex digits (tests the CRC)
  *
  * Reads sequentially with fread (works on files, FIFOs and stdin), validates the file header
  * like Rust's FileHeader::decode, checks both CRCs, and follows the Rust StreamReader
@@ -16,36 +17,127 @@
 #include <stdlib.h>
 #include <string.h>
 
-/* zlib's CRC-32, eight bytes per step ("slicing by 8"): t[k][b] is the CRC of byte b followed by
-   k zero bytes, so eight table lookups advance the CRC by eight bytes. A frame's 10 MB are checked
-   about five times faster than byte by byte, which kept a reader on a FIFO at 11 frames/s. */
-static uint32_t crc_t[8][256];
+/* zlib's CRC-32 (reflected polynomial 0xEDB88320, as crc32fast and Python's zlib.crc32), portable
+   C99. Slicing by 16: crc_t[k][b] is the CRC register after byte b followed by k zero bytes, so
+   sixteen table lookups advance the CRC by sixteen bytes. A long buffer is split in two halves
+   whose CRCs are computed side by side (two independent chains of lookups keep the CPU busy) and
+   joined with crc32_combine. Measured on a Zen 4 core (gcc -O2): 4.4 GB/s, against 2.2 GB/s for
+   slicing by 8 in one chain. Tables are built at start-up (crc_init). */
+static uint32_t crc_t[16][256];
+static uint32_t crc_x2n[64]; /* x^(2^k) modulo the polynomial, for crc32_combine */
+
+static uint32_t rd32(const uint8_t *p) { uint32_t v; memcpy(&v, p, 4); return v; }
+
+/* a * b modulo the CRC polynomial (bit-reflected, as in zlib's multmodp) */
+static uint32_t crc_mulmod(uint32_t a, uint32_t b) {
+    uint32_t m = (uint32_t)1 << 31, p = 0;
+    for (;;) {
+        if (a & m) {
+            p ^= b;
+            if ((a & (m - 1)) == 0) break;
+        }
+        m >>= 1;
+        b = b & 1 ? (b >> 1) ^ 0xEDB88320u : b >> 1;
+    }
+    return p;
+}
 static void crc_init(void) {
     for (uint32_t i = 0; i < 256; i++) {
         uint32_t c = i;
         for (int k = 0; k < 8; k++) c = (c & 1) ? 0xEDB88320u ^ (c >> 1) : c >> 1;
         crc_t[0][i] = c;
     }
-    for (int k = 1; k < 8; k++)
+    for (int k = 1; k < 16; k++)
         for (uint32_t i = 0; i < 256; i++)
             crc_t[k][i] = (crc_t[k - 1][i] >> 8) ^ crc_t[0][crc_t[k - 1][i] & 0xFF];
+    crc_x2n[0] = (uint32_t)1 << 30; /* x^1 */
+    for (int k = 1; k < 64; k++) crc_x2n[k] = crc_mulmod(crc_x2n[k - 1], crc_x2n[k - 1]);
 }
-static uint32_t crc32_buf(const uint8_t *p, size_t n) {
-    uint32_t c = 0xFFFFFFFFu;
-    while (n >= 8) {
-        uint32_t a = c ^ ((uint32_t)p[0] | (uint32_t)p[1] << 8 | (uint32_t)p[2] << 16 |
-                          (uint32_t)p[3] << 24);
-        c = crc_t[7][a & 0xFF] ^ crc_t[6][(a >> 8) & 0xFF] ^ crc_t[5][(a >> 16) & 0xFF] ^
-            crc_t[4][a >> 24] ^ crc_t[3][p[4]] ^ crc_t[2][p[5]] ^ crc_t[1][p[6]] ^ crc_t[0][p[7]];
-        p += 8;
-        n -= 8;
-    }
+/* CRC of A followed by B from crc1 = CRC(A), crc2 = CRC(B) and len2 = |B| (zlib's crc32_combine) */
+static uint32_t crc32_combine(uint32_t crc1, uint32_t crc2, uint64_t len2) {
+    uint32_t x = (uint32_t)1 << 31; /* x^(8 len2) */
+    for (int k = 3; len2; len2 >>= 1, k++)
+        if (len2 & 1) x = crc_mulmod(crc_x2n[k & 63], x);
+    return crc_mulmod(x, crc1) ^ crc2;
+}
+/* one slicing-by-16 step of register c over 16 bytes at p */
+#define CRC16_STEP(c, p)                                                                        \
+    do {                                                                                        \
+        uint32_t a_ = (c) ^ rd32(p), b_ = rd32((p) + 4), d_ = rd32((p) + 8), e_ = rd32((p) + 12); \
+        (c) = crc_t[15][a_ & 0xFF] ^ crc_t[14][(a_ >> 8) & 0xFF] ^ crc_t[13][(a_ >> 16) & 0xFF] ^ \
+              crc_t[12][a_ >> 24] ^ crc_t[11][b_ & 0xFF] ^ crc_t[10][(b_ >> 8) & 0xFF] ^        \
+              crc_t[9][(b_ >> 16) & 0xFF] ^ crc_t[8][b_ >> 24] ^ crc_t[7][d_ & 0xFF] ^           \
+              crc_t[6][(d_ >> 8) & 0xFF] ^ crc_t[5][(d_ >> 16) & 0xFF] ^ crc_t[4][d_ >> 24] ^    \
+              crc_t[3][e_ & 0xFF] ^ crc_t[2][(e_ >> 8) & 0xFF] ^ crc_t[1][(e_ >> 16) & 0xFF] ^   \
+              crc_t[0][e_ >> 24];                                                               \
+    } while (0)
+/* continues CRC register c (not inverted) over n bytes */
+static uint32_t crc_run(uint32_t c, const uint8_t *p, size_t n) {
+    for (; n >= 16; p += 16, n -= 16) CRC16_STEP(c, p);
     while (n--) c = crc_t[0][(c ^ *p++) & 0xFF] ^ (c >> 8);
-    return c ^ 0xFFFFFFFFu;
+    return c;
+}
+#if defined(__x86_64__) && (defined(__GNUC__) || defined(__clang__)) && !defined(PSNS_PORTABLE_CRC)
+/* Optional fast path (GCC or Clang on x86-64; -DPSNS_PORTABLE_CRC leaves it out): carry-less
+   multiplication (PCLMULQDQ) folds 64 bytes per step, as crc32fast, zlib and Linux do (Intel,
+   "Fast CRC computation for generic polynomials using PCLMULQDQ", bit-reflected; constants as
+   in crc32fast). It is used only if the CPU has PCLMULQDQ and SSE4.1, checked at run time, and
+   gives the same CRCs as the portable code (tests/stream_readers.rs compiles both). */
+#include <immintrin.h>
+#define CRC_CLMUL 1
+#define CLMUL_TARGET __attribute__((target("pclmul,sse4.1")))
+static int crc_use_clmul;
+CLMUL_TARGET static __m128i crc_fold(__m128i a, __m128i b, __m128i k) {
+    return _mm_xor_si128(_mm_xor_si128(b, _mm_clmulepi64_si128(a, k, 0x00)),
+                         _mm_clmulepi64_si128(a, k, 0x11));
+}
+/* continues CRC register c over n >= 64 bytes */
+CLMUL_TARGET static uint32_t crc_clmul(uint32_t c, const uint8_t *p, size_t n) {
+#define LD(q) _mm_loadu_si128((const __m128i *)(const void *)(q))
+    const __m128i k1k2 = _mm_set_epi64x(0x1c6e41596, 0x154442bd4);
+    const __m128i k3k4 = _mm_set_epi64x(0x0ccaa009e, 0x1751997d0);
+    const __m128i lo32 = _mm_set_epi32(0, 0, 0, -1), pu = _mm_set_epi64x(0x1F7011641, 0x1DB710641);
+    __m128i x3 = _mm_xor_si128(LD(p), _mm_cvtsi32_si128((int)c)), x2 = LD(p + 16),
+            x1 = LD(p + 32), x0 = LD(p + 48);
+    for (p += 64, n -= 64; n >= 64; p += 64, n -= 64) {
+        x3 = crc_fold(x3, LD(p), k1k2);
+        x2 = crc_fold(x2, LD(p + 16), k1k2);
+        x1 = crc_fold(x1, LD(p + 32), k1k2);
+        x0 = crc_fold(x0, LD(p + 48), k1k2);
+    }
+    __m128i x = crc_fold(crc_fold(crc_fold(x3, x2, k3k4), x1, k3k4), x0, k3k4);
+    for (; n >= 16; p += 16, n -= 16) x = crc_fold(x, LD(p), k3k4);
+#undef LD
+    /* 128 -> 64 bits, then a Barrett reduction to the 32-bit register */
+    x = _mm_xor_si128(_mm_clmulepi64_si128(x, k3k4, 0x10), _mm_srli_si128(x, 8));
+    x = _mm_xor_si128(
+        _mm_clmulepi64_si128(_mm_and_si128(x, lo32), _mm_set_epi64x(0, 0x163cd6124), 0x00),
+        _mm_srli_si128(x, 4));
+    __m128i t1 = _mm_clmulepi64_si128(_mm_and_si128(x, lo32), pu, 0x10);
+    __m128i t2 = _mm_clmulepi64_si128(_mm_and_si128(t1, lo32), pu, 0x00);
+    c = (uint32_t)_mm_extract_epi32(_mm_xor_si128(x, t2), 1);
+    return crc_run(c, p, n); /* the last 0..15 bytes */
+}
+#endif
+
+/* CRC-32 of n bytes (little-endian host) */
+static uint32_t crc32_buf(const uint8_t *p, size_t n) {
+#ifdef CRC_CLMUL
+    if (crc_use_clmul && n >= 64) return crc_clmul(0xFFFFFFFFu, p, n) ^ 0xFFFFFFFFu;
+#endif
+    if (n < 4096) return crc_run(0xFFFFFFFFu, p, n) ^ 0xFFFFFFFFu;
+    size_t half = n / 2 / 16 * 16;
+    const uint8_t *q = p + half;
+    uint32_t c1 = 0xFFFFFFFFu, c2 = 0xFFFFFFFFu;
+    for (size_t i = 0; i < half; i += 16) {
+        CRC16_STEP(c1, p + i);
+        CRC16_STEP(c2, q + i);
+    }
+    c2 = crc_run(c2, q + half, n - 2 * half); /* the second part's tail */
+    return crc32_combine(c1 ^ 0xFFFFFFFFu, c2 ^ 0xFFFFFFFFu, n - half);
 }
 
 static uint16_t rd16(const uint8_t *p) { uint16_t v; memcpy(&v, p, 2); return v; }
-static uint32_t rd32(const uint8_t *p) { uint32_t v; memcpy(&v, p, 4); return v; }
 static uint64_t rd64(const uint8_t *p) { uint64_t v; memcpy(&v, p, 8); return v; }
 
 typedef struct {
@@ -135,26 +227,57 @@ static int parse_header(const uint8_t *b, stream_header *h) {
     return 0;
 }
 
-/* payload -> values (n = width*height) */
-static void unpack(const stream_header *h, const uint8_t *p, uint16_t *v) {
-    size_t n = (size_t)h->width * h->height;
-    for (size_t i = 0; i < n; i++) {
-        switch (h->pfnc) {
-        case 0x01080001: v[i] = p[i]; break;
-        case 0x01100007:
-            v[i] = rd16(p + 2 * i);
-            if (h->msb_aligned) v[i] >>= (16 - h->bits_valid);
-            break;
-        default: {
-            const uint8_t *g = p + 3 * (i / 2);
-            if (i % 2 == 0)
-                v[i] = h->pfnc == 0x010C0047 ? (uint16_t)(g[0] | ((g[1] & 0x0F) << 8))
-                                             : (uint16_t)((g[0] << 4) | (g[1] & 0x0F));
-            else
-                v[i] = (uint16_t)((g[1] >> 4) | (g[2] << 4));
+/* payload -> values (n = width*height), one loop per format */
+static void unpack(const stream_header *h, const uint8_t *restrict p, uint16_t *restrict v) {
+    size_t n = (size_t)h->width * h->height, i;
+    switch (h->pfnc) {
+    case 0x01080001:
+        for (i = 0; i + 4 <= n; i += 4) { /* four bytes widened to four LE uint16 at a time */
+            uint32_t x = rd32(p + i);
+            uint64_t w = (x & 0xFFu) | (uint64_t)(x & 0xFF00u) << 8 |
+                         (uint64_t)(x & 0xFF0000u) << 16 | (uint64_t)(x >> 24) << 48;
+            memcpy(v + i, &w, 8);
         }
-        }
+        for (; i < n; i++) v[i] = p[i];
+        break;
+    case 0x01100007: {
+        unsigned shift = h->msb_aligned ? 16u - h->bits_valid : 0u;
+        memcpy(v, p, 2 * n); /* little-endian host */
+        if (shift)
+            for (i = 0; i < n; i++) v[i] = (uint16_t)(v[i] >> shift);
+        break;
     }
+    default: { /* two pixels in three bytes; an odd count ends with a half group */
+        int p12 = h->pfnc == 0x010C0047;
+        i = 0;
+        if (p12) /* Mono12p is a little-endian bit stream: four pixels per 8-byte load (of which
+                    6 bytes are used; i + 6 <= n keeps the load inside the payload) */
+            for (; i + 6 <= n; i += 4, p += 6) {
+                uint64_t w = rd64(p), o = (w & 0xFFF) | (w >> 12 & 0xFFF) << 16 |
+                                          (w >> 24 & 0xFFF) << 32 | (w >> 36 & 0xFFF) << 48;
+                memcpy(v + i, &o, 8); /* little-endian host */
+            }
+        for (; i + 1 < n; i += 2, p += 3) {
+            v[i] = p12 ? (uint16_t)(p[0] | ((p[1] & 0x0F) << 8))
+                       : (uint16_t)((p[0] << 4) | (p[1] & 0x0F));
+            v[i + 1] = (uint16_t)((p[1] >> 4) | (p[2] << 4));
+        }
+        if (i < n)
+            v[i] = p12 ? (uint16_t)(p[0] | ((p[1] & 0x0F) << 8))
+                       : (uint16_t)((p[0] << 4) | (p[1] & 0x0F));
+    }
+    }
+}
+
+/* sum of n little-endian uint16 values; four accumulators, so the adds do not wait for each other */
+static uint64_t sum_le16(const uint8_t *p, size_t n) {
+    uint64_t s0 = 0, s1 = 0, s2 = 0, s3 = 0;
+    size_t i = 0;
+    for (; i + 4 <= n; i += 4, p += 8) {
+        s0 += rd16(p); s1 += rd16(p + 2); s2 += rd16(p + 4); s3 += rd16(p + 6);
+    }
+    for (; i < n; i++, p += 2) s0 += rd16(p);
+    return s0 + s1 + s2 + s3;
 }
 
 /* growable read buffer over a FILE*; off = stream offset of b[0] */
@@ -344,13 +467,34 @@ static int resync(rbuf *r, const stream_header *h, int *has_exp, uint64_t *expec
     return end == 0;
 }
 
+/* `crc`: the CRC-32 of every byte of f, read in 1 MiB pieces joined with crc32_combine */
+static int crc_file(FILE *f) {
+    static uint8_t b[1 << 20];
+    uint32_t c = 0; /* CRC of the empty input */
+    size_t k;
+    while ((k = fread(b, 1, sizeof b, f)) > 0) c = crc32_combine(c, crc32_buf(b, k), k);
+    if (ferror(f)) { perror("reading"); return 2; }
+    printf("%08x\n", c);
+    return 0;
+}
+
 int main(int argc, char **argv) {
-    if (argc < 3 || (strcmp(argv[1], "dump") && strcmp(argv[1], "frame")) ||
+    if (argc < 3 ||
+        (strcmp(argv[1], "dump") && strcmp(argv[1], "frame") && strcmp(argv[1], "crc")) ||
         (!strcmp(argv[1], "frame") && argc < 5)) {
-        fprintf(stderr, "usage: %s dump FILE | frame FILE N OUT\n", argv[0]);
+        fprintf(stderr, "usage: %s dump FILE | frame FILE N OUT | crc FILE\n", argv[0]);
         return 2;
     }
     crc_init();
+#ifdef CRC_CLMUL
+    __builtin_cpu_init();
+    crc_use_clmul = __builtin_cpu_supports("pclmul") && __builtin_cpu_supports("sse4.1");
+#endif
+    if (!strcmp(argv[1], "crc")) {
+        FILE *f = strcmp(argv[2], "-") ? fopen(argv[2], "rb") : stdin;
+        if (!f) { perror(argv[2]); return 2; }
+        return crc_file(f);
+    }
     dump = !strcmp(argv[1], "dump");
     uint64_t want_index = dump ? 0 : strtoull(argv[3], NULL, 10);
     rbuf r = {0};
@@ -363,7 +507,8 @@ int main(int argc, char **argv) {
     }
     consume(&r, 4096);
     if (dump) print_header(&h);
-    uint16_t *v = NULL;
+    uint16_t *v = NULL; /* unpacked values */
+    size_t v_cap = 0;
     int status = dump ? 0 : 1;
     int has_exp = 1;       /* 0 right after a producer restart */
     uint64_t expected = 0; /* next expected index */
@@ -390,7 +535,8 @@ int main(int argc, char **argv) {
                     ev_truncated(1, index, r.off, r.len, stride);
                     break;
                 }
-                int ok = crc32_buf(r.b + 256, p) == rd32(r.b + 20);
+                uint32_t pc = crc32_buf(r.b + 256, p); /* the one pass over the payload */
+                int ok = pc == rd32(r.b + 20);
                 if (!ok) {
                     /* writer died mid-record and a new record (or file header) follows inside? */
                     size_t j = valid_magic_within(&r, 256, stride);
@@ -415,12 +561,21 @@ int main(int argc, char **argv) {
                 if (!dump && !ok)
                     fprintf(stderr, "frame %llu: payload CRC mismatch\n", (unsigned long long)index);
                 size_t n = (size_t)h.width * h.height; /* <= 2^30 by parse_header */
-                v = xrealloc(v, n * sizeof *v);
-                unpack(&h, pay, v);
+                /* LSB-aligned Mono16 on a little-endian host: the values are the payload's
+                   bytes, so their sum is read from the payload and their CRC is pc */
+                int raw16 = h.pfnc == 0x01100007 && !h.msb_aligned;
+                int want = !dump && index == want_index && ok;
+                if ((dump && !raw16) || want) {
+                    if (n > v_cap) { /* grows only with the frame size: no allocation per frame */
+                        v = xrealloc(v, n * sizeof *v);
+                        v_cap = n;
+                    }
+                    unpack(&h, pay, v);
+                }
                 if (dump) {
-                    uint64_t sum = 0;
-                    for (size_t i = 0; i < n; i++) sum += v[i];
-                    uint32_t vc = crc32_buf((const uint8_t *)v, n * 2); /* LE host */
+                    const uint8_t *vb = raw16 ? pay : (const uint8_t *)v; /* LE host */
+                    uint64_t sum = sum_le16(vb, n);
+                    uint32_t vc = raw16 ? pc : crc32_buf(vb, n * 2);
                     printf("frame %llu %u %d %lld %lld %lld ", (unsigned long long)index,
                            rd32(fh + 16), ok, (long long)rd64(fh + 24), (long long)rd64(fh + 32),
                            (long long)rd64(fh + 40));
@@ -429,7 +584,7 @@ int main(int argc, char **argv) {
                     printf(" %u,%u,%u,%u %08x,%08x %llu %08x\n", rd32(fh + 176), rd32(fh + 180),
                            rd32(fh + 184), rd32(fh + 188), rd32(fh + 192), rd32(fh + 196),
                            (unsigned long long)sum, vc);
-                } else if (index == want_index && ok) {
+                } else if (want) {
                     FILE *o = fopen(argv[4], "wb");
                     if (!o || fwrite(v, 2, n, o) != n) { perror(argv[4]); return 2; }
                     fclose(o);
