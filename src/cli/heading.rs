@@ -471,6 +471,7 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
     };
     let mut generation = 0u64;
     let mut warm: Option<(f64, f64)> = None;
+    let mut codes_buf: Vec<u16> = Vec::new();
     while let Some((gen, h, f)) = source.next()? {
         if gen != generation {
             // the stream restarted with a new header
@@ -480,7 +481,13 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         }
         let t0 = Instant::now();
         let h = &h;
-        let codes = Image::from_vec(h.width as usize, h.height as usize, f.codes(h)?);
+        // the codes and (below) the payload buffers go round frame after frame: no fresh pages
+        f.codes_into(h, &mut codes_buf)?;
+        let codes = Image::from_vec(
+            h.width as usize,
+            h.height as usize,
+            std::mem::take(&mut codes_buf),
+        );
         let black = if h.msb_aligned {
             f.meta.black_level / 2f64.powi(16 - h.bits_valid as i32)
         } else {
@@ -519,6 +526,8 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
             )?
         };
         let ms = t0.elapsed().as_secs_f64() * 1e3;
+        codes_buf = codes.data;
+        source.recycle(f.payload);
         total_s += ms / 1e3;
         frames += 1;
         // the truth is read only here, after the estimate, for the error column
@@ -586,6 +595,8 @@ struct Mailbox {
     error: Option<Error>,
     damaged: usize,
     skipped: usize,
+    /// Payload buffers the estimator is done with, for the reader thread to read into.
+    returned: Vec<Vec<u8>>,
 }
 
 /// A frame event of a stream as `psns heading` treats it: `Some` for a good frame (of the
@@ -650,8 +661,12 @@ impl FrameSource {
                     };
                     let h = reader.header().clone();
                     let mut m = lock.lock().unwrap_or_else(|p| p.into_inner());
-                    if m.slot.replace((generation, h, f)).is_some() {
+                    if let Some(old) = m.slot.replace((generation, h, f)) {
                         m.skipped += 1;
+                        reader.recycle(old.2.payload);
+                    }
+                    for b in m.returned.drain(..) {
+                        reader.recycle(b);
                     }
                     cv.notify_one();
                 }
@@ -695,6 +710,19 @@ impl FrameSource {
                         return Ok(None);
                     }
                     m = cv.wait(m).unwrap_or_else(|p| p.into_inner());
+                }
+            }
+        }
+    }
+
+    /// Gives a frame's payload buffer back to the reader, for a later frame.
+    fn recycle(&mut self, payload: Vec<u8>) {
+        match self {
+            FrameSource::Sequential { reader, .. } => reader.recycle(payload),
+            FrameSource::Latest { shared, .. } => {
+                let mut m = shared.0.lock().unwrap_or_else(|p| p.into_inner());
+                if m.returned.len() < 2 {
+                    m.returned.push(payload);
                 }
             }
         }

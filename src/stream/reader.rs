@@ -8,7 +8,7 @@ use super::{
 };
 use crate::error::{Error, Result};
 use crate::sensor::mosaic::MosaicLayout;
-use crate::sensor::packing::{payload_size_checked, unpack, PixelFormat};
+use crate::sensor::packing::{payload_size_checked, unpack, unpack_into, PixelFormat};
 use serde::Serialize;
 use std::collections::VecDeque;
 use std::fmt;
@@ -37,6 +37,19 @@ impl Frame {
             h.msb_aligned,
             h.width as usize,
             h.height as usize,
+        )
+    }
+
+    /// [`Frame::codes`] into `v`, reusing its allocation.
+    pub fn codes_into(&self, h: &FileHeader, v: &mut Vec<u16>) -> Result<()> {
+        unpack_into(
+            &self.payload,
+            h.pixel_format,
+            h.bits_valid,
+            h.msb_aligned,
+            h.width as usize,
+            h.height as usize,
+            v,
         )
     }
 }
@@ -100,6 +113,8 @@ pub struct StreamReader<R: Read> {
     done: bool,
     /// Byte offsets of the file headers found after the first (restarts / concatenated copies).
     restart_at: Vec<u64>,
+    /// Payload buffers handed back by the consumer ([`StreamReader::recycle`]).
+    spare: Vec<Vec<u8>>,
 }
 
 enum ScanEnd {
@@ -590,6 +605,16 @@ impl<R: Read> StreamReader<R> {
             pending: VecDeque::new(),
             done: false,
             restart_at: Vec::new(),
+            spare: Vec::new(),
+        }
+    }
+
+    /// Hands a frame's payload buffer back for the next frame's payload: a consumer that
+    /// recycles each frame's buffer reads every frame into memory already mapped instead of
+    /// fresh pages (10 MB per full-size frame). At most two buffers are kept.
+    pub fn recycle(&mut self, payload: Vec<u8>) {
+        if self.spare.len() < 2 {
+            self.spare.push(payload);
         }
     }
 
@@ -804,8 +829,10 @@ impl<R: Read> StreamReader<R> {
                 len = j;
             }
         }
+        let mut payload = self.spare.pop().unwrap_or_default();
         let rec = &self.avail()[..stride];
-        let payload = rec[FRAME_HEADER_SIZE..FRAME_HEADER_SIZE + p].to_vec();
+        payload.clear();
+        payload.extend_from_slice(&rec[FRAME_HEADER_SIZE..FRAME_HEADER_SIZE + p]);
         if let Some(e) = self.expected {
             if meta.index > e {
                 self.pending.push_back(Event::Gap {
