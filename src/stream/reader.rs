@@ -104,6 +104,8 @@ pub struct StreamReader<R: Read> {
     src: R,
     buf: Vec<u8>,
     start: usize,
+    /// End of the buffered bytes in `buf` (`start..end`).
+    end: usize,
     offset: u64,
     eof: bool,
     header: FileHeader,
@@ -598,6 +600,7 @@ impl<R: Read> StreamReader<R> {
             src,
             buf: Vec::new(),
             start: 0,
+            end: 0,
             offset: 0,
             eof: false,
             header: FileHeader::default(),
@@ -676,36 +679,34 @@ impl<R: Read> StreamReader<R> {
     }
 
     fn avail(&self) -> &[u8] {
-        &self.buf[self.start..]
+        &self.buf[self.start..self.end]
     }
 
     fn consume(&mut self, n: usize) {
-        let n = n.min(self.buf.len() - self.start);
+        let n = n.min(self.end - self.start);
         self.start += n;
         self.offset += n as u64;
     }
 
-    /// Ensures `n` bytes are buffered unless the source ends first.
+    /// Ensures `n` bytes are buffered unless the source ends first. The buffer keeps its length
+    /// (bytes `end..` are stale), so a full-size frame is not zeroed before every read.
     fn fill(&mut self, n: usize) -> Result<()> {
-        while self.buf.len() - self.start < n && !self.eof {
+        while self.end - self.start < n && !self.eof {
             if self.start > 0 {
-                self.buf.drain(..self.start);
+                self.buf.copy_within(self.start..self.end, 0);
+                self.end -= self.start;
                 self.start = 0;
             }
-            let len = self.buf.len();
+            let len = self.end;
             let want = (n - len).max(1 << 16);
-            self.buf.resize(len + want, 0);
-            match self.src.read(&mut self.buf[len..]) {
-                Ok(0) => {
-                    self.buf.truncate(len);
-                    self.eof = true;
-                }
-                Ok(k) => self.buf.truncate(len + k),
-                Err(e) if e.kind() == ErrorKind::Interrupted => self.buf.truncate(len),
-                Err(e) => {
-                    self.buf.truncate(len);
-                    return Err(Error::io("reading stream", e));
-                }
+            if self.buf.len() < len + want {
+                self.buf.resize(len + want, 0);
+            }
+            match self.src.read(&mut self.buf[len..len + want]) {
+                Ok(0) => self.eof = true,
+                Ok(k) => self.end = len + k,
+                Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                Err(e) => return Err(Error::io("reading stream", e)),
             }
         }
         Ok(())
