@@ -517,10 +517,22 @@ fn atan2_fit(y: f64, x: f64) -> f64 {
     let z2 = z * z;
     // atan z = z + z³ Σ_{k=1..11} (−1)^k z^{2k−2}/(2k+1), the first term left out below
     // |z|²⁵/25 ≤ 1.2e-11
-    let mut p = -1.0 / 23.0;
-    for k in (1..11).rev() {
-        let c = 1.0 / (2 * k + 1) as f64;
-        p = p * z2 + if k % 2 == 1 { -c } else { c };
+    const C: [f64; 11] = [
+        -1.0 / 3.0,
+        1.0 / 5.0,
+        -1.0 / 7.0,
+        1.0 / 9.0,
+        -1.0 / 11.0,
+        1.0 / 13.0,
+        -1.0 / 15.0,
+        1.0 / 17.0,
+        -1.0 / 19.0,
+        1.0 / 21.0,
+        -1.0 / 23.0,
+    ];
+    let mut p = C[10];
+    for &c in C[..10].iter().rev() {
+        p = p * z2 + c;
     }
     let a = z + z * z2 * p + if big { FRAC_PI_4 } else { 0.0 };
     let a = if ay > ax { FRAC_PI_2 - a } else { a };
@@ -1290,33 +1302,46 @@ pub fn mask_saturated_sampled(
                 .any(|&v| v >= full_scale)
         })
     };
-    // the frame's largest code first, by a reduction the compiler vectorises (an early-exit
-    // search per code does not): most frames have none at full scale
-    if !codes
+    // which rows hold a code at full scale, by a maximum per row the compiler vectorises (an
+    // early-exit search per code does not): most frames have none, and a sun disc a few rows
+    let row_full: Vec<bool> = codes
         .data
-        .par_chunks(1 << 16)
-        .any(|c| c.iter().fold(0u16, |m, &v| m.max(v)) >= full_scale)
-    {
+        .par_chunks(w.max(1))
+        .map(|row| row.iter().fold(0u16, |m, &v| m.max(v)) >= full_scale)
+        .collect();
+    if !row_full.contains(&true) {
         return 0;
     }
+    let rows_full = |r0: usize, r1: usize| row_full[r0..r1.min(h)].contains(&true);
     for i in 0..dolp.height {
+        let r = k * i;
+        if !rows_full(r.saturating_sub(1), r + 3) {
+            continue;
+        }
         for j in 0..dolp.width {
-            let (r, c) = (k * i, k * j);
+            let c = k * j;
             if any_full(r.saturating_sub(1), r + 3, c.saturating_sub(1), c + 3) {
                 dolp.data[i * dolp.width + j] = f32::NAN;
             }
         }
     }
-    // the frame's count, row by row in parallel
+    // the frame's count, row by row in parallel: the columns with a code at full scale in
+    // rows r−1..r+1, widened by one column each side
     (0..h)
         .into_par_iter()
         .map(|r| {
-            let (r0, r1) = (r.saturating_sub(1), r + 2);
-            if !any_full(r0, r1, 0, w) {
+            let (r0, r1) = (r.saturating_sub(1), (r + 2).min(h));
+            if !rows_full(r0, r1) {
                 return 0;
             }
+            let mut col = vec![false; w];
+            for rr in (r0..r1).filter(|&rr| row_full[rr]) {
+                for (b, &v) in col.iter_mut().zip(codes.row(rr)) {
+                    *b |= v >= full_scale;
+                }
+            }
             (0..w)
-                .filter(|&c| any_full(r0, r1, c.saturating_sub(1), c + 2))
+                .filter(|&c| col[c.saturating_sub(1)..(c + 2).min(w)].contains(&true))
                 .count()
         })
         .sum()
