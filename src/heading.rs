@@ -1686,6 +1686,54 @@ mod tests {
         );
     }
 
+    /// The model fit's answer does not depend on the number of threads (pixels in parallel,
+    /// sums in a fixed order), and with analytic derivatives it needs few residual evaluations
+    /// (forward differences took at least 11 iterations of 4 or more).
+    #[test]
+    fn model_fit_is_thread_count_independent_and_cheap() {
+        let sun = SunPosition::new(40.0, 200.0);
+        let (im, setup) = ideal(PolarizationModel::Wang, sun, 123.0, 4.0, -3.0);
+        let run = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| {
+                    let e = eigenvector_heading(&im.aop_deg, &im.dop, &setup).unwrap();
+                    model_fit_heading(&im.aop_deg, &im.dop, &setup, &e, false).unwrap()
+                })
+        };
+        let (a, b) = (run(1), run(3));
+        assert_eq!(a, b);
+        eprintln!("{:?}", a.1);
+        assert!(a.1.evaluations <= 8, "{:?}", a.1);
+        assert!(axial360(a.0.yaw_deg, 123.0) < 0.01, "{a:?}");
+    }
+
+    /// The sampled saturation mask and count equal a direct window search, for blobs at the
+    /// frame's edges and inside.
+    #[test]
+    fn sampled_saturation_mask_matches_a_direct_search() {
+        let (w, h, k) = (64usize, 40usize, 4usize);
+        let mut codes = Image::from_vec(w, h, vec![100u16; w * h]);
+        for &(r, c) in &[(0usize, 0usize), (5, 63), (39, 10), (20, 30), (21, 31), (12, 7)] {
+            codes.data[r * w + c] = 4095;
+        }
+        let mut d = Image::from_vec(w / k, h / k, vec![0.5f32; (w / k) * (h / k)]);
+        let n = mask_saturated_sampled(&mut d, &codes, 4095, k);
+        let mut full = Image::from_vec(w, h, vec![0.5f32; w * h]);
+        assert_eq!(n, mask_saturated(&mut full, &codes, 4095));
+        for i in 0..h / k {
+            for j in 0..w / k {
+                let (r, c) = (k * i, k * j);
+                let want = (r.saturating_sub(1)..(r + 3).min(h)).any(|rr| {
+                    (c.saturating_sub(1)..(c + 3).min(w)).any(|cc| codes.data[rr * w + cc] >= 4095)
+                });
+                assert_eq!(d.data[i * (w / k) + j].is_nan(), want, "sample {i} {j}");
+            }
+        }
+    }
+
     /// The fit also works with the sun's elevation free, and on a Rayleigh sky (δ → 0).
     #[test]
     fn model_fit_free_elevation_and_rayleigh() {
