@@ -52,8 +52,7 @@ pub struct HeadingSetup {
     pub fit_elevation: bool,
     /// Model fit only: start the neutral-point distances (δ_Ba, δ_Br, degrees) here instead of
     /// at 25°, e.g. from the previous frame of a stream ([`ModelFitInfo`]); the robust weights
-    /// are then set from the first residuals and the fit may stop after 6 iterations instead of
-    /// 11. The yaw still starts from the eigenvector answer.
+    /// are then set from the first residuals. The yaw still starts from the eigenvector answer.
     pub warm_start: Option<(f64, f64)>,
 }
 

@@ -71,8 +71,8 @@ pub struct HeadingArgs {
     #[arg(long)]
     pub(crate) latest: bool,
     /// Stream input, model fit: start each frame's neutral-point distances from the previous
-    /// frame's fit (when its confidence was at least 0.5) and stop after 6 iterations instead of
-    /// 11 when converged; the yaw still starts from the frame's own eigenvector answer.
+    /// frame's fit (when its confidence was at least 0.5) and set the robust weights from the
+    /// first residuals; the yaw still starts from the frame's own eigenvector answer.
     #[arg(long)]
     pub(crate) warm_start: bool,
     /// Image input: the sensor preset the frame was made with (camera, nfpi, gniipi, gniicpi), as
