@@ -466,7 +466,11 @@ struct FitPixel {
 
 /// The [`FitPixel`]s of the fit samples (unit camera ray, AoLP radians, DoLP), for a camera of
 /// known tilt `tilt` (R_y(roll) R_x(pitch)) and lens.
-fn fit_pixels(samples: &[(DVec3, f64, f64)], tilt: DMat3, lens: crate::camera::Lens) -> Vec<FitPixel> {
+fn fit_pixels(
+    samples: &[(DVec3, f64, f64)],
+    tilt: DMat3,
+    lens: crate::camera::Lens,
+) -> Vec<FitPixel> {
     let tt = tilt.transpose();
     samples
         .iter()
@@ -589,7 +593,7 @@ fn fit_residuals(
                 let f4 = C::new(1.0 + t_minus * z.re, t_minus * z.im);
                 let pz = -((f1 * f2) * (f3 * f4));
                 let m2 = pz.norm_sqr();
-                if !(m2 > 0.0) || !m2.is_finite() {
+                if m2 <= 0.0 || !m2.is_finite() {
                     // a neutral point: the field's direction is undefined (χ = 0, as the sky
                     // model), no derivative
                     let (x, y) = (q.x[0] + q.x[1], q.y[0] + q.y[1]);
@@ -604,7 +608,11 @@ fn fit_residuals(
                 *r = 0.5 * atan2_fit(y, x);
                 let (dx, dy) = (q.x[2] * cc - q.x[1] * ss, q.y[2] * cc - q.y[1] * ss);
                 let h2 = x * x + y * y;
-                let g = if h2 > 0.0 { 0.5 * (x * dy - y * dx) / h2 } else { 0.0 };
+                let g = if h2 > 0.0 {
+                    0.5 * (x * dy - y * dx) / h2
+                } else {
+                    0.0
+                };
                 let (i1, i2, i3, i4) = (f1.inv(), f2.inv(), f3.inv(), f4.inv());
                 let l = i1 + i2 + i3 * t_plus + i4 * t_minus;
                 // ∂Φ/∂A' = 2 − Re(z L); A' = A − ψ
@@ -1454,7 +1462,8 @@ mod tests {
                             a[i] += h;
                             b[i] -= h;
                         }
-                        let (mut ra, mut rb, mut jj) = (vec![0.0; n], vec![0.0; n], vec![[0.0; 4]; n]);
+                        let (mut ra, mut rb, mut jj) =
+                            (vec![0.0; n], vec![0.0; n], vec![[0.0; 4]; n]);
                         fit_residuals(&px, a, az, tied, &mut ra, &mut jj);
                         fit_residuals(&px, b, az, tied, &mut rb, &mut jj);
                         let big = (0..n).map(|k| j[k][col].abs()).fold(0.0, f64::max);
@@ -1715,7 +1724,14 @@ mod tests {
     fn sampled_saturation_mask_matches_a_direct_search() {
         let (w, h, k) = (64usize, 40usize, 4usize);
         let mut codes = Image::from_vec(w, h, vec![100u16; w * h]);
-        for &(r, c) in &[(0usize, 0usize), (5, 63), (39, 10), (20, 30), (21, 31), (12, 7)] {
+        for &(r, c) in &[
+            (0usize, 0usize),
+            (5, 63),
+            (39, 10),
+            (20, 30),
+            (21, 31),
+            (12, 7),
+        ] {
             codes.data[r * w + c] = 4095;
         }
         let mut d = Image::from_vec(w / k, h / k, vec![0.5f32; (w / k) * (h / k)]);
