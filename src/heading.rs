@@ -444,6 +444,9 @@ const FIT_REWEIGHTS: usize = 3;
 /// The model fit's step below which a stage has converged: yaw, then the other parameters
 /// (degrees).
 const FIT_STEP_TOL: [f64; 2] = [1e-4, 1e-2];
+/// Iterations of a model-fit stage before its weights are re-estimated, at most (the fixed
+/// schedule before converged stages reweighted after 2, 3 and 4 iterations).
+const FIT_STAGE_ITERATIONS: usize = 4;
 /// Levenberg-Marquardt iterations of the model fit at most (all stages).
 const FIT_MAX_ITERATIONS: usize = 40;
 
@@ -733,11 +736,13 @@ pub fn model_fit_heading(
     // residuals; FIT_REWEIGHTS stages after the first (a warm start reweights before its first
     // step too, its residuals being those of the previous frame's field).
     let mut reweights = 0;
+    let mut stage_iterations = 0;
     if warm {
         reweight(&r, &mut w);
     }
     for it in 0..FIT_MAX_ITERATIONS {
         iterations = it + 1;
+        stage_iterations += 1;
         let mut jtj = [[0.0; 4]; 4];
         let mut jtr = [0.0; 4];
         for ((row, &rj), &wj) in jac.iter().zip(&r).zip(&w) {
@@ -788,12 +793,17 @@ pub fn model_fit_heading(
             }
             lambda *= 4.0;
         }
-        if !improved || converged {
-            if reweights == FIT_REWEIGHTS {
+        // a stage also ends after FIT_STAGE_ITERATIONS (a noisy frame's steps can zig-zag slowly
+        // toward the minimum of the unweighted cost; the Tukey weights end that); the last one
+        // runs to convergence
+        let last = reweights == FIT_REWEIGHTS;
+        if !improved || converged || (!last && stage_iterations >= FIT_STAGE_ITERATIONS) {
+            if last {
                 break;
             }
             reweight(&r, &mut w);
             reweights += 1;
+            stage_iterations = 0;
         }
     }
     let wsum: f64 = w.iter().sum();
