@@ -52,8 +52,7 @@ pub struct HeadingSetup {
     pub fit_elevation: bool,
     /// Model fit only: start the neutral-point distances (δ_Ba, δ_Br, degrees) here instead of
     /// at 25°, e.g. from the previous frame of a stream ([`ModelFitInfo`]); the robust weights
-    /// are then set from the first residuals and the fit may stop after 6 iterations instead of
-    /// 11. The yaw still starts from the eigenvector answer.
+    /// are then set from the first residuals. The yaw still starts from the eigenvector answer.
     pub warm_start: Option<(f64, f64)>,
 }
 
@@ -318,6 +317,9 @@ pub struct ModelFitInfo {
     pub inlier_fraction: f64,
     /// Levenberg-Marquardt iterations.
     pub iterations: usize,
+    /// Evaluations of the residuals (each with its analytic derivatives) over all pixels: the
+    /// fit's cost.
+    pub evaluations: usize,
 }
 
 /// Solves the n × n system `a x = b` (n ≤ 4) by Gaussian elimination with partial pivoting.
@@ -385,8 +387,9 @@ impl SensorBasis {
         SensorBasis { m, s, c2, s2 }
     }
 
-    /// Observed minus predicted AoLP of E-vector `e` (camera frame), wrapped to (−π/2, π/2].
-    #[inline]
+    /// Observed minus predicted AoLP of E-vector `e` (camera frame), wrapped to (−π/2, π/2]
+    /// (what [`fit_residuals`] computes from per-pixel constants; the tests' reference).
+    #[cfg(test)]
     fn residual(&self, e: DVec3) -> f64 {
         let (a, b) = (e.dot(self.m), e.dot(self.s));
         // doubled predicted angle: (a² − b², 2ab) ∝ (cos 2θ, sin 2θ)
@@ -396,6 +399,7 @@ impl SensorBasis {
 }
 
 /// An angle difference wrapped to (−π/2, π/2] (AoLP is axial).
+#[cfg(test)]
 fn wrap_half_pi(d: f64) -> f64 {
     let h = std::f64::consts::FRAC_PI_2;
     let r = (d + h).rem_euclid(std::f64::consts::PI) - h;
@@ -435,16 +439,224 @@ fn fit_samples(
     out
 }
 
+/// Stages of Tukey reweighting of the model fit after its first (DoLP² weights).
+const FIT_REWEIGHTS: usize = 3;
+/// The model fit's step below which a stage has converged: yaw, then the other parameters
+/// (degrees).
+const FIT_STEP_TOL: [f64; 2] = [1e-4, 1e-2];
+/// Iterations of a model-fit stage before its weights are re-estimated, at most (the fixed
+/// schedule before converged stages reweighted after 2, 3 and 4 iterations).
+const FIT_STAGE_ITERATIONS: usize = 4;
+/// Levenberg-Marquardt iterations of the model fit at most (all stages).
+const FIT_MAX_ITERATIONS: usize = 40;
+
+/// One pixel of the model fit, reduced to what its residual needs. With the yaw ψ entering as
+/// the sun's azimuth in the level frame (C(ψ)ᵀ r = R_z(−ψ) u and R_z(ψ) E(R_z(−ψ) u; A) =
+/// E(u; A − ψ): the sky turns with the sun), the pixel's level-frame ray u, and so its chart
+/// point ζ and chart basis (N, E), are fixed: the predicted E-vector is cos χ N + sin χ E with
+/// e^{2iχ} = e^{2iA'} p/|p| (A' = A − ψ, p the Berry polynomial at ζ e^{−iA'},
+/// [`crate::sky::berry`]), and its sensor angle against the observed AoLP
+/// ([`SensorBasis::residual`]) is ½ atan2(Y, X) with X, Y linear in (cos 2χ, sin 2χ):
+/// X = x₀ + x₁ cos 2χ + x₂ sin 2χ, Y likewise.
+#[derive(Clone, Copy, Debug)]
+struct FitPixel {
+    zeta: num_complex::Complex64,
+    x: [f64; 3],
+    y: [f64; 3],
+    /// The ray is above the level horizon (else residual 0, as the Berry field is not used).
+    up: bool,
+}
+
+/// The [`FitPixel`]s of the fit samples (unit camera ray, AoLP radians, DoLP), for a camera of
+/// known tilt `tilt` (R_y(roll) R_x(pitch)) and lens.
+fn fit_pixels(
+    samples: &[(DVec3, f64, f64)],
+    tilt: DMat3,
+    lens: crate::camera::Lens,
+) -> Vec<FitPixel> {
+    let tt = tilt.transpose();
+    samples
+        .iter()
+        .map(|&(ray, phi, _)| {
+            let b = SensorBasis::new(lens, ray, phi);
+            let u = tt * ray;
+            if u.z <= 0.0 {
+                return FitPixel {
+                    zeta: num_complex::Complex64::new(0.0, 0.0),
+                    x: [0.0; 3],
+                    y: [0.0; 3],
+                    up: false,
+                };
+            }
+            let (n, e) = crate::sky::berry::chart_basis(u);
+            let (n, e) = (tilt * n, tilt * e);
+            let (nm, ns, em, es) = (n.dot(b.m), n.dot(b.s), e.dot(b.m), e.dot(b.s));
+            // doubled predicted sensor angle (a² − b², 2ab) for a = e·m, b = e·s,
+            // e = cos χ N + sin χ E: P₀ + P₁ cos 2χ + P₂ sin 2χ and Q₀ + Q₁ cos 2χ + Q₂ sin 2χ
+            let pp = [
+                0.5 * (nm * nm - ns * ns + em * em - es * es),
+                0.5 * (nm * nm - ns * ns - em * em + es * es),
+                nm * em - ns * es,
+            ];
+            let qq = [nm * ns + em * es, nm * ns - em * es, nm * es + em * ns];
+            FitPixel {
+                zeta: crate::sky::berry::chart(u),
+                x: std::array::from_fn(|k| b.c2 * pp[k] + b.s2 * qq[k]),
+                y: std::array::from_fn(|k| b.s2 * pp[k] - b.c2 * qq[k]),
+                up: true,
+            }
+        })
+        .collect()
+}
+
+/// atan2 in f64 to within 2e-11 rad (octant reduction, then |z| ≤ tan(π/8) and the Taylor
+/// series of atan to z²³), with selects only; the model fit's residual, where libm's atan2 was
+/// half the cost. atan2(0, 0) = 0.
+#[inline(always)]
+fn atan2_fit(y: f64, x: f64) -> f64 {
+    use std::f64::consts::{FRAC_PI_2, FRAC_PI_4, PI};
+    let (ax, ay) = (x.abs(), y.abs());
+    let (mn, mx) = (ax.min(ay), ax.max(ay));
+    let t = mn / mx.max(f64::MIN_POSITIVE);
+    let big = t > std::f64::consts::SQRT_2 - 1.0;
+    let z = if big { (t - 1.0) / (t + 1.0) } else { t };
+    let z2 = z * z;
+    // atan z = z + z³ Σ_{k=1..11} (−1)^k z^{2k−2}/(2k+1), the first term left out below
+    // |z|²⁵/25 ≤ 1.2e-11
+    const C: [f64; 11] = [
+        -1.0 / 3.0,
+        1.0 / 5.0,
+        -1.0 / 7.0,
+        1.0 / 9.0,
+        -1.0 / 11.0,
+        1.0 / 13.0,
+        -1.0 / 15.0,
+        1.0 / 17.0,
+        -1.0 / 19.0,
+        1.0 / 21.0,
+        -1.0 / 23.0,
+    ];
+    let mut p = C[10];
+    for &c in C[..10].iter().rev() {
+        p = p * z2 + c;
+    }
+    let a = z + z * z2 * p + if big { FRAC_PI_4 } else { 0.0 };
+    let a = if ay > ax { FRAC_PI_2 - a } else { a };
+    let a = if x < 0.0 { PI - a } else { a };
+    if y < 0.0 {
+        -a
+    } else {
+        a
+    }
+}
+
+/// Pixels per parallel chunk of [`fit_residuals`]: each pixel's residual and derivatives depend
+/// on that pixel only, so the answers do not depend on the number of threads.
+const FIT_CHUNK: usize = 2048;
+
+/// Residuals (observed − predicted AoLP, radians, wrapped to ±90°) of the model fit's pixels at
+/// parameters `p` = [ψ°, δ_Ba°, δ_Br°, θ_s°] (sun compass azimuth `az_deg`), and their
+/// derivatives per degree of each parameter, analytic: r = ½ atan2(Y, X) depends on the
+/// parameters through Φ = 2χ = 2A' + arg p only, ∂r/∂Φ = ½ (X ∂Y/∂Φ − Y ∂X/∂Φ)/(X² + Y²), and
+/// ∂ ln p/∂z = Σ 1/(z − t±) + t±/(1 + t± z), ∂ ln p/∂t± = −1/(z − t±) + z/(1 + t± z), with
+/// z = ζ e^{−iA'}. With `tied` (the elevation fit, δ_Ba = δ_Br), column 1 is ∂/∂δ of both.
+fn fit_residuals(
+    px: &[FitPixel],
+    p: [f64; 4],
+    az_deg: f64,
+    tied: bool,
+    r: &mut [f64],
+    jac: &mut [[f64; 4]],
+) {
+    use num_complex::Complex64 as C;
+    let deg = std::f64::consts::PI / 180.0;
+    let t_plus = (0.5 * (p[3] + p[2]) * deg).tan();
+    let t_minus = (0.5 * (p[3] - p[1]) * deg).tan();
+    let a = (az_deg - p[0]) * deg;
+    let sd = C::new(a.cos(), a.sin());
+    let sd_conj = sd.conj();
+    let e2 = sd * sd;
+    // dt/d(parameter degrees)
+    let dtp = 0.5 * (1.0 + t_plus * t_plus) * deg;
+    let dtm = 0.5 * (1.0 + t_minus * t_minus) * deg;
+    px.par_chunks(FIT_CHUNK)
+        .zip(r.par_chunks_mut(FIT_CHUNK))
+        .zip(jac.par_chunks_mut(FIT_CHUNK))
+        .for_each(|((px, r), jac)| {
+            for ((q, r), j) in px.iter().zip(r).zip(jac) {
+                if !q.up {
+                    *r = 0.0;
+                    *j = [0.0; 4];
+                    continue;
+                }
+                let z = q.zeta * sd_conj;
+                let f1 = C::new(z.re - t_plus, z.im);
+                let f2 = C::new(z.re - t_minus, z.im);
+                let f3 = C::new(1.0 + t_plus * z.re, t_plus * z.im);
+                let f4 = C::new(1.0 + t_minus * z.re, t_minus * z.im);
+                let pz = -((f1 * f2) * (f3 * f4));
+                let m2 = pz.norm_sqr();
+                if m2 <= 0.0 || !m2.is_finite() {
+                    // a neutral point: the field's direction is undefined (χ = 0, as the sky
+                    // model), no derivative
+                    let (x, y) = (q.x[0] + q.x[1], q.y[0] + q.y[1]);
+                    *r = 0.5 * atan2_fit(y, x);
+                    *j = [0.0; 4];
+                    continue;
+                }
+                let u = e2 * pz / m2.sqrt(); // e^{2iχ}
+                let (cc, ss) = (u.re, u.im);
+                let x = q.x[0] + q.x[1] * cc + q.x[2] * ss;
+                let y = q.y[0] + q.y[1] * cc + q.y[2] * ss;
+                *r = 0.5 * atan2_fit(y, x);
+                let (dx, dy) = (q.x[2] * cc - q.x[1] * ss, q.y[2] * cc - q.y[1] * ss);
+                let h2 = x * x + y * y;
+                let g = if h2 > 0.0 {
+                    0.5 * (x * dy - y * dx) / h2
+                } else {
+                    0.0
+                };
+                let (i1, i2, i3, i4) = (f1.inv(), f2.inv(), f3.inv(), f4.inv());
+                let l = i1 + i2 + i3 * t_plus + i4 * t_minus;
+                // ∂Φ/∂A' = 2 − Re(z L); A' = A − ψ
+                let d_psi = -(2.0 - (z * l).re) * deg;
+                let d_tp = (z * i3 - i1).im;
+                let d_tm = (z * i4 - i2).im;
+                let (d_ba, d_br) = (-d_tm * dtm, d_tp * dtp);
+                let d_th = d_tp * dtp + d_tm * dtm;
+                *j = if tied {
+                    [g * d_psi, g * (d_ba + d_br), g * d_th, 0.0]
+                } else {
+                    [g * d_psi, g * d_ba, g * d_br, 0.0]
+                };
+            }
+        });
+}
+
 /// Pixels the model fit aims for (every k-th pixel in each direction).
 pub const MODEL_FIT_SAMPLES: f64 = 12_000.0;
+
+/// The model fit's sampling step: every `setup.step`-th pixel, or sparser so that about
+/// [`MODEL_FIT_SAMPLES`] pixels are read. Its eigenvector start reads the same pixels.
+pub fn model_fit_step(setup: &HeadingSetup) -> usize {
+    let i = &setup.intrinsics;
+    let n_px = (i.width * i.height) as f64;
+    setup
+        .step
+        .max((n_px / MODEL_FIT_SAMPLES).sqrt().floor() as usize)
+        .max(1)
+}
 
 /// The model fit (issue 12 (c)): the yaw ψ and the Berry field's neutral-point distances δ_Ba,
 /// δ_Br (and with `fit_elevation` the sun zenith) that best explain the observed AoLP,
 /// started from `start` (the eigenvector answer). The predicted AoLP of a pixel is the Berry
 /// E-vector ([`crate::sky::berry::BerryField`]) at its ENU view direction C(ψ)ᵀ r, projected on
 /// the sensor with C(ψ) = R_y(roll) R_x(pitch) R_z(ψ); residuals are wrapped to ±90°, weighted by
-/// DoLP (inverse variance: weights DoLP²), and made robust by Tukey weights (MAD scale, re-estimated every few iterations). Solved
-/// by Levenberg-Marquardt with forward-difference derivatives (residuals in parallel) on about [`MODEL_FIT_SAMPLES`] pixels.
+/// DoLP (inverse variance: weights DoLP²), and made robust by Tukey weights (MAD scale,
+/// re-estimated [`FIT_REWEIGHTS`] times, each time the steps have converged). Solved by
+/// Levenberg-Marquardt with analytic derivatives ([`fit_residuals`]; pixels in parallel, the
+/// sums in a fixed order, so the answer does not depend on the number of threads) on about
+/// [`MODEL_FIT_SAMPLES`] pixels.
 ///
 /// On a Rayleigh sky the fit drives δ to 0 (the Berry field's Rayleigh limit), so it is exact
 /// there too.
@@ -455,14 +667,8 @@ pub fn model_fit_heading(
     start: &HeadingEstimate,
     fit_elevation: bool,
 ) -> Result<(HeadingEstimate, ModelFitInfo)> {
-    use crate::sky::berry::BerryField;
     let i = &setup.intrinsics;
-    let n_px = (i.width * i.height) as f64;
-    let step = setup
-        .step
-        .max((n_px / MODEL_FIT_SAMPLES).sqrt().floor() as usize)
-        .max(1);
-    let samples = fit_samples(aolp_deg, dolp, setup, step);
+    let samples = fit_samples(aolp_deg, dolp, setup, model_fit_step(setup));
     if samples.len() < 10 {
         return Err(Error::Invalid(format!(
             "heading: only {} pixels with DoLP >= {} (need 10)",
@@ -494,40 +700,25 @@ pub fn model_fit_heading(
             p[3].clamp(0.0, 90.0),
         ]
     };
-    let lens = i.lens();
-    // per pixel, once: its lens basis and its observed AoLP in that basis (doubled angle), so a
-    // residual costs a Berry E-vector, two dot products and one atan2
-    let bases: Vec<SensorBasis> = samples
-        .iter()
-        .map(|&(r, phi, _)| SensorBasis::new(lens, r, phi))
-        .collect();
-    let residuals = |p: [f64; 4], out: &mut Vec<f64>| {
-        let c = tilt * crate::camera::rot_z(p[0].to_radians());
-        let ct = c.transpose();
-        let f = BerryField::new(p[3], az, p[1], p[2]);
-        samples
-            .par_iter()
-            .zip(bases.par_iter())
-            .with_min_len(1024)
-            .map(|(&(r, _, _), b)| {
-                let v = ct * r;
-                if v.z <= 0.0 {
-                    return 0.0;
-                }
-                b.residual(c * f.e_only(v))
-            })
-            .collect_into_vec(out);
-    };
+    // per pixel, once: the constants of its residual as a function of the doubled chart angle
+    // (`FitPixel`), so a residual and its derivatives cost a few complex products and one atan2
+    let pixels = fit_pixels(&samples, tilt, i.lens());
+    let n = pixels.len();
     let (d_ba, d_br) = setup.warm_start.unwrap_or((25.0, 25.0));
     let warm = setup.warm_start.is_some();
     let mut p = clamp([start.yaw_deg, d_ba, d_br, setup.sun.zenith_deg]);
     // inverse-variance weights: the AoLP noise of a pixel is ∝ 1/DoLP
     let mut w: Vec<f64> = samples.iter().map(|s| s.2 * s.2).collect();
     let cost = |r: &[f64], w: &[f64]| r.iter().zip(w).map(|(r, w)| w * r * r).sum::<f64>();
-    let (mut r, mut rt) = (Vec::new(), Vec::new());
-    residuals(p, &mut r);
+    let (mut r, mut rt) = (vec![0.0; n], vec![0.0; n]);
+    let (mut jac, mut jact) = (vec![[0.0; 4]; n], vec![[0.0; 4]; n]);
+    let eval = |p: [f64; 4], r: &mut [f64], jac: &mut [[f64; 4]]| {
+        fit_residuals(&pixels, p, az, fit_elevation, r, jac)
+    };
+    eval(p, &mut r, &mut jac);
     let mut lambda = 1e-3;
     let mut iterations = 0;
+    let mut evaluations = 1;
     let reweight = |r: &[f64], w: &mut Vec<f64>| {
         let mut a: Vec<f64> = r.iter().map(|x| x.abs()).collect();
         let c = (4.685 * 1.4826 * median_of(&mut a)).max(0.5f64.to_radians());
@@ -540,53 +731,32 @@ pub fn model_fit_heading(
             };
         }
     };
-    let h = [1e-3, 0.02, 0.02, 0.01];
-    let mut jac: Vec<[f64; 4]> = vec![[0.0; 4]; samples.len()];
-    for it in 0..40 {
+    // Iteratively reweighted Levenberg-Marquardt: each stage iterates until the step is below
+    // FIT_STEP_TOL (or no step lowers the cost), then the Tukey weights are re-estimated from the
+    // residuals; FIT_REWEIGHTS stages after the first (a warm start reweights before its first
+    // step too, its residuals being those of the previous frame's field).
+    let mut reweights = 0;
+    let mut stage_iterations = 0;
+    if warm {
+        reweight(&r, &mut w);
+    }
+    for it in 0..FIT_MAX_ITERATIONS {
         iterations = it + 1;
-        let reweight_now = if warm {
-            it == 0 || it == 2 || it == 4
-        } else {
-            it == 2 || it == 5 || it == 9
-        };
-        if reweight_now {
-            reweight(&r, &mut w);
-        }
-        // forward differences (the Jacobian only steers the steps; the answer is the residual's)
-        for (k, &pk) in active.iter().enumerate() {
-            let mut a = p;
-            a[pk] += h[pk];
-            let mut a = clamp(a);
-            if a[pk] == p[pk] {
-                // at an upper bound: step down instead
-                a = p;
-                a[pk] -= h[pk];
-                a = clamp(a);
-            }
-            let dp = a[pk] - p[pk];
-            residuals(a, &mut rt);
-            for (j, row) in jac.iter_mut().enumerate() {
-                row[k] = if dp != 0.0 {
-                    wrap_half_pi(rt[j] - r[j]) / dp
-                } else {
-                    0.0
-                };
-            }
-        }
+        stage_iterations += 1;
         let mut jtj = [[0.0; 4]; 4];
         let mut jtr = [0.0; 4];
-        for (j, row) in jac.iter().enumerate() {
+        for ((row, &rj), &wj) in jac.iter().zip(&r).zip(&w) {
             for a in 0..np {
-                jtr[a] += w[j] * row[a] * r[j];
+                jtr[a] += wj * row[a] * rj;
                 for b in 0..np {
-                    jtj[a][b] += w[j] * row[a] * row[b];
+                    jtj[a][b] += wj * row[a] * row[b];
                 }
             }
         }
         let c0 = cost(&r, &w);
         let mut improved = false;
         let mut converged = false;
-        for _ in 0..8 {
+        for attempt in 0..8 {
             let mut m = jtj;
             let tr: f64 = (0..np).map(|k| jtj[k][k]).sum::<f64>().max(1e-300);
             for (k, mk) in m.iter_mut().enumerate().take(np) {
@@ -601,20 +771,39 @@ pub fn model_fit_heading(
                 q[pk] -= d[k];
             }
             let q = clamp(q);
-            residuals(q, &mut rt);
+            if attempt == 0
+                && (q[0] - p[0]).abs() < FIT_STEP_TOL[0]
+                && (1..4).all(|k| (q[k] - p[k]).abs() < FIT_STEP_TOL[1])
+            {
+                // the undamped step is below the tolerance: converged without evaluating it
+                converged = true;
+                break;
+            }
+            eval(q, &mut rt, &mut jact);
+            evaluations += 1;
             if cost(&rt, &w) < c0 {
-                converged =
-                    (q[0] - p[0]).abs() < 1e-6 && (1..4).all(|k| (q[k] - p[k]).abs() < 1e-4);
+                converged = (q[0] - p[0]).abs() < FIT_STEP_TOL[0]
+                    && (1..4).all(|k| (q[k] - p[k]).abs() < FIT_STEP_TOL[1]);
                 p = q;
                 std::mem::swap(&mut r, &mut rt);
+                std::mem::swap(&mut jac, &mut jact);
                 lambda = (lambda / 3.0).max(1e-9);
                 improved = true;
                 break;
             }
             lambda *= 4.0;
         }
-        if (!improved || converged) && it >= if warm { 5 } else { 10 } {
-            break;
+        // a stage also ends after FIT_STAGE_ITERATIONS (a noisy frame's steps can zig-zag slowly
+        // toward the minimum of the unweighted cost; the Tukey weights end that); the last one
+        // runs to convergence
+        let last = reweights == FIT_REWEIGHTS;
+        if !improved || converged || (!last && stage_iterations >= FIT_STAGE_ITERATIONS) {
+            if last {
+                break;
+            }
+            reweight(&r, &mut w);
+            reweights += 1;
+            stage_iterations = 0;
         }
     }
     let wsum: f64 = w.iter().sum();
@@ -649,6 +838,7 @@ pub fn model_fit_heading(
             rms_residual_deg: rms,
             inlier_fraction: inlier,
             iterations,
+            evaluations,
         },
     ))
 }
@@ -684,10 +874,14 @@ pub fn estimate_heading_info(
     if method == HeadingMethod::Hough {
         return hough_heading(view, setup).map(|e| (e, None));
     }
-    let eigen = eigen_resolved(view, setup)?;
     match method {
-        HeadingMethod::Eigen => Ok((eigen, None)),
+        HeadingMethod::Eigen => Ok((eigen_resolved(view, setup)?, None)),
         HeadingMethod::ModelFit => {
+            // the start only has to be near the answer: the eigenvector method on the fit's
+            // own (sparser) pixels
+            let mut s = *setup;
+            s.step = model_fit_step(setup);
+            let eigen = eigen_resolved(view, &s)?;
             model_fit_heading(view.aolp_deg, view.dolp, setup, &eigen, setup.fit_elevation)
                 .map(|(e, i)| (e, Some(i)))
         }
@@ -1125,31 +1319,46 @@ pub fn mask_saturated_sampled(
                 .any(|&v| v >= full_scale)
         })
     };
-    if !codes
+    // which rows hold a code at full scale, by a maximum per row the compiler vectorises (an
+    // early-exit search per code does not): most frames have none, and a sun disc a few rows
+    let row_full: Vec<bool> = codes
         .data
         .par_chunks(w.max(1))
-        .any(|row| row.iter().any(|&v| v >= full_scale))
-    {
+        .map(|row| row.iter().fold(0u16, |m, &v| m.max(v)) >= full_scale)
+        .collect();
+    if !row_full.contains(&true) {
         return 0;
     }
+    let rows_full = |r0: usize, r1: usize| row_full[r0..r1.min(h)].contains(&true);
     for i in 0..dolp.height {
+        let r = k * i;
+        if !rows_full(r.saturating_sub(1), r + 3) {
+            continue;
+        }
         for j in 0..dolp.width {
-            let (r, c) = (k * i, k * j);
+            let c = k * j;
             if any_full(r.saturating_sub(1), r + 3, c.saturating_sub(1), c + 3) {
                 dolp.data[i * dolp.width + j] = f32::NAN;
             }
         }
     }
-    // the frame's count, row by row in parallel
+    // the frame's count, row by row in parallel: the columns with a code at full scale in
+    // rows r−1..r+1, widened by one column each side
     (0..h)
         .into_par_iter()
         .map(|r| {
-            let (r0, r1) = (r.saturating_sub(1), r + 2);
-            if !any_full(r0, r1, 0, w) {
+            let (r0, r1) = (r.saturating_sub(1), (r + 2).min(h));
+            if !rows_full(r0, r1) {
                 return 0;
             }
+            let mut col = vec![false; w];
+            for rr in (r0..r1).filter(|&rr| row_full[rr]) {
+                for (b, &v) in col.iter_mut().zip(codes.row(rr)) {
+                    *b |= v >= full_scale;
+                }
+            }
             (0..w)
-                .filter(|&c| any_full(r0, r1, c.saturating_sub(1), c + 2))
+                .filter(|&c| col[c.saturating_sub(1)..(c + 2).min(w)].contains(&true))
                 .count()
         })
         .sum()
@@ -1208,6 +1417,95 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// The model fit's residual from per-pixel constants equals the direct one (Berry E-vector at
+    /// the view direction C(ψ)ᵀ r, rotated into the camera, [`SensorBasis::residual`]) for both
+    /// lenses, tilts and the tied (elevation) form, and its analytic derivatives equal central
+    /// differences of it.
+    #[test]
+    fn fit_residuals_match_the_direct_model_and_their_derivatives() {
+        use crate::camera::Lens;
+        use crate::sky::berry::BerryField;
+        let rays: Vec<DVec3> = (0..60)
+            .map(|k| {
+                let a = k as f64 * 0.7;
+                DVec3::new(0.6 * a.cos() * (k % 7) as f64 / 7.0, 0.5 * a.sin(), 1.0).normalize()
+            })
+            .collect();
+        let samples: Vec<(DVec3, f64, f64)> = rays
+            .iter()
+            .enumerate()
+            .map(|(k, &r)| (r, (k as f64 * 37.0 - 90.0).to_radians(), 0.3))
+            .collect();
+        let az = 200.0;
+        for lens in [Lens::Pinhole, Lens::Ideal] {
+            for (pitch, roll) in [(0.0f64, 0.0f64), (4.0, -5.0)] {
+                let tilt = rot_y(roll.to_radians()) * rot_x(pitch.to_radians());
+                let px = fit_pixels(&samples, tilt, lens);
+                for (tied, p) in [
+                    (false, [37.0, 22.0, 27.0, 50.0]),
+                    (false, [210.5, 30.0, 18.0, 70.0]),
+                    (true, [300.0, 25.0, 25.0, 35.0]),
+                ] {
+                    let n = px.len();
+                    let (mut r, mut j) = (vec![0.0; n], vec![[0.0; 4]; n]);
+                    fit_residuals(&px, p, az, tied, &mut r, &mut j);
+                    let c = tilt * crate::camera::rot_z(p[0].to_radians());
+                    let f = BerryField::new(p[3], az, p[1], p[2]);
+                    for (k, &(ray, phi, _)) in samples.iter().enumerate() {
+                        let b = SensorBasis::new(lens, ray, phi);
+                        let want = b.residual(c * f.e_only(c.transpose() * ray));
+                        let d = wrap_half_pi(r[k] - want).abs();
+                        assert!(d < 1e-10, "{lens:?} {p:?} pixel {k}: {} vs {want}", r[k]);
+                    }
+                    // central differences, per parameter (ψ, δ or δ_Ba, δ_Br or θ_s)
+                    let cols: [&[usize]; 3] = if tied {
+                        [&[0], &[1, 2], &[3]]
+                    } else {
+                        [&[0], &[1], &[2]]
+                    };
+                    let h = 1e-4;
+                    for (col, idx) in cols.iter().enumerate() {
+                        let (mut a, mut b) = (p, p);
+                        for &i in *idx {
+                            a[i] += h;
+                            b[i] -= h;
+                        }
+                        let (mut ra, mut rb, mut jj) =
+                            (vec![0.0; n], vec![0.0; n], vec![[0.0; 4]; n]);
+                        fit_residuals(&px, a, az, tied, &mut ra, &mut jj);
+                        fit_residuals(&px, b, az, tied, &mut rb, &mut jj);
+                        let big = (0..n).map(|k| j[k][col].abs()).fold(0.0, f64::max);
+                        assert!(big > 1e-3, "column {col} vanishes: {big}");
+                        for k in 0..n {
+                            let num = wrap_half_pi(ra[k] - rb[k]) / (2.0 * h);
+                            assert!(
+                                (num - j[k][col]).abs() < 1e-6 * (1.0 + num.abs()),
+                                "{lens:?} {p:?} tied {tied} column {col} pixel {k}: {} vs {num}",
+                                j[k][col]
+                            );
+                        }
+                    }
+                }
+            }
+        }
+    }
+
+    #[test]
+    fn atan2_fit_matches_std() {
+        let mut worst = 0f64;
+        for i in 0..200_000 {
+            let a = i as f64 * 3.3e-5 - 3.3;
+            for r in [1e-9f64, 1.0, 3e7] {
+                let (y, x) = (r * a.sin(), r * a.cos());
+                worst = worst.max((atan2_fit(y, x) - y.atan2(x)).abs());
+            }
+        }
+        assert!(worst < 2e-11, "worst {worst}");
+        assert_eq!(atan2_fit(0.0, 0.0), 0.0);
+        assert_eq!(atan2_fit(0.0, -1.0), std::f64::consts::PI);
+        assert_eq!(atan2_fit(-1.0, 0.0), -std::f64::consts::FRAC_PI_2);
     }
 
     #[test]
@@ -1404,6 +1702,61 @@ mod tests {
             worst_eigen > 0.1,
             "the eigen bias this test relies on is gone"
         );
+    }
+
+    /// The model fit's answer does not depend on the number of threads (pixels in parallel,
+    /// sums in a fixed order), and with analytic derivatives it needs few residual evaluations
+    /// (forward differences took at least 11 iterations of 4 or more).
+    #[test]
+    fn model_fit_is_thread_count_independent_and_cheap() {
+        let sun = SunPosition::new(40.0, 200.0);
+        let (im, setup) = ideal(PolarizationModel::Wang, sun, 123.0, 4.0, -3.0);
+        let run = |threads: usize| {
+            rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| {
+                    let e = eigenvector_heading(&im.aop_deg, &im.dop, &setup).unwrap();
+                    model_fit_heading(&im.aop_deg, &im.dop, &setup, &e, false).unwrap()
+                })
+        };
+        let (a, b) = (run(1), run(3));
+        assert_eq!(a, b);
+        eprintln!("{:?}", a.1);
+        assert!(a.1.evaluations <= 8, "{:?}", a.1);
+        assert!(axial360(a.0.yaw_deg, 123.0) < 0.01, "{a:?}");
+    }
+
+    /// The sampled saturation mask and count equal a direct window search, for blobs at the
+    /// frame's edges and inside.
+    #[test]
+    fn sampled_saturation_mask_matches_a_direct_search() {
+        let (w, h, k) = (64usize, 40usize, 4usize);
+        let mut codes = Image::from_vec(w, h, vec![100u16; w * h]);
+        for &(r, c) in &[
+            (0usize, 0usize),
+            (5, 63),
+            (39, 10),
+            (20, 30),
+            (21, 31),
+            (12, 7),
+        ] {
+            codes.data[r * w + c] = 4095;
+        }
+        let mut d = Image::from_vec(w / k, h / k, vec![0.5f32; (w / k) * (h / k)]);
+        let n = mask_saturated_sampled(&mut d, &codes, 4095, k);
+        let mut full = Image::from_vec(w, h, vec![0.5f32; w * h]);
+        assert_eq!(n, mask_saturated(&mut full, &codes, 4095));
+        for i in 0..h / k {
+            for j in 0..w / k {
+                let (r, c) = (k * i, k * j);
+                let want = (r.saturating_sub(1)..(r + 3).min(h)).any(|rr| {
+                    (c.saturating_sub(1)..(c + 3).min(w)).any(|cc| codes.data[rr * w + cc] >= 4095)
+                });
+                assert_eq!(d.data[i * (w / k) + j].is_nan(), want, "sample {i} {j}");
+            }
+        }
     }
 
     /// The fit also works with the sun's elevation free, and on a Rayleigh sky (δ → 0).

@@ -71,8 +71,8 @@ pub struct HeadingArgs {
     #[arg(long)]
     pub(crate) latest: bool,
     /// Stream input, model fit: start each frame's neutral-point distances from the previous
-    /// frame's fit (when its confidence was at least 0.5) and stop after 6 iterations instead of
-    /// 11 when converged; the yaw still starts from the frame's own eigenvector answer.
+    /// frame's fit (when its confidence was at least 0.5) and set the robust weights from the
+    /// first residuals; the yaw still starts from the frame's own eigenvector answer.
     #[arg(long)]
     pub(crate) warm_start: bool,
     /// Image input: the sensor preset the frame was made with (camera, nfpi, gniipi, gniicpi), as
@@ -448,6 +448,7 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         ));
     }
     let (pitch, roll) = given_tilt(a)?;
+    keep_heap();
     let reader = StreamReader::new(super::open_input(&a.input)?)?;
     let (mut intr, mut ri) = stream_optics(a, reader.header())?;
     let mut out = std::io::stdout().lock();
@@ -471,6 +472,7 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
     };
     let mut generation = 0u64;
     let mut warm: Option<(f64, f64)> = None;
+    let mut codes_buf: Vec<u16> = Vec::new();
     while let Some((gen, h, f)) = source.next()? {
         if gen != generation {
             // the stream restarted with a new header
@@ -480,7 +482,13 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         }
         let t0 = Instant::now();
         let h = &h;
-        let codes = Image::from_vec(h.width as usize, h.height as usize, f.codes(h)?);
+        // the codes and (below) the payload buffers go round frame after frame: no fresh pages
+        f.codes_into(h, &mut codes_buf)?;
+        let codes = Image::from_vec(
+            h.width as usize,
+            h.height as usize,
+            std::mem::take(&mut codes_buf),
+        );
         let black = if h.msb_aligned {
             f.meta.black_level / 2f64.powi(16 - h.bits_valid as i32)
         } else {
@@ -519,6 +527,8 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
             )?
         };
         let ms = t0.elapsed().as_secs_f64() * 1e3;
+        codes_buf = codes.data;
+        source.recycle(f.payload);
         total_s += ms / 1e3;
         frames += 1;
         // the truth is read only here, after the estimate, for the error column
@@ -561,6 +571,20 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
     Ok(())
 }
 
+/// Keeps freed memory in the heap for reuse: glibc serves allocations from 128 KiB up (the
+/// model fit's per-frame vectors, the sampled Stokes images) with fresh mmaps, and raises that
+/// threshold only past the size freed, so same-size allocations frame after frame fault in and
+/// zero new pages every frame (≈ 10 % of a full-size frame's CPU). A stream consumer's working
+/// set is a few tens of MB, so it is kept.
+fn keep_heap() {
+    #[cfg(all(target_os = "linux", target_env = "gnu"))]
+    // SAFETY: mallopt only sets allocator parameters; it fails harmlessly (returns 0)
+    unsafe {
+        libc::mallopt(libc::M_MMAP_THRESHOLD, 64 << 20);
+        libc::mallopt(libc::M_TRIM_THRESHOLD, 256 << 20);
+    }
+}
+
 type Reader = StreamReader<Box<dyn std::io::Read + Send + Sync>>;
 
 /// Where `psns heading` takes a stream's frames from: in order, or (`--latest`) the newest
@@ -586,6 +610,8 @@ struct Mailbox {
     error: Option<Error>,
     damaged: usize,
     skipped: usize,
+    /// Payload buffers the estimator is done with, for the reader thread to read into.
+    returned: Vec<Vec<u8>>,
 }
 
 /// A frame event of a stream as `psns heading` treats it: `Some` for a good frame (of the
@@ -650,8 +676,12 @@ impl FrameSource {
                     };
                     let h = reader.header().clone();
                     let mut m = lock.lock().unwrap_or_else(|p| p.into_inner());
-                    if m.slot.replace((generation, h, f)).is_some() {
+                    if let Some(old) = m.slot.replace((generation, h, f)) {
                         m.skipped += 1;
+                        reader.recycle(old.2.payload);
+                    }
+                    for b in m.returned.drain(..) {
+                        reader.recycle(b);
                     }
                     cv.notify_one();
                 }
@@ -695,6 +725,19 @@ impl FrameSource {
                         return Ok(None);
                     }
                     m = cv.wait(m).unwrap_or_else(|p| p.into_inner());
+                }
+            }
+        }
+    }
+
+    /// Gives a frame's payload buffer back to the reader, for a later frame.
+    fn recycle(&mut self, payload: Vec<u8>) {
+        match self {
+            FrameSource::Sequential { reader, .. } => reader.recycle(payload),
+            FrameSource::Latest { shared, .. } => {
+                let mut m = shared.0.lock().unwrap_or_else(|p| p.into_inner());
+                if m.returned.len() < 2 {
+                    m.returned.push(payload);
                 }
             }
         }

@@ -298,6 +298,23 @@ pub fn unpack(
     width: usize,
     height: usize,
 ) -> Result<Vec<u16>> {
+    let mut v = Vec::new();
+    unpack_into(payload, fmt, bits_valid, msb_aligned, width, height, &mut v)?;
+    Ok(v)
+}
+
+/// [`unpack`] into `v` (cleared first; its allocation is reused, so a consumer unpacking frame
+/// after frame into the same vector does not fault in fresh pages every frame).
+pub fn unpack_into(
+    payload: &[u8],
+    fmt: PixelFormat,
+    bits_valid: u8,
+    msb_aligned: bool,
+    width: usize,
+    height: usize,
+    v: &mut Vec<u16>,
+) -> Result<()> {
+    v.clear();
     check_depth(fmt, bits_valid, msb_aligned)?;
     if fmt == PixelFormat::Mono8 && bits_valid != 8 {
         return Err(Error::Format(format!(
@@ -314,7 +331,7 @@ pub fn unpack(
             payload.len()
         )));
     }
-    let mut v = Vec::with_capacity(n);
+    v.reserve(n);
     match fmt {
         PixelFormat::Mono8 => v.extend(payload.iter().map(|&b| b as u16)),
         PixelFormat::Mono12p => {
@@ -350,7 +367,7 @@ pub fn unpack(
                         "MSB-aligned Mono16 value {w:#06x} has bits set below the {bits_valid} valid bits"
                     )));
                 }
-                for w in &mut v {
+                for w in v.iter_mut() {
                     *w >>= s;
                 }
             }
@@ -370,7 +387,7 @@ pub fn unpack(
             )));
         }
     }
-    Ok(v)
+    Ok(())
 }
 
 #[cfg(test)]

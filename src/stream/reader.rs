@@ -8,7 +8,7 @@ use super::{
 };
 use crate::error::{Error, Result};
 use crate::sensor::mosaic::MosaicLayout;
-use crate::sensor::packing::{payload_size_checked, unpack, PixelFormat};
+use crate::sensor::packing::{payload_size_checked, unpack, unpack_into, PixelFormat};
 use serde::Serialize;
 use std::collections::VecDeque;
 use std::fmt;
@@ -37,6 +37,19 @@ impl Frame {
             h.msb_aligned,
             h.width as usize,
             h.height as usize,
+        )
+    }
+
+    /// [`Frame::codes`] into `v`, reusing its allocation.
+    pub fn codes_into(&self, h: &FileHeader, v: &mut Vec<u16>) -> Result<()> {
+        unpack_into(
+            &self.payload,
+            h.pixel_format,
+            h.bits_valid,
+            h.msb_aligned,
+            h.width as usize,
+            h.height as usize,
+            v,
         )
     }
 }
@@ -91,6 +104,8 @@ pub struct StreamReader<R: Read> {
     src: R,
     buf: Vec<u8>,
     start: usize,
+    /// End of the buffered bytes in `buf` (`start..end`).
+    end: usize,
     offset: u64,
     eof: bool,
     header: FileHeader,
@@ -100,6 +115,8 @@ pub struct StreamReader<R: Read> {
     done: bool,
     /// Byte offsets of the file headers found after the first (restarts / concatenated copies).
     restart_at: Vec<u64>,
+    /// Payload buffers handed back by the consumer ([`StreamReader::recycle`]).
+    spare: Vec<Vec<u8>>,
 }
 
 enum ScanEnd {
@@ -583,6 +600,7 @@ impl<R: Read> StreamReader<R> {
             src,
             buf: Vec::new(),
             start: 0,
+            end: 0,
             offset: 0,
             eof: false,
             header: FileHeader::default(),
@@ -590,6 +608,16 @@ impl<R: Read> StreamReader<R> {
             pending: VecDeque::new(),
             done: false,
             restart_at: Vec::new(),
+            spare: Vec::new(),
+        }
+    }
+
+    /// Hands a frame's payload buffer back for the next frame's payload: a consumer that
+    /// recycles each frame's buffer reads every frame into memory already mapped instead of
+    /// fresh pages (10 MB per full-size frame). At most two buffers are kept.
+    pub fn recycle(&mut self, payload: Vec<u8>) {
+        if self.spare.len() < 2 {
+            self.spare.push(payload);
         }
     }
 
@@ -651,36 +679,34 @@ impl<R: Read> StreamReader<R> {
     }
 
     fn avail(&self) -> &[u8] {
-        &self.buf[self.start..]
+        &self.buf[self.start..self.end]
     }
 
     fn consume(&mut self, n: usize) {
-        let n = n.min(self.buf.len() - self.start);
+        let n = n.min(self.end - self.start);
         self.start += n;
         self.offset += n as u64;
     }
 
-    /// Ensures `n` bytes are buffered unless the source ends first.
+    /// Ensures `n` bytes are buffered unless the source ends first. The buffer keeps its length
+    /// (bytes `end..` are stale), so a full-size frame is not zeroed before every read.
     fn fill(&mut self, n: usize) -> Result<()> {
-        while self.buf.len() - self.start < n && !self.eof {
+        while self.end - self.start < n && !self.eof {
             if self.start > 0 {
-                self.buf.drain(..self.start);
+                self.buf.copy_within(self.start..self.end, 0);
+                self.end -= self.start;
                 self.start = 0;
             }
-            let len = self.buf.len();
+            let len = self.end;
             let want = (n - len).max(1 << 16);
-            self.buf.resize(len + want, 0);
-            match self.src.read(&mut self.buf[len..]) {
-                Ok(0) => {
-                    self.buf.truncate(len);
-                    self.eof = true;
-                }
-                Ok(k) => self.buf.truncate(len + k),
-                Err(e) if e.kind() == ErrorKind::Interrupted => self.buf.truncate(len),
-                Err(e) => {
-                    self.buf.truncate(len);
-                    return Err(Error::io("reading stream", e));
-                }
+            if self.buf.len() < len + want {
+                self.buf.resize(len + want, 0);
+            }
+            match self.src.read(&mut self.buf[len..len + want]) {
+                Ok(0) => self.eof = true,
+                Ok(k) => self.end = len + k,
+                Err(e) if e.kind() == ErrorKind::Interrupted => {}
+                Err(e) => return Err(Error::io("reading stream", e)),
             }
         }
         Ok(())
@@ -804,8 +830,10 @@ impl<R: Read> StreamReader<R> {
                 len = j;
             }
         }
+        let mut payload = self.spare.pop().unwrap_or_default();
         let rec = &self.avail()[..stride];
-        let payload = rec[FRAME_HEADER_SIZE..FRAME_HEADER_SIZE + p].to_vec();
+        payload.clear();
+        payload.extend_from_slice(&rec[FRAME_HEADER_SIZE..FRAME_HEADER_SIZE + p]);
         if let Some(e) = self.expected {
             if meta.index > e {
                 self.pending.push_back(Event::Gap {
