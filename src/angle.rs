@@ -27,7 +27,7 @@ impl SensorAngle {
     pub fn from_deg(deg: f64) -> Self {
         // |deg| < 180 (every AoLP from an atan2): rem_euclid's fmod returns deg itself, so this is
         // its value without the call
-        if deg >= 0.0 && deg < 180.0 {
+        if (0.0..180.0).contains(&deg) {
             return SensorAngle(deg);
         }
         if deg > -180.0 && deg < 0.0 {

@@ -849,3 +849,70 @@ fn latest_estimates_the_newest_frame_and_counts_the_skipped() {
         );
     }
 }
+
+/// `psns heading FIFO` opens the FIFO once. It used to open it to look for the stream's magic,
+/// close it and open it again: a writer that starts as soon as its open returns (a replay tool,
+/// `cat file > fifo`) could write in between, get a broken pipe, and leave the reader a stream
+/// that ends inside frame 0 (seen with a paced replay in 3 of 4 runs). The race is a timing
+/// one, so it is run 6 times; each run passed on the old code about one time in four.
+#[test]
+fn fifo_is_opened_once_so_an_eager_writer_loses_nothing() {
+    use std::io::Write;
+    let dir = tempfile::tempdir().unwrap();
+    let stream = dir.path().join("s.psns");
+    let o = common::psns(&[
+        "stream",
+        "--frames",
+        "3",
+        "--width",
+        "304",
+        "--height",
+        "256",
+        "--pixel-pitch",
+        "27.6",
+        "--auto-exposure",
+        "--out",
+        stream.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let bytes = std::fs::read(&stream).unwrap();
+    for round in 0..6 {
+        let fifo = dir.path().join(format!("f{round}"));
+        let st = std::process::Command::new("mkfifo")
+            .arg(&fifo)
+            .status()
+            .expect("mkfifo");
+        assert!(st.success());
+        let mut consumer = std::process::Command::new(env!("CARGO_BIN_EXE_psns"))
+            .args(["heading", fifo.to_str().unwrap()])
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // opens as soon as the consumer opens for reading, then writes at once
+        let mut w = std::fs::OpenOptions::new().write(true).open(&fifo).unwrap();
+        let wrote = w.write_all(&bytes);
+        drop(w);
+        if let Err(e) = wrote {
+            // the old code then waited for a writer forever in its second open
+            let _ = consumer.kill();
+            panic!("round {round}: the writer got {e}: psns heading closed the FIFO under it");
+        }
+        let t0 = std::time::Instant::now();
+        while consumer.try_wait().unwrap().is_none() {
+            if t0.elapsed().as_secs() > 30 {
+                let _ = consumer.kill();
+                panic!("round {round}: psns heading still running after 30 s");
+            }
+            std::thread::sleep(std::time::Duration::from_millis(20));
+        }
+        let o = consumer.wait_with_output().unwrap();
+        let (_, rows) = stream_rows(&o);
+        assert!(
+            rows.len() == 3,
+            "round {round}: {} rows; {}",
+            rows.len(),
+            common::stderr(&o)
+        );
+    }
+}

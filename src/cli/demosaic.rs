@@ -95,6 +95,10 @@ pub struct LoadedRaw {
 
 /// Reads a raw PNG/TIFF or a psns frame stream (recognised by its magic bytes).
 pub fn load_raw(input: &Path, layout: MosaicLayout, frame: Option<u64>) -> Result<LoadedRaw> {
+    // a FIFO (or other non-file) can be read only once: it is taken as a stream, unpeeked
+    if std::fs::metadata(input).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
+        return load_stream(input, frame);
+    }
     let mut head = [0u8; 8];
     {
         use std::io::Read;

@@ -159,17 +159,20 @@ fn is_stream(input: &Path) -> Result<bool> {
         return Ok(true);
     }
     use std::io::Read;
-    let mut f = std::fs::File::open(input).map_err(|e| Error::input(input, e))?;
-    if f.metadata().is_ok_and(|m| m.is_dir()) {
+    let meta = std::fs::metadata(input).map_err(|e| Error::input(input, e))?;
+    if meta.is_dir() {
         return Err(Error::Invalid(format!(
             "{} is a directory",
             input.display()
         )));
     }
-    // a FIFO is read once: only a regular file may be peeked and reopened
-    if !f.metadata().is_ok_and(|m| m.is_file()) {
+    // A FIFO is read once, and not even opened here: opening lets its writer start, and closing
+    // it again before the stream's own open broke the writer's pipe. Only a regular file is
+    // peeked at and reopened.
+    if !meta.is_file() {
         return Ok(true);
     }
+    let mut f = std::fs::File::open(input).map_err(|e| Error::input(input, e))?;
     let mut head = [0u8; 8];
     let n = f.read(&mut head).map_err(|e| Error::input(input, e))?;
     Ok(n == 8 && head == psns::stream::FILE_MAGIC)
@@ -460,16 +463,7 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
     w(&mut out, STREAM_HEADER)?;
     let (mut errors, mut frames, mut none) = (Vec::new(), 0usize, 0usize);
     let mut total_s = 0.0;
-    let mut source = if a.latest {
-        FrameSource::latest(reader, a.index)
-    } else {
-        FrameSource::Sequential {
-            reader: Box::new(reader),
-            index: a.index,
-            damaged: 0,
-            generation: 0,
-        }
-    };
+    let mut source = FrameSource::start(reader, a.index, a.latest);
     let mut generation = 0u64;
     let mut warm: Option<(f64, f64)> = None;
     let mut codes_buf: Vec<u16> = Vec::new();
@@ -587,25 +581,23 @@ fn keep_heap() {
 
 type Reader = StreamReader<Box<dyn std::io::Read + Send + Sync>>;
 
-/// Where `psns heading` takes a stream's frames from: in order, or (`--latest`) the newest
-/// complete frame from a reader thread. Yields (header generation, header, frame).
-enum FrameSource {
-    Sequential {
-        reader: Box<Reader>,
-        index: Option<u64>,
-        damaged: usize,
-        generation: u64,
-    },
-    Latest {
-        shared: std::sync::Arc<(std::sync::Mutex<Mailbox>, std::sync::Condvar)>,
-        thread: Option<std::thread::JoinHandle<()>>,
-    },
+/// Where `psns heading` takes a stream's frames from: a reader thread that reads ahead of the
+/// estimator, so reading the next frame overlaps estimating this one. In order, it holds up to
+/// [`READ_AHEAD`] frames and then waits (the FIFO then fills and the producer's writes block, as
+/// with no thread); with `--latest` it holds only the newest complete frame, replacing older
+/// ones. Yields (header generation, header, frame).
+struct FrameSource {
+    shared: std::sync::Arc<(std::sync::Mutex<Mailbox>, std::sync::Condvar)>,
+    thread: Option<std::thread::JoinHandle<()>>,
 }
 
-/// The one-frame slot between the reader thread and the estimator (`--latest`).
+/// Frames the in-order reader thread holds ready for the estimator.
+const READ_AHEAD: usize = 2;
+
+/// The frames between the reader thread and the estimator.
 #[derive(Default)]
 struct Mailbox {
-    slot: Option<(u64, psns::stream::FileHeader, psns::stream::Frame)>,
+    queue: std::collections::VecDeque<(u64, psns::stream::FileHeader, psns::stream::Frame)>,
     done: bool,
     error: Option<Error>,
     damaged: usize,
@@ -660,9 +652,10 @@ fn usable_frame(
 }
 
 impl FrameSource {
-    /// Starts the reader thread of `--latest`: it reads as fast as the stream delivers and keeps
-    /// only the newest good frame, counting the ones it replaces before the estimator took them.
-    fn latest(mut reader: Reader, index: Option<u64>) -> FrameSource {
+    /// Starts the reader thread. In order (`latest` false) it waits while [`READ_AHEAD`] frames
+    /// are queued; with `latest` it keeps only the newest good frame, counting the ones it
+    /// replaces before the estimator took them.
+    fn start(mut reader: Reader, index: Option<u64>, latest: bool) -> FrameSource {
         use std::sync::{Arc, Condvar, Mutex};
         let shared = Arc::new((Mutex::new(Mailbox::default()), Condvar::new()));
         let sh = shared.clone();
@@ -676,14 +669,21 @@ impl FrameSource {
                     };
                     let h = reader.header().clone();
                     let mut m = lock.lock().unwrap_or_else(|p| p.into_inner());
-                    if let Some(old) = m.slot.replace((generation, h, f)) {
-                        m.skipped += 1;
-                        reader.recycle(old.2.payload);
+                    if latest {
+                        if let Some(old) = m.queue.pop_front() {
+                            m.skipped += 1;
+                            reader.recycle(old.2.payload);
+                        }
+                    } else {
+                        while m.queue.len() >= READ_AHEAD {
+                            m = cv.wait(m).unwrap_or_else(|p| p.into_inner());
+                        }
                     }
+                    m.queue.push_back((generation, h, f));
                     for b in m.returned.drain(..) {
                         reader.recycle(b);
                     }
-                    cv.notify_one();
+                    cv.notify_all();
                 }
                 Ok(())
             })();
@@ -691,72 +691,46 @@ impl FrameSource {
             m.done = true;
             m.damaged = damaged;
             m.error = result.err();
-            cv.notify_one();
+            cv.notify_all();
         });
-        FrameSource::Latest {
+        FrameSource {
             shared,
             thread: Some(thread),
         }
     }
 
     fn next(&mut self) -> Result<Option<(u64, psns::stream::FileHeader, psns::stream::Frame)>> {
-        match self {
-            FrameSource::Sequential {
-                reader,
-                index,
-                damaged,
-                generation,
-            } => {
-                while let Some(ev) = reader.next_event()? {
-                    if let Some(f) = usable_frame(ev, *index, damaged, generation) {
-                        return Ok(Some((*generation, reader.header().clone(), f)));
-                    }
-                }
-                Ok(None)
+        let (lock, cv) = &*self.shared;
+        let mut m = lock.lock().unwrap_or_else(|p| p.into_inner());
+        loop {
+            if let Some(x) = m.queue.pop_front() {
+                cv.notify_all(); // a place in the queue for the reader
+                return Ok(Some(x));
             }
-            FrameSource::Latest { shared, .. } => {
-                let (lock, cv) = &**shared;
-                let mut m = lock.lock().unwrap_or_else(|p| p.into_inner());
-                loop {
-                    if let Some(x) = m.slot.take() {
-                        return Ok(Some(x));
-                    }
-                    if m.done {
-                        return Ok(None);
-                    }
-                    m = cv.wait(m).unwrap_or_else(|p| p.into_inner());
-                }
+            if m.done {
+                return Ok(None);
             }
+            m = cv.wait(m).unwrap_or_else(|p| p.into_inner());
         }
     }
 
     /// Gives a frame's payload buffer back to the reader, for a later frame.
     fn recycle(&mut self, payload: Vec<u8>) {
-        match self {
-            FrameSource::Sequential { reader, .. } => reader.recycle(payload),
-            FrameSource::Latest { shared, .. } => {
-                let mut m = shared.0.lock().unwrap_or_else(|p| p.into_inner());
-                if m.returned.len() < 2 {
-                    m.returned.push(payload);
-                }
-            }
+        let mut m = self.shared.0.lock().unwrap_or_else(|p| p.into_inner());
+        if m.returned.len() < READ_AHEAD + 1 {
+            m.returned.push(payload);
         }
     }
 
     /// (damaged records, frames skipped for newer ones); the reader thread's error, if any.
     fn finish(&mut self) -> Result<(usize, usize)> {
-        match self {
-            FrameSource::Sequential { damaged, .. } => Ok((*damaged, 0)),
-            FrameSource::Latest { shared, thread } => {
-                if let Some(t) = thread.take() {
-                    let _ = t.join();
-                }
-                let mut m = shared.0.lock().unwrap_or_else(|p| p.into_inner());
-                match m.error.take() {
-                    Some(e) => Err(e),
-                    None => Ok((m.damaged, m.skipped)),
-                }
-            }
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+        let mut m = self.shared.0.lock().unwrap_or_else(|p| p.into_inner());
+        match m.error.take() {
+            Some(e) => Err(e),
+            None => Ok((m.damaged, m.skipped)),
         }
     }
 }

@@ -25,7 +25,9 @@ pub fn viridis(t: f64) -> [u8; 3] {
     } * 8.0;
     let i = (t.floor() as usize).min(7);
     let f = t - i as f64;
-    std::array::from_fn(|k| round_clamp(VIRIDIS[i][k] * (1.0 - f) + VIRIDIS[i + 1][k] * f, 255.0) as u8)
+    std::array::from_fn(|k| {
+        round_clamp(VIRIDIS[i][k] * (1.0 - f) + VIRIDIS[i + 1][k] * f, 255.0) as u8
+    })
 }
 
 /// Fully saturated hue for an axial angle in degrees (period 180°): 0° red, 60° green, 120° blue.
