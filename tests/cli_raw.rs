@@ -593,13 +593,9 @@ fn demosaic_reads_a_stream_from_a_fifo() {
     ]);
     assert!(o.status.success(), "{}", err(&o));
     let fifo = dir.path().join("fifo");
-    let st = std::process::Command::new("mkfifo")
-        .arg(&fifo)
-        .status()
-        .expect("mkfifo");
-    assert!(st.success());
+    common::mkfifo(&fifo);
     let from_fifo = dir.path().join("b");
-    let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_psns"))
+    let child = std::process::Command::new(env!("CARGO_BIN_EXE_psns"))
         .args(["demosaic", fifo.to_str().unwrap(), "--frame", "1", "--out"])
         .arg(&from_fifo)
         .stderr(std::process::Stdio::piped())
@@ -610,15 +606,7 @@ fn demosaic_reads_a_stream_from_a_fifo() {
     let mut w = std::fs::OpenOptions::new().write(true).open(&fifo).unwrap();
     let _ = w.write_all(&bytes);
     drop(w);
-    let t0 = std::time::Instant::now();
-    while child.try_wait().unwrap().is_none() {
-        if t0.elapsed().as_secs() > 30 {
-            let _ = child.kill();
-            panic!("psns demosaic FIFO still running after 30 s");
-        }
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-    let o = child.wait_with_output().unwrap();
+    let o = common::wait_deadline(child, 30);
     assert!(o.status.success(), "{}", err(&o));
     for f in ["s0.npy", "dolp.npy", "aolp.npy"] {
         assert_eq!(

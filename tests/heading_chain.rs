@@ -789,11 +789,9 @@ fn stream_heading_uses_the_recorded_falloff() {
 /// delivers), every frame is either estimated or counted as skipped, the rows come in frame
 /// order, and the last frame, which nothing replaces, is always estimated. Which frames are
 /// skipped depends on timing, so the test asserts only what does not.
-#[test]
-fn latest_estimates_the_newest_frame_and_counts_the_skipped() {
-    let dir = tempfile::tempdir().unwrap();
-    let stream = dir.path().join("s.psns");
-    let n = 12;
+/// A stream of `n` small frames (304 x 256, the full field of view, auto-exposure) turning at
+/// 300°/s, written to `path`.
+fn small_stream(path: &std::path::Path, n: u64) {
     let o = common::psns(&[
         "stream",
         "--frames",
@@ -808,9 +806,17 @@ fn latest_estimates_the_newest_frame_and_counts_the_skipped() {
         "27.6",
         "--auto-exposure",
         "--out",
-        stream.to_str().unwrap(),
+        path.to_str().unwrap(),
     ]);
     assert!(o.status.success(), "{}", common::stderr(&o));
+}
+
+#[test]
+fn latest_estimates_the_newest_frame_and_counts_the_skipped() {
+    let dir = tempfile::tempdir().unwrap();
+    let stream = dir.path().join("s.psns");
+    let n = 12;
+    small_stream(&stream, n);
     let o = common::psns(&["heading", stream.to_str().unwrap(), "--latest"]);
     let err = common::stderr(&o);
     eprintln!("{err}");
@@ -860,29 +866,11 @@ fn fifo_is_opened_once_so_an_eager_writer_loses_nothing() {
     use std::io::Write;
     let dir = tempfile::tempdir().unwrap();
     let stream = dir.path().join("s.psns");
-    let o = common::psns(&[
-        "stream",
-        "--frames",
-        "3",
-        "--width",
-        "304",
-        "--height",
-        "256",
-        "--pixel-pitch",
-        "27.6",
-        "--auto-exposure",
-        "--out",
-        stream.to_str().unwrap(),
-    ]);
-    assert!(o.status.success(), "{}", common::stderr(&o));
+    small_stream(&stream, 3);
     let bytes = std::fs::read(&stream).unwrap();
     for round in 0..6 {
         let fifo = dir.path().join(format!("f{round}"));
-        let st = std::process::Command::new("mkfifo")
-            .arg(&fifo)
-            .status()
-            .expect("mkfifo");
-        assert!(st.success());
+        common::mkfifo(&fifo);
         let mut consumer = std::process::Command::new(env!("CARGO_BIN_EXE_psns"))
             .args(["heading", fifo.to_str().unwrap()])
             .stdout(std::process::Stdio::piped())
@@ -898,15 +886,7 @@ fn fifo_is_opened_once_so_an_eager_writer_loses_nothing() {
             let _ = consumer.kill();
             panic!("round {round}: the writer got {e}: psns heading closed the FIFO under it");
         }
-        let t0 = std::time::Instant::now();
-        while consumer.try_wait().unwrap().is_none() {
-            if t0.elapsed().as_secs() > 30 {
-                let _ = consumer.kill();
-                panic!("round {round}: psns heading still running after 30 s");
-            }
-            std::thread::sleep(std::time::Duration::from_millis(20));
-        }
-        let o = consumer.wait_with_output().unwrap();
+        let o = common::wait_deadline(consumer, 30);
         let (_, rows) = stream_rows(&o);
         assert!(
             rows.len() == 3,

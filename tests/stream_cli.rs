@@ -3,6 +3,7 @@
 //! slow readers, pacing, flags, the moving sun, and `psns verify` on what was written.
 
 mod common;
+use common::{mkfifo, wait_deadline};
 
 use psns::stream::{
     Event, FileHeader, Frame, StreamReader, FLAG_GROUND_IN_VIEW, FLAG_LAST, FLAG_SKY_INVALID,
@@ -10,7 +11,7 @@ use psns::stream::{
 };
 use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Command, Output, Stdio};
 use std::time::{Duration, Instant};
 
 /// A small camera with the default field of view (pitch scaled up); f/16 and 20 µs keep the big
@@ -64,27 +65,6 @@ fn stderr(o: &Output) -> String {
 
 fn s(p: &Path) -> &str {
     p.to_str().unwrap()
-}
-
-fn mkfifo(p: &Path) {
-    let st = Command::new("mkfifo").arg(p).status().expect("mkfifo");
-    assert!(st.success());
-}
-
-/// Waits for a child with a deadline (kills it and fails on timeout).
-fn wait_deadline(mut c: Child, secs: u64) -> Output {
-    let t = Instant::now();
-    loop {
-        if c.try_wait().unwrap().is_some() {
-            return c.wait_with_output().unwrap();
-        }
-        if t.elapsed() > Duration::from_secs(secs) {
-            let _ = c.kill();
-            let o = c.wait_with_output().unwrap();
-            panic!("psns did not end within {secs} s: {}", stderr(&o));
-        }
-        std::thread::sleep(Duration::from_millis(20));
-    }
 }
 
 /// All frames of a stream (panics on damage).

@@ -2,7 +2,9 @@
 #![allow(dead_code)] // each test binary uses a subset
 
 use std::io::Write;
-use std::process::{Command, Output, Stdio};
+use std::path::Path;
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
 
 /// Runs the `psns` binary with `args`.
 pub fn psns(args: &[&str]) -> Output {
@@ -52,4 +54,26 @@ pub fn require_numpy() {
         "this test runs the numpy stream reader: run the suite with tools/test (it makes .venv with \
          numpy), or point PSNS_PYTHON at a Python that has numpy"
     );
+}
+
+/// Makes a FIFO at `p` with mkfifo(1).
+pub fn mkfifo(p: &Path) {
+    let st = Command::new("mkfifo").arg(p).status().expect("mkfifo");
+    assert!(st.success());
+}
+
+/// Waits for a child with a deadline (kills it and fails on timeout).
+pub fn wait_deadline(mut c: Child, secs: u64) -> Output {
+    let t = Instant::now();
+    loop {
+        if c.try_wait().unwrap().is_some() {
+            return c.wait_with_output().unwrap();
+        }
+        if t.elapsed() > Duration::from_secs(secs) {
+            let _ = c.kill();
+            let o = c.wait_with_output().unwrap();
+            panic!("psns did not end within {secs} s: {}", stderr(&o));
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
 }
