@@ -653,8 +653,8 @@ pub fn model_fit_step(setup: &HeadingSetup) -> usize {
 /// E-vector ([`crate::sky::berry::BerryField`]) at its ENU view direction C(ψ)ᵀ r, projected on
 /// the sensor with C(ψ) = R_y(roll) R_x(pitch) R_z(ψ); residuals are wrapped to ±90°, weighted by
 /// DoLP (inverse variance: weights DoLP²), and made robust by Tukey weights (MAD scale,
-/// re-estimated [`FIT_REWEIGHTS`] times, each time the steps have converged). Solved by
-/// Levenberg-Marquardt with analytic derivatives ([`fit_residuals`]; pixels in parallel, the
+/// re-estimated `FIT_REWEIGHTS` times, each time the steps have converged). Solved by
+/// Levenberg-Marquardt with analytic derivatives (`fit_residuals`; pixels in parallel, the
 /// sums in a fixed order, so the answer does not depend on the number of threads) on about
 /// [`MODEL_FIT_SAMPLES`] pixels.
 ///

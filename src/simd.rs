@@ -1,4 +1,4 @@
-//! Run-time choice of the instruction set for the row kernels ([`simd_dispatch`]): AVX-512,
+//! Run-time choice of the instruction set for the row kernels (`simd_dispatch!`): AVX-512,
 //! AVX2 + FMA or plain x86-64, the same bits in every one (`docs/performance.md`).
 
 /// Defines `$vis fn $name(args) -> ret` that calls the `#[inline(always)]` kernel `$body` built
@@ -39,7 +39,7 @@ macro_rules! simd_dispatch {
 }
 pub(crate) use simd_dispatch;
 
-/// Instruction sets the row kernels are built for ([`simd_dispatch`]), in increasing order.
+/// Instruction sets the row kernels are built for (`simd_dispatch!`), in increasing order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]
 pub enum Simd {
     /// Baseline x86-64 (SSE2), and every other architecture.

@@ -63,7 +63,7 @@ fn mix32(mut x: u32) -> u32 {
 }
 
 impl NoiseKey {
-    /// The stream of `stage` (see [`noise`]'s stage ids) in frame `frame` of camera `seed`.
+    /// The stream of `stage` (see [`crate::sensor::noise`]'s stage ids) in frame `frame` of camera `seed`.
     pub fn new(seed: u64, frame: u64, stage: u32) -> Self {
         let h =
             splitmix64(seed ^ splitmix64(frame ^ splitmix64(0x7073_6e73_0000_0000 | stage as u64)));

@@ -583,7 +583,7 @@ impl Sensor {
     }
 
     /// Per-pixel pass-axis angle θ_k in degrees, [0, 180), including the orientation error.
-    /// The first call builds the per-pixel map (with rayon; see [`get_or_build`]).
+    /// The first call builds the per-pixel map (with rayon; see `get_or_build`).
     pub fn pass_axis_deg(&self, row: usize, col: usize) -> f64 {
         match self.axis_map() {
             Some(a) => {

@@ -8,7 +8,7 @@
 //! **Sources and status.** Sony publishes the IMX250MZR response only as figures (the IMX250/253MZR
 //! flyer; the camera makers' pages for the LUCID Phoenix PHX050S-P and the Teledyne FLIR Blackfly S
 //! BFS-U3-51S5P reproduce them), and no numeric table was found. The tables below are therefore
-//! [assumed] curves of the published *shape*, anchored to two published or specified numbers:
+//! \[assumed\] curves of the published *shape*, anchored to two published or specified numbers:
 //!
 //! * η: the 3.45 µm Pregius mono pixel peaks near 70 % around 540 nm (Basler, "About EMVA1288
 //!   Reports for Color Sensors": QE 70 % at 545 nm for the mono IMX304, the same pixel as the

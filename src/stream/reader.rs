@@ -8,7 +8,7 @@ use super::{
 };
 use crate::error::{Error, Result};
 use crate::sensor::mosaic::MosaicLayout;
-use crate::sensor::packing::{payload_size_checked, unpack, unpack_into, PixelFormat};
+use crate::sensor::packing::{payload_size_checked, unpack_into, PixelFormat};
 use serde::Serialize;
 use std::collections::VecDeque;
 use std::fmt;
@@ -28,16 +28,11 @@ pub struct Frame {
 }
 
 impl Frame {
-    /// Unpacks the payload into values (see [`unpack`]).
+    /// Unpacks the payload into values (see [`crate::sensor::packing::unpack`]).
     pub fn codes(&self, h: &FileHeader) -> Result<Vec<u16>> {
-        unpack(
-            &self.payload,
-            h.pixel_format,
-            h.bits_valid,
-            h.msb_aligned,
-            h.width as usize,
-            h.height as usize,
-        )
+        let mut v = Vec::new();
+        self.codes_into(h, &mut v)?;
+        Ok(v)
     }
 
     /// [`Frame::codes`] into `v`, reusing its allocation.
