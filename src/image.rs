@@ -12,8 +12,9 @@ pub struct Image<T> {
 }
 
 /// `x.round().clamp(0.0, hi) as u32` (NaN to 0) without libm's `round`, a call on the baseline
-/// x86-64 target (no SSE4.1): clipped first, the truncation and the fraction are exact. For
-/// 0 ≤ hi < 2³².
+/// x86-64 target (no SSE4.1), and without branches, so row loops vectorise: clipped first, the
+/// truncation and the fraction are exact. For 0 ≤ hi < 2³². The ADC's rounding
+/// ([`crate::sensor::adc::quantize`]), the polarizer images and the views all use it.
 ///
 /// ```
 /// use psns::image::round_clamp;
@@ -23,7 +24,7 @@ pub struct Image<T> {
 /// assert_eq!(round_clamp(f64::NAN, 255.0), 0);
 /// assert_eq!(round_clamp(1e9, 65_535.0), 65_535);
 /// ```
-#[inline]
+#[inline(always)]
 pub fn round_clamp(x: f64, hi: f64) -> u32 {
     let x = x.max(0.0).min(hi); // max ignores NaN: NaN becomes 0
     let t = x as u32;

@@ -120,7 +120,8 @@ fn render_ideal_rows(sky: &Sky, cam: &Camera, pol: Option<&mut [Image<f32>; 4]>)
         aop_deg: Image::new(w, h),
         valid: Image::new(w, h),
     };
-    // without polarizer images, four empty row iterators of the right length stand in
+    let with_pol = pol.is_some();
+    // without polarizer images, four dummy rows of one value each stand in (never written)
     let mut none: [Vec<f32>; 4] = Default::default();
     let (pw, [p0, p45, p90, p135]) = match pol {
         Some([a, b, c, d]) => (w, [&mut a.data, &mut b.data, &mut c.data, &mut d.data]),
@@ -145,7 +146,6 @@ fn render_ideal_rows(sky: &Sky, cam: &Camera, pol: Option<&mut [Image<f32>; 4]>)
         .into_par_iter()
         .enumerate()
         .for_each(|(r, (li, dop, aop, valid, i0, i45, i90, i135))| {
-            let with_pol = pw == w;
             for c in 0..w {
                 let p = pixel_sky(sky, cam, c as f64, r as f64);
                 li[c] = p.li as f32;

@@ -26,13 +26,8 @@ pub fn max_code(bit_depth: u8) -> u16 {
 /// Round to nearest and clip to [0, max]; NaN maps to 0.
 #[inline(always)]
 pub fn quantize(v: f64, max: u16) -> u16 {
-    // round half away from zero, as f64::round, without its libm call (no SSE4.1 in the
-    // baseline target) and without branches, so row loops vectorise: NaN and v <= 0 clip to 0
-    // (f64::max ignores NaN), v >= max to max; then v < 65536, so the truncation is exact and
-    // so is the fraction
-    let v = v.max(0.0).min(max as f64);
-    let t = v as u32;
-    (t + (v - t as f64 >= 0.5) as u32) as u16
+    // branch-free (row loops vectorise) and without libm's round: `image::round_clamp`
+    crate::image::round_clamp(v, max as f64) as u16
 }
 
 #[cfg(test)]

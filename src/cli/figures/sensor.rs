@@ -379,7 +379,7 @@ fn codes_rgb_saturation(codes: &Image<u16>, white: f64, max: u16) -> Image<[u8; 
                 if v >= max {
                     [230, 30, 30]
                 } else {
-                    let g = (v as f64 * k).round().clamp(0.0, 255.0) as u8;
+                    let g = psns::image::round_clamp(v as f64 * k, 255.0) as u8;
                     [g, g, g]
                 }
             })
