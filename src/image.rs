@@ -14,7 +14,7 @@ pub struct Image<T> {
 /// `x.round().clamp(0.0, hi) as u32` (NaN to 0) without libm's `round`, a call on the baseline
 /// x86-64 target (no SSE4.1), and without branches, so row loops vectorise: clipped first, the
 /// truncation and the fraction are exact. For 0 ≤ hi < 2³². The ADC's rounding
-/// ([`crate::sensor::adc::quantize`]), the polarizer images and the views all use it.
+/// (`sensor::adc::quantize`), the polarizer images and the views all use it.
 ///
 /// ```
 /// use psns::image::round_clamp;
