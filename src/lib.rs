@@ -32,5 +32,6 @@ pub mod stokes;
 pub mod stream;
 pub mod sun;
 pub mod trajectory;
+pub mod vmath;
 
 pub use error::{Error, Result};

@@ -10,6 +10,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("image", 0),
     ("rng", 0),
     ("simd", 0),
+    ("vmath", 0),
     ("sun", 1),
     ("sky", 2),
     ("camera", 3),
