@@ -52,7 +52,8 @@ pub enum BenchCmd {
         runs: usize,
     },
     /// Stream frames/s per stage (sky, sensor, packing) and end to end, fast path against
-    /// --exact (writes stream_stages.csv, stream_e2e.csv).
+    /// --exact, and issue 9's targets (writes stream_stages.csv, stream_e2e.csv,
+    /// stream_targets.csv, stream_accuracy.csv and the chart).
     Stream {
         #[command(flatten)]
         scene: SceneArgs,
@@ -62,7 +63,7 @@ pub enum BenchCmd {
         /// Frames per stage measurement (median reported).
         #[arg(long, default_value_t = 20, value_parser = crate::cli::args::runs)]
         frames: usize,
-        /// Frames per end-to-end run of `psns stream` (a tenth of them with --exact).
+        /// Frames per end-to-end run of `psns stream` (a third of them with --exact).
         #[arg(long, default_value_t = 300, value_parser = crate::cli::args::runs)]
         e2e_frames: usize,
         /// End-to-end runs per command (median reported).

@@ -211,6 +211,62 @@ pub struct StreamBenchOptions {
 /// `psns bench stream`: prints and writes `stream_stages.csv` and `stream_e2e.csv`.
 pub fn bench_stream(cfg: &SceneConfig, o: &StreamBenchOptions) -> Result<Vec<String>> {
     create_dir(&o.out)?;
+    let exe = std::env::current_exe().map_err(|e| Error::io("finding the psns binary", e))?;
+    let exe = exe.display().to_string();
+    let n = o.e2e_frames;
+    let ne = (n / 3).max(10);
+    // Scratch for the FIFO, the C reader and render's output; removed at the end.
+    let tmp = std::env::temp_dir().join(format!("psns-bench-stream-{}", std::process::id()));
+    create_dir(&tmp)?;
+    let t = tmp.display();
+    let mut commands = vec![(format!("{exe} stream --frames {n} --out /dev/null"), n)];
+    for fmt in ["mono16", "mono8", "mono12p"] {
+        commands.push((
+            format!("{exe} stream --frames {n} --pixel-format {fmt} --out - | cat > /dev/null"),
+            n,
+        ));
+    }
+    match build_c_reader(&tmp) {
+        Ok(reader) => {
+            let r = reader.display();
+            for fmt in ["mono16", "mono8", "mono12p"] {
+                // Fails unless the reader saw all n frames and reported nothing else.
+                commands.push((
+                    format!(
+                        "rm -f {t}/fifo && mkfifo {t}/fifo && {{ {exe} stream --frames {n} \
+                         --pixel-format {fmt} --out {t}/fifo & p=$!; {r} dump {t}/fifo | awk \
+                         '/^frame /{{k++}} !/^(frame|header) /{{b++}} END{{exit !(k=={n} && !b)}}'; \
+                         s=$?; wait $p && [ $s -eq 0 ]; }}"
+                    ),
+                    n,
+                ));
+            }
+        }
+        Err(why) => eprintln!("skipped: the FIFO runs into the C reader ({why})"),
+    }
+    commands.push((
+        format!("{exe} stream --exact --frames {ne} --out /dev/null"),
+        ne,
+    ));
+    commands.push((format!("{exe} render --raw --out {t}/render"), 1));
+    let mut e2e = Vec::new();
+    let mut rss_mb = None;
+    for (c, frames) in commands {
+        let r = time_shell(&c, frames, o.runs)?;
+        eprintln!("{:.1} frames/s  {}", r.fps, r.command.replace(&exe, "psns"));
+        if e2e.is_empty() {
+            // The /dev/null runs are the first children, spawned while this process is still
+            // small: a spawned child's peak RSS counts its parent's pages until exec.
+            rss_mb = children_max_rss_mb();
+        }
+        e2e.push(r);
+    }
+    std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(tmp.display().to_string(), e))?;
+    let targets = targets(&e2e, rss_mb, &exe);
+    eprintln!("target,measured,met");
+    for r in &targets {
+        eprintln!("{r}");
+    }
     let mut stages = Vec::new();
     eprintln!("{STAGES_HEADER}");
     for s in o
@@ -227,35 +283,6 @@ pub fn bench_stream(cfg: &SceneConfig, o: &StreamBenchOptions) -> Result<Vec<Str
         let t = stage_times(cfg, s, n)?;
         eprintln!("{}", t.csv_row());
         stages.push(t);
-    }
-    let exe = std::env::current_exe().map_err(|e| Error::io("finding the psns binary", e))?;
-    let exe = exe.display();
-    let n = o.e2e_frames;
-    let ne = (n / 10).max(10);
-    let commands = [
-        (format!("{exe} stream --frames {n} --out /dev/null"), n),
-        (
-            format!("{exe} stream --frames {n} --out - | cat > /dev/null"),
-            n,
-        ),
-        (
-            format!("{exe} stream --frames {n} --pixel-format mono8 --out - | cat > /dev/null"),
-            n,
-        ),
-        (
-            format!("{exe} stream --frames {n} --pixel-format mono12p --out - | cat > /dev/null"),
-            n,
-        ),
-        (
-            format!("{exe} stream --exact --frames {ne} --out /dev/null"),
-            ne,
-        ),
-    ];
-    let mut e2e = Vec::new();
-    for (c, frames) in commands {
-        let r = time_shell(&c, frames, o.runs)?;
-        eprintln!("{:.1} frames/s  {}", r.fps, r.command);
-        e2e.push(r);
     }
     let acc = accuracy(cfg, &o.steps)?;
     eprintln!("step,max_sigma,p99_sigma,max_s0,p99_s0,max_dolp,p99_dolp,max_aolp_deg,p99_aolp_deg");
@@ -301,7 +328,9 @@ pub fn bench_stream(cfg: &SceneConfig, o: &StreamBenchOptions) -> Result<Vec<Str
         e2e.iter().map(|r| {
             format!(
                 "\"{}\",{},{:.3},{:.2}",
-                r.command.replace(&exe.to_string(), "psns"),
+                r.command
+                    .replace(&exe, "psns")
+                    .replace(&t.to_string(), "$TMP"),
                 r.frames,
                 r.seconds,
                 r.fps
@@ -309,7 +338,96 @@ pub fn bench_stream(cfg: &SceneConfig, o: &StreamBenchOptions) -> Result<Vec<Str
         }),
     )?;
     files.push(p.display().to_string());
+    let p = o.out.join("stream_targets.csv");
+    write_csv(&p, "target,measured,met", targets.into_iter())?;
+    files.push(p.display().to_string());
     Ok(files)
+}
+
+/// Builds the C reader `tools/psns_stream.c` with `cc -std=c99 -O2` into `dir`; the error says
+/// why it could not (no source tree, no compiler).
+fn build_c_reader(dir: &Path) -> std::result::Result<PathBuf, String> {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("tools/psns_stream.c");
+    if !src.is_file() {
+        return Err(format!("{} not found", src.display()));
+    }
+    let exe = dir.join("psns_stream_c");
+    match Command::new("cc")
+        .args(["-std=c99", "-O2", "-o"])
+        .arg(&exe)
+        .arg(&src)
+        .status()
+    {
+        Ok(s) if s.success() => Ok(exe),
+        Ok(s) => Err(format!("cc failed: {s}")),
+        Err(e) => Err(format!("no C compiler `cc`: {e}")),
+    }
+}
+
+/// The largest resident set of any child process waited for so far, MB (Linux reports KiB).
+fn children_max_rss_mb() -> Option<f64> {
+    // SAFETY: an all-zero rusage is a valid value, and getrusage only writes into it
+    let mut ru: libc::rusage = unsafe { std::mem::zeroed() };
+    // SAFETY: as above
+    (unsafe { libc::getrusage(libc::RUSAGE_CHILDREN, &mut ru) } == 0)
+        .then(|| ru.ru_maxrss as f64 / 1024.0)
+}
+
+/// Issue 9's targets against the end-to-end runs, as CSV rows: target, measured, and "yes",
+/// "no" or (streams between 75 and 100 frames/s) "floor only".
+fn targets(e2e: &[EndToEnd], rss_mb: Option<f64>, exe: &str) -> Vec<String> {
+    let mut rows = Vec::new();
+    let mut row = |what: String, measured: String, met: &str| {
+        rows.push(format!("\"{what}\",{measured},{met}"));
+    };
+    let yes_no = |b: bool| if b { "yes" } else { "no" };
+    for r in e2e {
+        let cmd = r.command.replace(exe, "psns");
+        // the FIFO runs: name the stream and the reader, not the shell plumbing
+        let cmd = match cmd.split_once(" && { ") {
+            Some((_, rest)) => rest
+                .split(" | awk")
+                .next()
+                .unwrap_or(rest)
+                .replace(" & p=$!;", " &"),
+            None => cmd,
+        };
+        if cmd.contains("render --raw") {
+            row(
+                format!("{cmd} < 1 s"),
+                format!("{:.2} s", r.seconds),
+                yes_no(r.seconds < 1.0),
+            );
+        } else if cmd.contains("--exact") {
+            let met = yes_no(r.fps >= 10.0);
+            row(
+                format!("{cmd} >= 10 frames/s"),
+                format!("{:.1} frames/s", r.fps),
+                met,
+            );
+        } else {
+            let met = match r.fps {
+                f if f >= 100.0 => "yes",
+                f if f >= 75.0 => "floor only",
+                _ => "no",
+            };
+            let what = format!("{cmd} >= 100 frames/s (floor 75)");
+            row(what, format!("{:.1} frames/s", r.fps), met);
+        }
+    }
+    match rss_mb {
+        Some(m) => row(
+            "psns stream memory < 300 MB".into(),
+            format!("{m:.0} MB"),
+            yes_no(m < 300.0),
+        ),
+        None => row(
+            "psns stream memory < 300 MB".into(),
+            "not measured".into(),
+            "no",
+        ),
+    }
+    rows
 }
 
 fn write_csv(path: &Path, header: &str, rows: impl Iterator<Item = String>) -> Result<()> {
