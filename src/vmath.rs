@@ -148,7 +148,7 @@ const ATAN_HI: [f64; 9] = [
     0.558_599_315_343_562_4,
     0.643_501_108_793_284_4,
     0.718_829_999_621_624_5,
-    0.785_398_163_397_448_3,
+    std::f64::consts::FRAC_PI_4,
 ];
 const ATAN_LO: [f64; 9] = [
     0.0,
@@ -229,7 +229,11 @@ pub fn acos(x: f64) -> f64 {
 pub fn hypot(x: f64, y: f64) -> f64 {
     let (ax, ay) = (x.abs(), y.abs());
     let big = ax.max(ay);
-    let s = sel(big > 1e150, 2f64.powi(-600), sel(big < 1e-150, 2f64.powi(600), 1.0));
+    let s = sel(
+        big > 1e150,
+        2f64.powi(-600),
+        sel(big < 1e-150, 2f64.powi(600), 1.0),
+    );
     let (sx, sy) = (ax * s, ay * s);
     let h = (sx * sx + sy * sy).sqrt() / s;
     sel(ax == f64::INFINITY || ay == f64::INFINITY, f64::INFINITY, h)
@@ -273,8 +277,14 @@ mod tests {
     }
 
     /// Largest ulp distance from libm over `xs`, and the argument where it occurs.
-    fn worst(xs: impl Iterator<Item = f64>, ours: impl Fn(f64) -> f64, libm: impl Fn(f64) -> f64) -> (u64, f64) {
-        xs.map(|x| (ulps(ours(x), libm(x)), x)).max_by_key(|p| p.0).unwrap()
+    fn worst(
+        xs: impl Iterator<Item = f64>,
+        ours: impl Fn(f64) -> f64,
+        libm: impl Fn(f64) -> f64,
+    ) -> (u64, f64) {
+        xs.map(|x| (ulps(ours(x), libm(x)), x))
+            .max_by_key(|p| p.0)
+            .unwrap()
     }
 
     #[test]
@@ -287,7 +297,9 @@ mod tests {
                 2 => r.random_range(-745.2..709.8),
                 _ => r.random_range(-1e-8..1e-8),
             })
-            .chain([0.0, -0.0, 709.78, 709.8, -708.4, -745.1, -745.2, -1000.0, 1000.0]);
+            .chain([
+                0.0, -0.0, 709.78, 709.8, -708.4, -745.1, -745.2, -1000.0, 1000.0,
+            ]);
         let (u, x) = worst(xs, exp, f64::exp);
         assert!(u <= 1, "exp({x}) is {u} ulp from libm");
         assert!(exp(f64::NAN).is_nan());
@@ -305,7 +317,13 @@ mod tests {
                 2 => 10f64.powf(r.random_range(-300.0..300.0)),
                 _ => f64::from_bits(r.random_range(1..1u64 << 52)), // subnormal
             })
-            .chain([1.0, f64::MIN_POSITIVE, f64::MAX, std::f64::consts::SQRT_2, 0.7071067811865476]);
+            .chain([
+                1.0,
+                f64::MIN_POSITIVE,
+                f64::MAX,
+                std::f64::consts::SQRT_2,
+                std::f64::consts::FRAC_1_SQRT_2,
+            ]);
         let (u, x) = worst(xs, ln, f64::ln);
         assert!(u <= 1, "ln({x}) is {u} ulp from libm");
         assert_eq!(ln(0.0), f64::NEG_INFINITY);
@@ -328,9 +346,27 @@ mod tests {
                 worst_u = (u, y, x);
             }
         }
-        assert!(worst_u.0 <= 2, "atan2{:?} is {} ulp from libm", (worst_u.1, worst_u.2), worst_u.0);
-        for (y, x) in [(0.0, 0.0), (-0.0, 0.0), (0.0, -0.0), (-0.0, -0.0), (0.0, -1.0), (-0.0, -1.0), (1.0, 0.0), (-1.0, -0.0)] {
-            assert_eq!(atan2(y, x).to_bits(), y.atan2(x).to_bits(), "atan2({y}, {x})");
+        assert!(
+            worst_u.0 <= 2,
+            "atan2{:?} is {} ulp from libm",
+            (worst_u.1, worst_u.2),
+            worst_u.0
+        );
+        for (y, x) in [
+            (0.0, 0.0),
+            (-0.0, 0.0),
+            (0.0, -0.0),
+            (-0.0, -0.0),
+            (0.0, -1.0),
+            (-0.0, -1.0),
+            (1.0, 0.0),
+            (-1.0, -0.0),
+        ] {
+            assert_eq!(
+                atan2(y, x).to_bits(),
+                y.atan2(x).to_bits(),
+                "atan2({y}, {x})"
+            );
         }
         assert!(atan2(f64::NAN, 1.0).is_nan() && atan2(1.0, f64::NAN).is_nan());
         let xs = (0..200_000)
@@ -352,7 +388,10 @@ mod tests {
             let y: f64 = r.random_range(0.0..=1.0);
             let bound = 2 + (y * x.ln()).abs().ceil() as u64;
             let u = ulps(powf(x, y), x.powf(y));
-            assert!(u <= bound, "powf({x}, {y}) is {u} ulp from libm (bound {bound})");
+            assert!(
+                u <= bound,
+                "powf({x}, {y}) is {u} ulp from libm (bound {bound})"
+            );
         }
         assert_eq!(powf(0.0, 0.3), 0.0);
         assert_eq!(powf(0.0, 0.0), 1.0);
@@ -390,15 +429,23 @@ mod tests {
         simd_loop!(hypot_loop, |x| hypot(x, 0.7));
         let mut r = rng();
         let n = 1 << 16;
-        let mut xs = |lo: f64, hi: f64| -> Vec<f64> { (0..n).map(|_| r.random_range(lo..hi)).collect() };
+        let mut xs =
+            |lo: f64, hi: f64| -> Vec<f64> { (0..n).map(|_| r.random_range(lo..hi)).collect() };
         type Loop = fn(&[f64], &mut [f64]);
-        let cases: [(&str, Vec<f64>, Loop, fn(f64) -> f64); 6] = [
+        type Case = (&'static str, Vec<f64>, Loop, fn(f64) -> f64);
+        let cases: [Case; 6] = [
             ("exp", xs(-20.0, 5.0), exp_loop::run, f64::exp),
             ("ln", xs(1e-3, 10.0), ln_loop::run, f64::ln),
             ("acos", xs(-1.0, 1.0), acos_loop::run, f64::acos),
-            ("powf(x, 0.3)", xs(1e-3, 1.0), pow_loop::run, |x| x.powf(0.3)),
-            ("atan2(x, 0.7)", xs(-3.0, 3.0), atan2_loop::run, |x| x.atan2(0.7)),
-            ("hypot(x, 0.7)", xs(-3.0, 3.0), hypot_loop::run, |x| x.hypot(0.7)),
+            ("powf(x, 0.3)", xs(1e-3, 1.0), pow_loop::run, |x| {
+                x.powf(0.3)
+            }),
+            ("atan2(x, 0.7)", xs(-3.0, 3.0), atan2_loop::run, |x| {
+                x.atan2(0.7)
+            }),
+            ("hypot(x, 0.7)", xs(-3.0, 3.0), hypot_loop::run, |x| {
+                x.hypot(0.7)
+            }),
         ];
         for (name, xs, ours, libm) in cases {
             let (mut a, mut b) = (vec![0.0; n], vec![0.0; n]);
@@ -414,7 +461,11 @@ mod tests {
                 }
             }
             let t_libm = t0.elapsed().as_secs_f64() / (50 * n) as f64 * 1e9;
-            let same = a.iter().zip(&b).filter(|(p, q)| p.to_bits() == q.to_bits()).count();
+            let same = a
+                .iter()
+                .zip(&b)
+                .filter(|(p, q)| p.to_bits() == q.to_bits())
+                .count();
             let max = a.iter().zip(&b).map(|(&p, &q)| ulps(p, q)).max().unwrap();
             println!(
                 "{name:14} equal to libm {:6.2} %, max {max} ulp; {t_ours:.2} ns/value against libm {t_libm:.2}",
