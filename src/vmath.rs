@@ -40,10 +40,23 @@ fn sel(c: bool, a: f64, b: f64) -> f64 {
     }
 }
 
+/// The integer-valued double n (|n| < 2⁵¹) as an integer, through the bits of n + [`ROUND`]:
+/// integer lanes, where `n as i64` would be a scalar conversion with saturation checks.
+#[inline(always)]
+fn to_int(n: f64) -> u64 {
+    (n + ROUND).to_bits().wrapping_sub(ROUND.to_bits())
+}
+
+/// The integer n (|n| < 2⁵¹) as a double, the inverse of [`to_int`].
+#[inline(always)]
+fn to_f64(n: i64) -> f64 {
+    f64::from_bits(ROUND.to_bits().wrapping_add(n as u64)) - ROUND
+}
+
 /// 2ⁿ for an integer-valued n in [−1022, 1023].
 #[inline(always)]
 fn pow2(n: f64) -> f64 {
-    f64::from_bits(((n as i64 + 1023) as u64) << 52)
+    f64::from_bits(to_int(n).wrapping_add(1023) << 52)
 }
 
 /// eˣ, within 1 ulp of libm. Overflows to +∞ above 709.78, underflows (through subnormals) to
@@ -99,7 +112,7 @@ pub fn ln(x: f64) -> f64 {
     // m in [√½, √2): f = m − 1 in [−0.29, 0.41].
     let big = m > std::f64::consts::SQRT_2;
     let m = sel(big, m * 0.5, m);
-    let k = (e + i64::from(big)) as f64;
+    let k = to_f64(e + i64::from(big));
     let f = m - 1.0;
     // ln(1 + f) = 2 atanh s = 2s + s R(s²), s = f/(2 + f), |s| ≤ 0.172; and
     // 2s = f − hfsq + s·hfsq with hfsq = f²/2 (the arrangement of fdlibm's log).
@@ -179,7 +192,7 @@ pub fn atan2(y: f64, x: f64) -> f64 {
     let t = sel(den == 0.0, 0.0, num / den);
     // atan t = atan c + atan u, c = k/8 the nearest eighth, u = (t − c)/(1 + tc), |u| ≤ 1/16.
     let kf = (t * 8.0 + ROUND) - ROUND;
-    let k = (kf as i64).clamp(0, 8) as usize;
+    let k = to_int(kf).min(8) as usize; // NaN gives 8 (the result is NaN anyway)
     let c = kf * 0.125;
     let u = (t - c) / (1.0 + t * c);
     let z = u * u;
