@@ -395,7 +395,7 @@ impl Lens {
         match self {
             Lens::Pinhole => (e.x, e.y),
             Lens::Ideal => {
-                let h = d.x.hypot(d.y);
+                let h = crate::vmath::hypot(d.x, d.y);
                 if h < 1e-12 {
                     return (e.x, e.y);
                 }
@@ -572,7 +572,7 @@ impl Intrinsics {
         if self.projection == Projection::Rectilinear {
             return Some(DVec3::new(x, y, f));
         }
-        let r = x.hypot(y);
+        let r = crate::vmath::hypot(x, y);
         let theta = self.projection.field_angle(r / f)?;
         if r == 0.0 {
             return Some(DVec3::Z);

@@ -170,7 +170,7 @@ impl BerryField {
     #[inline]
     pub fn eval(&self, v: DVec3) -> BerryEval {
         let (k, p) = self.chart_p(v);
-        let r = p.norm();
+        let r = crate::vmath::hypot(p.re, p.im);
         // (1 + |ζ|²)² = 4/(1 + v_z)², so |w| = |p| (1 + v_z)² / ((1+t₊²)(1+t₋²)).
         let opz = 1.0 + v.z;
         if self.is_neutral(p, r) {

@@ -39,6 +39,7 @@
 pub use super::DopModel;
 use super::DopNorm;
 use crate::error::{check_range, Result};
+use crate::vmath;
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// First wavelength of [`CIE_DAYLIGHT`], nm.
@@ -156,8 +157,8 @@ pub fn preetham_zenith(t: f64, sun_zenith_rad: f64) -> [f64; 3] {
 #[inline]
 pub fn perez(c: &[f64; 5], cos_theta: f64, gamma: f64, cos_gamma: f64) -> f64 {
     let ct = cos_theta.max(0.01);
-    (1.0 + c[0] * (c[1] / ct).exp())
-        * (1.0 + c[2] * (c[3] * gamma).exp() + c[4] * cos_gamma * cos_gamma)
+    (1.0 + c[0] * vmath::exp(c[1] / ct))
+        * (1.0 + c[2] * vmath::exp(c[3] * gamma) + c[4] * cos_gamma * cos_gamma)
 }
 
 /// CIE daylight basis at `wavelength_nm` (linear interpolation, 320..780 nm): (S0, S1, S2).
@@ -407,7 +408,7 @@ impl WangDop {
     /// Unnormalised, unclamped DOP |w|·[θE + (π/2 − θ)S]·M_DOP (θ in radians).
     #[inline]
     pub fn seed(&self, abs_w: f64, theta: f64, cos_theta: f64, gamma: f64, cos_gamma: f64) -> f64 {
-        let e = cos_theta.max(0.0).powf(self.albedo);
+        let e = vmath::powf(cos_theta.max(0.0), self.albedo);
         let s = self.s_weight(cos_theta, gamma, cos_gamma);
         abs_w * (theta * e + (FRAC_PI_2 - theta) * s) * self.m
     }

@@ -53,6 +53,7 @@
 //! redistributes this crate must ship that notice.
 
 use crate::error::{check_range, Result};
+use crate::vmath;
 use std::f64::consts::FRAC_PI_2;
 
 /// Angular radius of the solar disc used by the model, radians (0.255°).
@@ -165,9 +166,9 @@ impl Channel {
     fn eval(&self, inv_ct: f64, sqrt_ct: f64, gamma: f64, cg: f64, cg2: f64) -> f64 {
         let q = self.h1 - self.h2 * cg;
         let mie = (1.0 + cg2) / (q * q.sqrt());
-        (1.0 + self.a * (self.b * inv_ct).exp())
+        (1.0 + self.a * vmath::exp(self.b * inv_ct))
             * (self.c
-                + self.d * (self.e * gamma).exp()
+                + self.d * vmath::exp(self.e * gamma)
                 + self.f * cg2
                 + self.g * mie
                 + self.i * sqrt_ct)

@@ -229,11 +229,11 @@ impl PolarizationField {
     #[inline]
     fn eval(&self, v: DVec3) -> (f64, f64, SkySample) {
         let cos_t = v.z.min(1.0);
-        let theta = cos_t.acos();
+        let theta = crate::vmath::acos(cos_t);
         let cross = self.sun_vec.cross(v);
         let sin_g2 = cross.length_squared();
         let cos_g = self.sun_vec.dot(v);
-        let gamma = sin_g2.sqrt().atan2(cos_g);
+        let gamma = crate::vmath::atan2(sin_g2.sqrt(), cos_g);
         let (dop, e) = match self.model {
             PolarizationModel::Wang => {
                 let b = self.berry.eval(v);
