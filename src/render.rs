@@ -8,10 +8,10 @@
 //! look at or below the horizon, or lie outside a fisheye's image circle, are invalid:
 //! LI = DOP = AOP = 0 (ground: the ground radiance) and mask 0 (never NaN).
 
-use crate::camera::Camera;
+use crate::camera::{Camera, Lens, Projection};
 use crate::image::{round_clamp, Image, StokesImage, StokesRows};
 use crate::sky::hosek::{HosekWilkie, SUN_RADIUS_RAD};
-use crate::sky::Sky;
+use crate::sky::{Lane, Sky, SkyLanes, LANES};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -79,6 +79,139 @@ pub fn pixel_sky(sky: &Sky, cam: &Camera, col: f64, row: f64) -> PixelSky {
         cos2,
         sin2,
         valid: true,
+    }
+}
+
+/// [`pixel_sky`] for the pixels (col0 + k, row), k = 0..out.len(), into `out[k]`: the same
+/// values bit for bit, computed [`LANES`] pixels at a time by [`pixel_sky_cols`].
+pub fn pixel_sky_row(sky: &Sky, cam: &Camera, row: usize, col0: usize, out: &mut [PixelSky]) {
+    let mut cols = [0.0; LANES];
+    for (k, chunk) in out.chunks_mut(LANES).enumerate() {
+        for (j, c) in cols[..chunk.len()].iter_mut().enumerate() {
+            *c = (col0 + k * LANES + j) as f64;
+        }
+        sky_chunk(sky, cam, row as f64, &cols, chunk);
+    }
+}
+
+/// [`pixel_sky`] for the pixels (cols[k], row) into `out[k]` (same length), the same values bit
+/// for bit. Works on chunks of [`LANES`] pixels in structure-of-arrays form: camera geometry
+/// and the lens in loops over the chunk, ground and dark pixels set aside before the sky
+/// ([`Sky::sample_lanes`]), every transcendental ([`crate::vmath`]) one loop over the chunk, and
+/// branches as selects; built for the CPU's instruction set (`simd_dispatch!`), the same bits in
+/// each.
+pub fn pixel_sky_cols(sky: &Sky, cam: &Camera, row: usize, cols: &[usize], out: &mut [PixelSky]) {
+    assert_eq!(cols.len(), out.len());
+    let mut c = [0.0; LANES];
+    for (chunk, cs) in out.chunks_mut(LANES).zip(cols.chunks(LANES)) {
+        for (x, &col) in c.iter_mut().zip(cs) {
+            *x = col as f64;
+        }
+        sky_chunk(sky, cam, row as f64, &c, chunk);
+    }
+}
+
+crate::simd::simd_dispatch! {
+    /// [`sky_chunk_body`] built for the best instruction set the CPU has.
+    fn sky_chunk = sky_chunk_body(sky: &Sky, cam: &Camera, row: f64, cols: &Lane, out: &mut [PixelSky])
+}
+
+/// [`pixel_sky`] for the pixels (cols[k], row), k = 0..out.len() ≤ [`LANES`].
+#[inline(always)]
+fn sky_chunk_body(sky: &Sky, cam: &Camera, row: f64, cols: &Lane, out: &mut [PixelSky]) {
+    let n = out.len();
+    assert!(n <= LANES);
+    let intr = &cam.intrinsics;
+    let (m, mt) = (cam.enu_to_camera, cam.enu_to_camera.transpose());
+    // camera-frame rays as Intrinsics::ray; `lit` false outside a fisheye's image circle
+    let mut ray = [[0.0; LANES]; 3];
+    let mut lit = [true; LANES];
+    if intr.projection == Projection::Rectilinear {
+        let (c0, r0) = intr.principal();
+        let f = intr.focal_px();
+        for j in 0..n {
+            (ray[0][j], ray[1][j], ray[2][j]) = (cols[j] - c0, row - r0, f);
+        }
+    } else {
+        // fisheyes: the projection's trigonometry stays scalar (libm)
+        for j in 0..n {
+            let r = intr.ray(cols[j], row);
+            lit[j] = r.is_some();
+            let r = r.unwrap_or(DVec3::Z);
+            (ray[0][j], ray[1][j], ray[2][j]) = (r.x, r.y, r.z);
+        }
+    }
+    // unit ENU view vectors
+    let mut d = [[0.0; LANES]; 3];
+    for j in 0..n {
+        let v = (mt * DVec3::new(ray[0][j], ray[1][j], ray[2][j])).normalize();
+        (d[0][j], d[1][j], d[2][j]) = (v.x, v.y, v.z);
+    }
+    // pack the lanes that see the sky (as Sky::sample: v.z > 0, not NaN), with their rays
+    let mut sky_lanes = SkyLanes::default();
+    let (mut idx, mut pray) = ([0usize; LANES], [[0.0; LANES]; 3]);
+    let mut k = 0;
+    for j in 0..n {
+        for a in 0..3 {
+            sky_lanes.v[a][k] = d[a][j];
+            pray[a][k] = ray[a][j];
+        }
+        idx[k] = j;
+        k += (lit[j] && d[2][j] > 0.0) as usize;
+    }
+    sky_lanes.n = k;
+    sky.sample_lanes(&mut sky_lanes);
+    let l = &sky_lanes;
+    // the E-vector into the camera frame and through the lens onto the sensor
+    let (mut ex, mut ey) = ([0.0; LANES], [0.0; LANES]);
+    match intr.lens() {
+        Lens::Pinhole => {
+            for i in 0..k {
+                let e = m * DVec3::new(l.e[0][i], l.e[1][i], l.e[2][i]);
+                (ex[i], ey[i]) = (e.x, e.y);
+            }
+        }
+        Lens::Ideal => {
+            let (mut u, mut ec, mut h) = ([[0.0; LANES]; 3], [[0.0; LANES]; 3], [0.0; LANES]);
+            for i in 0..k {
+                let ui = DVec3::new(pray[0][i], pray[1][i], pray[2][i]).normalize();
+                let e = m * DVec3::new(l.e[0][i], l.e[1][i], l.e[2][i]);
+                (u[0][i], u[1][i], u[2][i]) = (ui.x, ui.y, ui.z);
+                (ec[0][i], ec[1][i], ec[2][i]) = (e.x, e.y, e.z);
+            }
+            for i in 0..k {
+                h[i] = crate::vmath::hypot(u[0][i], u[1][i]);
+            }
+            for i in 0..k {
+                let ui = DVec3::new(u[0][i], u[1][i], u[2][i]);
+                let e = DVec3::new(ec[0][i], ec[1][i], ec[2][i]);
+                (ex[i], ey[i]) = Lens::ideal_sensor_vector(ui, e, h[i]);
+            }
+        }
+    }
+    // ground (lit, below the horizon) and dark pixels, then the sky's
+    let ground = PixelSky {
+        li: sky.params().ground_radiance.unwrap_or(0.0),
+        ..PixelSky::default()
+    };
+    for (o, &lit) in out.iter_mut().zip(&lit) {
+        *o = if lit { ground } else { PixelSky::default() };
+    }
+    for i in 0..k {
+        let (x, y, dop) = (ex[i], ey[i], l.dop[i]);
+        let n2 = x * x + y * y;
+        let (cos2, sin2) = if dop > 0.0 && n2 > 0.0 {
+            ((x * x - y * y) / n2, 2.0 * x * y / n2)
+        } else {
+            (0.0, 0.0)
+        };
+        out[idx[i]] = PixelSky {
+            li: l.radiance[i],
+            dop,
+            cos2,
+            sin2,
+            valid: true,
+        };
     }
 }
 
@@ -981,6 +1114,154 @@ mod tests {
     }
     use crate::camera::{Attitude, Intrinsics};
     use crate::sky::{SkyParams, SunPosition};
+
+    /// The row evaluator (pixel_sky_row, pixel_sky_cols) gives pixel_sky's bits in every
+    /// instruction set the CPU has: skies from the zenith sun to 89°, turbidity 1.7 to 8, both
+    /// DOP forms and normalisations, the Rayleigh model, one and two Hosek–Wilkie channels, a
+    /// ground radiance; the ideal and pinhole lenses and a fisheye; looking at the sun, at the
+    /// horizon (ground in view) and at the zenith; widths that leave partial chunks.
+    #[test]
+    fn pixel_sky_row_is_pixel_sky_bit_for_bit() {
+        use crate::camera::{Lens, Projection};
+        use crate::sky::dop::DOP_KNEE;
+        use crate::sky::{DopModel, DopNorm, PolarizationModel};
+        let d = SkyParams::default();
+        let skies = [
+            (
+                0.0,
+                0.0,
+                SkyParams {
+                    turbidity: 2.0,
+                    ..d.clone()
+                },
+            ),
+            (40.0, 100.0, d.clone()),
+            (
+                89.0,
+                250.0,
+                SkyParams {
+                    turbidity: 8.0,
+                    ground_radiance: Some(0.05),
+                    ..d.clone()
+                },
+            ),
+            (
+                60.0,
+                30.0,
+                SkyParams {
+                    model: PolarizationModel::Rayleigh,
+                    dop_max: 0.8,
+                    ..d.clone()
+                },
+            ),
+            (
+                75.0,
+                300.0,
+                SkyParams {
+                    dop_model: DopModel::WangPaper,
+                    dop_norm: DopNorm::Wilkie,
+                    turbidity: 6.0,
+                    ..d.clone()
+                },
+            ),
+            // Rayleigh limit of the Berry field, clear air: DOP above the soft ceiling's knee;
+            // 600 nm is a Hosek–Wilkie channel (one channel, not two)
+            (
+                30.0,
+                200.0,
+                SkyParams {
+                    turbidity: 1.7,
+                    babinet_deg: 0.0,
+                    brewster_deg: 0.0,
+                    wavelength_nm: 600.0,
+                    albedo: 0.5,
+                    ..d.clone()
+                },
+            ),
+            (
+                85.0,
+                10.0,
+                SkyParams {
+                    dop_model: DopModel::WangPaper,
+                    turbidity: 1.2,
+                    ..d.clone()
+                },
+            ),
+        ];
+        let rect = Intrinsics {
+            pixel_pitch_um: 3.45 * 30.0,
+            ..Intrinsics::with_size(151, 37)
+        };
+        let cams = [
+            Intrinsics {
+                lens: Some(Lens::Ideal),
+                ..rect
+            },
+            Intrinsics {
+                lens: Some(Lens::Pinhole),
+                ..rect
+            },
+            Intrinsics {
+                projection: Projection::Equidistant,
+                focal_length_mm: 1.8,
+                pixel_pitch_um: 3.45 * 20.0,
+                lens: Some(Lens::Ideal),
+                ..Intrinsics::with_size(130, 41)
+            },
+        ];
+        let bits = |p: &PixelSky| [p.li, p.dop, p.cos2, p.sin2].map(f64::to_bits);
+        let (mut above_knee, mut ground, mut dark) = (0, 0, 0);
+        for (zen, az, params) in &skies {
+            let sun = SunPosition::new(*zen, *az);
+            let sky = Sky::new(sun, params).unwrap();
+            for intr in cams {
+                for att in [
+                    Attitude::solar(0.0, -zen, 0.0),
+                    Attitude::solar(90.0, -88.0, 10.0),
+                    Attitude::solar(0.0, 0.0, 0.0),
+                ] {
+                    let cam = Camera::new(intr, &att, *az).unwrap();
+                    let (w, h) = (intr.width, intr.height);
+                    let cols: Vec<usize> = (0..w).step_by(7).chain([w - 1]).collect();
+                    for level in crate::simd::Simd::available() {
+                        crate::simd::with_simd(level, || {
+                            let mut row = vec![PixelSky::default(); w];
+                            let mut sel = vec![PixelSky::default(); cols.len()];
+                            for r in 0..h {
+                                pixel_sky_row(&sky, &cam, r, 0, &mut row);
+                                pixel_sky_cols(&sky, &cam, r, &cols, &mut sel);
+                                for (c, got) in row.iter().enumerate() {
+                                    let want = pixel_sky(&sky, &cam, c as f64, r as f64);
+                                    assert!(
+                                        bits(got) == bits(&want) && got.valid == want.valid,
+                                        "{level:?} sun {zen},{az} {intr:?} {att:?} px {c},{r}: \
+                                         {got:?} vs {want:?}"
+                                    );
+                                    above_knee += (want.dop > DOP_KNEE) as usize;
+                                    ground += (!want.valid && want.li > 0.0) as usize;
+                                    dark += (!want.valid && want.li == 0.0) as usize;
+                                }
+                                for (k, &c) in cols.iter().enumerate() {
+                                    assert_eq!(bits(&sel[k]), bits(&row[c]), "cols: {c},{r}");
+                                }
+                            }
+                            // a part row starting mid-chunk
+                            let mut part = vec![PixelSky::default(); w - 70];
+                            pixel_sky_row(&sky, &cam, h / 2, 70, &mut part);
+                            for (k, p) in part.iter().enumerate() {
+                                let want = pixel_sky(&sky, &cam, (70 + k) as f64, (h / 2) as f64);
+                                assert_eq!(bits(p), bits(&want));
+                            }
+                        });
+                    }
+                }
+            }
+        }
+        assert!(
+            above_knee > 100 && ground > 1000 && dark > 1000,
+            "{above_knee} {ground} {dark}"
+        );
+    }
 
     /// A 64 × 64 window of camera `big` (attitude `att`, sun azimuth 200°) centred on the sun.
     fn window_on_sun(big: Intrinsics, att: &Attitude, sun: SunPosition) -> Intrinsics {

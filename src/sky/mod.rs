@@ -30,6 +30,7 @@ pub mod stability;
 
 use crate::error::{check_range, Result};
 pub use crate::sun::SunPosition;
+use crate::vmath;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
@@ -226,29 +227,18 @@ impl PolarizationField {
     }
 
     /// cos θ, cos γ and the sample; requires v.z > 0.
-    #[inline]
+    #[inline(always)]
     fn eval(&self, v: DVec3) -> (f64, f64, SkySample) {
-        let cos_t = v.z.min(1.0);
-        let theta = crate::vmath::acos(cos_t);
-        let cross = self.sun_vec.cross(v);
-        let sin_g2 = cross.length_squared();
-        let cos_g = self.sun_vec.dot(v);
-        let gamma = crate::vmath::atan2(sin_g2.sqrt(), cos_g);
+        let (cos_t, cross, sin_g2, cos_g) = self.geometry(v);
+        let theta = vmath::acos(cos_t);
+        let gamma = vmath::atan2(sin_g2.sqrt(), cos_g);
         let (dop, e) = match self.model {
             PolarizationModel::Wang => {
                 let b = self.berry.eval(v);
                 let d = self.wang.dop(b.abs_w, theta, cos_t, gamma, cos_g);
                 (d, b.e)
             }
-            PolarizationModel::Rayleigh => {
-                if sin_g2 > 0.0 {
-                    let c2 = cos_g * cos_g;
-                    let d = self.dop_max * sin_g2 / (sin_g2 + 2.0 * c2);
-                    (dop::clamp01(d), cross / sin_g2.sqrt())
-                } else {
-                    (0.0, berry::chart_basis(v).0)
-                }
-            }
+            PolarizationModel::Rayleigh => self.rayleigh(v, cross, sin_g2, cos_g),
         };
         (
             cos_t,
@@ -261,6 +251,69 @@ impl PolarizationField {
                 e,
             },
         )
+    }
+}
+
+impl PolarizationField {
+    /// cos θ (at most 1), s × v, |s × v|² = sin²γ and cos γ of a unit view vector `v`.
+    #[inline(always)]
+    fn geometry(&self, v: DVec3) -> (f64, DVec3, f64, f64) {
+        let cross = self.sun_vec.cross(v);
+        (
+            v.z.min(1.0),
+            cross,
+            cross.length_squared(),
+            self.sun_vec.dot(v),
+        )
+    }
+
+    /// The Rayleigh model's DOP and E-vector ∝ s × v; at the sun and the anti-sun (s ∥ v) DOP 0
+    /// and the chart's north. Branch-free but for selects.
+    #[inline(always)]
+    fn rayleigh(&self, v: DVec3, cross: DVec3, sin_g2: f64, cos_g: f64) -> (f64, DVec3) {
+        let c2 = cos_g * cos_g;
+        let d = self.dop_max * sin_g2 / (sin_g2 + 2.0 * c2);
+        let e = cross / sin_g2.sqrt();
+        let north = berry::chart_basis(v).0;
+        if sin_g2 > 0.0 {
+            (dop::clamp01(d), e)
+        } else {
+            (0.0, north)
+        }
+    }
+}
+
+/// Number of lanes of the chunk evaluators ([`Sky::sample_lanes`], `render::pixel_sky_row`).
+pub const LANES: usize = 64;
+
+/// One f64 per lane.
+pub type Lane = [f64; LANES];
+
+/// Up to [`LANES`] directions and their sky, structure of arrays: the chunk that
+/// [`Sky::sample_lanes`] evaluates.
+#[derive(Clone, Debug)]
+pub struct SkyLanes {
+    /// Lanes in use, at most [`LANES`].
+    pub n: usize,
+    /// Unit ENU view vectors (x, y, z), above the horizon (v.z > 0).
+    pub v: [Lane; 3],
+    /// Radiance, as [`SkySample::radiance`].
+    pub radiance: Lane,
+    /// DOP, as [`SkySample::dop`].
+    pub dop: Lane,
+    /// E-vector (x, y, z), as [`SkySample::e`].
+    pub e: [Lane; 3],
+}
+
+impl Default for SkyLanes {
+    fn default() -> Self {
+        SkyLanes {
+            n: 0,
+            v: [[0.0; LANES]; 3],
+            radiance: [0.0; LANES],
+            dop: [0.0; LANES],
+            e: [[0.0; LANES]; 3],
+        }
     }
 }
 
@@ -326,6 +379,53 @@ impl Sky {
         // θ_s = 84°, A − A_s = 100°, 450 nm, T = 4; docs/sky.md); radiance cannot be negative.
         s.radiance = self.hw.radiance_cos(cos_t, s.gamma_rad, cos_g).max(0.0);
         s
+    }
+
+    /// [`Sky::sample`]'s radiance, DOP and E-vector for lanes 0..`l.n` of `l`, the same bits;
+    /// every `l.v` above the horizon. Geometry and each transcendental run as one loop over the
+    /// lanes, the model is chosen outside the loops, so with vectorised [`vmath`] the loops
+    /// vectorise (the caller builds this for the CPU's instruction set, `render::pixel_sky_row`).
+    #[inline(always)]
+    pub fn sample_lanes(&self, l: &mut SkyLanes) {
+        let n = l.n;
+        assert!(n <= LANES);
+        let p = &self.pol;
+        let (mut ct, mut sg2, mut cg) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        let mut cross = [[0.0; LANES]; 3];
+        for j in 0..n {
+            let (c, x, s, g) = p.geometry(DVec3::new(l.v[0][j], l.v[1][j], l.v[2][j]));
+            (ct[j], sg2[j], cg[j]) = (c, s, g);
+            (cross[0][j], cross[1][j], cross[2][j]) = (x.x, x.y, x.z);
+        }
+        let mut gamma = [0.0; LANES];
+        for j in 0..n {
+            gamma[j] = vmath::atan2(sg2[j].sqrt(), cg[j]);
+        }
+        match p.model {
+            PolarizationModel::Wang => {
+                let mut theta = [0.0; LANES];
+                for j in 0..n {
+                    theta[j] = vmath::acos(ct[j]);
+                }
+                let mut abs_w = [0.0; LANES];
+                p.berry.eval_lanes(n, &l.v, &mut abs_w, &mut l.e);
+                p.wang
+                    .dop_lanes(n, &abs_w, &theta, &ct, &gamma, &cg, &mut l.dop);
+            }
+            PolarizationModel::Rayleigh => {
+                for j in 0..n {
+                    let v = DVec3::new(l.v[0][j], l.v[1][j], l.v[2][j]);
+                    let x = DVec3::new(cross[0][j], cross[1][j], cross[2][j]);
+                    let (d, e) = p.rayleigh(v, x, sg2[j], cg[j]);
+                    l.dop[j] = d;
+                    (l.e[0][j], l.e[1][j], l.e[2][j]) = (e.x, e.y, e.z);
+                }
+            }
+        }
+        self.hw.radiance_lanes(n, &ct, &gamma, &cg, &mut l.radiance);
+        for r in &mut l.radiance[..n] {
+            *r = r.max(0.0);
+        }
     }
 }
 
