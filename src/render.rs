@@ -279,18 +279,22 @@ fn render_ideal_rows(sky: &Sky, cam: &Camera, pol: Option<&mut [Image<f32>; 4]>)
         .into_par_iter()
         .enumerate()
         .for_each(|(r, (li, dop, aop, valid, i0, i45, i90, i135))| {
-            for c in 0..w {
-                let p = pixel_sky(sky, cam, c as f64, r as f64);
-                li[c] = p.li as f32;
-                dop[c] = p.dop as f32;
-                aop[c] = p.aop_deg() as f32;
-                valid[c] = p.valid as u8;
-                if with_pol {
-                    let [s0, s1, s2] = p.stokes();
-                    i0[c] = (0.5 * (s0 + s1)) as f32;
-                    i45[c] = (0.5 * (s0 + s2)) as f32;
-                    i90[c] = (0.5 * (s0 - s1)) as f32;
-                    i135[c] = (0.5 * (s0 - s2)) as f32;
+            let mut px = [PixelSky::default(); LANES];
+            for a in (0..w).step_by(LANES) {
+                let px = &mut px[..LANES.min(w - a)];
+                pixel_sky_row(sky, cam, r, a, px);
+                for (c, p) in (a..).zip(px.iter()) {
+                    li[c] = p.li as f32;
+                    dop[c] = p.dop as f32;
+                    aop[c] = p.aop_deg() as f32;
+                    valid[c] = p.valid as u8;
+                    if with_pol {
+                        let [s0, s1, s2] = p.stokes();
+                        i0[c] = (0.5 * (s0 + s1)) as f32;
+                        i45[c] = (0.5 * (s0 + s2)) as f32;
+                        i90[c] = (0.5 * (s0 - s1)) as f32;
+                        i135[c] = (0.5 * (s0 - s2)) as f32;
+                    }
                 }
             }
         });
@@ -311,12 +315,8 @@ pub fn render_stokes(sky: &Sky, cam: &Camera, opts: StokesOptions) -> (StokesIma
     let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
     let mut out = StokesImage::zeros(w, h);
     out.par_rows(|r, s0, s1, s2| {
-        for c in 0..w {
-            let [a, b, d] = pixel_sky(sky, cam, c as f64, r as f64).stokes();
-            s0[c] = a as f32;
-            s1[c] = b as f32;
-            s2[c] = d as f32;
-        }
+        let cols: Vec<usize> = (0..w).collect();
+        stokes_at(sky, cam, r, &cols, [s0, s1, s2]);
     });
     let n_sun = if opts.sun_disc {
         add_sun_disc(sky, cam, &mut out)
@@ -324,6 +324,21 @@ pub fn render_stokes(sky: &Sky, cam: &Camera, opts: StokesOptions) -> (StokesIma
         0
     };
     (out, n_sun)
+}
+
+/// The exact sky's S0, S1, S2 (f32) of the pixels (c, r), c in `cols`, into `s[p][c]`; the
+/// row evaluator ([`pixel_sky_cols`]), a chunk of [`LANES`] at a time.
+fn stokes_at(sky: &Sky, cam: &Camera, r: usize, cols: &[usize], s: [&mut [f32]; 3]) {
+    let [s0, s1, s2] = s;
+    let mut px = [PixelSky::default(); LANES];
+    for cs in cols.chunks(LANES) {
+        let px = &mut px[..cs.len()];
+        pixel_sky_cols(sky, cam, r, cs, px);
+        for (&c, p) in cs.iter().zip(px.iter()) {
+            let [a, b, d] = p.stokes();
+            (s0[c], s1[c], s2[c]) = (a as f32, b as f32, d as f32);
+        }
+    }
 }
 
 /// Adds the solar disc to S0 where it is in view; returns the number of pixels touched.
@@ -655,17 +670,22 @@ impl<'a> SkyGrid<'a> {
         // fisheyes: a node near the horizon or the image-circle rim counts as invalid, so the
         // cells around it are refined and evaluated exactly (`clear_of_edges`)
         let fisheye = cam.intrinsics.projection != crate::camera::Projection::Rectilinear;
-        let eval_at = |c: usize, r: usize, span: usize| -> ([f32; 3], bool) {
-            let p = pixel_sky(sky, cam, c as f64, r as f64);
-            let [a, b, d] = p.stokes();
-            let ok = p.valid && (!fisheye || clear_of_edges(cam, c, r, span));
-            ([a as f32, b as f32, d as f32], ok)
+        // the nodes (cols[k], r) of one row: Stokes and whether to trust them
+        let eval_row = |r: usize, cols: &[usize], span: usize| -> Vec<([f32; 3], bool)> {
+            let mut px = vec![PixelSky::default(); cols.len()];
+            pixel_sky_cols(sky, cam, r, cols, &mut px);
+            px.iter()
+                .zip(cols)
+                .map(|(p, &c)| {
+                    let [a, b, d] = p.stokes();
+                    let ok = p.valid && (!fisheye || clear_of_edges(cam, c, r, span));
+                    ([a as f32, b as f32, d as f32], ok)
+                })
+                .collect()
         };
-        let eval = |c: usize, r: usize| eval_at(c, r, step);
-        let eval_sub = |c: usize, r: usize| eval_at(c, r, sub_step);
         let evaluated: Vec<([f32; 3], bool)> = rows
             .par_iter()
-            .flat_map_iter(|&r| cols.iter().map(move |&c| eval(c, r)))
+            .flat_map_iter(|&r| eval_row(r, &cols, step))
             .collect();
         let nodes: Vec<[f32; 3]> = evaluated.iter().map(|e| e.0).collect();
         let valid: Vec<bool> = evaluated.iter().map(|e| e.1).collect();
@@ -691,7 +711,7 @@ impl<'a> SkyGrid<'a> {
                 let (sw, sh) = (sc.len(), sr.len());
                 let ev: Vec<([f32; 3], bool)> = sr
                     .iter()
-                    .flat_map(|&r| sc.iter().map(move |&c| eval_sub(c, r)))
+                    .flat_map(|&r| eval_row(r, &sc, sub_step))
                     .collect();
                 let sn: Vec<[f32; 3]> = ev.iter().map(|e| e.0).collect();
                 let sv: Vec<bool> = ev.iter().map(|e| e.1).collect();
@@ -944,16 +964,10 @@ impl StokesRows for SkyGrid<'_> {
     fn fill_row(&self, r: usize, s0: &mut [f32], s1: &mut [f32], s2: &mut [f32]) {
         let (w, gw) = (self.width, self.cols.len());
         let step = self.step;
-        let exact_pixel = |c: usize, s0: &mut [f32], s1: &mut [f32], s2: &mut [f32]| {
-            let [a, b, d] = pixel_sky(self.sky, self.cam, c as f64, r as f64).stokes();
-            s0[c] = a as f32;
-            s1[c] = b as f32;
-            s2[c] = d as f32;
-        };
+        // columns evaluated exactly, gathered so that the row evaluator gets whole chunks
+        let mut exact: Vec<usize> = Vec::new();
         if gw < 2 || self.rows.len() < 2 {
-            for c in 0..w {
-                exact_pixel(c, s0, s1, s2);
-            }
+            exact.extend(0..w);
         } else {
             let j = Self::interval(&self.rows, step, r);
             let (r0, r1) = (self.rows[j], self.rows[j + 1]);
@@ -998,9 +1012,7 @@ impl StokesRows for SkyGrid<'_> {
                     let (a0, a1) = (sg.cols[ii], sg.cols[ii + 1]);
                     let a_end = if ii + 2 == sw { c_end } else { a1 };
                     if sg.exact[jj * (sw - 1) + ii] {
-                        for c in a0..a_end {
-                            exact_pixel(c, s0, s1, s2);
-                        }
+                        exact.extend(a0..a_end);
                     } else {
                         let n = |x: usize, y: usize| sg.nodes[y * sw + x];
                         let left = lerp3(n(ii, jj), n(ii, jj + 1), fy);
@@ -1010,6 +1022,7 @@ impl StokesRows for SkyGrid<'_> {
                 }
             }
         }
+        stokes_at(self.sky, self.cam, r, &exact, [&mut *s0, &mut *s1, &mut *s2]);
         // the solar disc, exactly as render_stokes adds it
         let lo = self.disc.partition_point(|&(k, _)| k < r * w);
         for &(k, add) in self.disc[lo..]
