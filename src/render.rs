@@ -83,15 +83,10 @@ pub fn pixel_sky(sky: &Sky, cam: &Camera, col: f64, row: f64) -> PixelSky {
 }
 
 /// [`pixel_sky`] for the pixels (col0 + k, row), k = 0..out.len(), into `out[k]`: the same
-/// values bit for bit, computed [`LANES`] pixels at a time by [`pixel_sky_cols`].
+/// values bit for bit, by [`pixel_sky_cols`].
 pub fn pixel_sky_row(sky: &Sky, cam: &Camera, row: usize, col0: usize, out: &mut [PixelSky]) {
-    let mut cols = [0.0; LANES];
-    for (k, chunk) in out.chunks_mut(LANES).enumerate() {
-        for (j, c) in cols[..chunk.len()].iter_mut().enumerate() {
-            *c = (col0 + k * LANES + j) as f64;
-        }
-        sky_chunk(sky, cam, row as f64, &cols, chunk);
-    }
+    let cols: Vec<usize> = (col0..col0 + out.len()).collect();
+    pixel_sky_cols(sky, cam, row, &cols, out);
 }
 
 /// [`pixel_sky`] for the pixels (cols[k], row) into `out[k]` (same length), the same values bit
@@ -102,30 +97,72 @@ pub fn pixel_sky_row(sky: &Sky, cam: &Camera, row: usize, col0: usize, out: &mut
 /// each.
 pub fn pixel_sky_cols(sky: &Sky, cam: &Camera, row: usize, cols: &[usize], out: &mut [PixelSky]) {
     assert_eq!(cols.len(), out.len());
-    let mut c = [0.0; LANES];
-    for (chunk, cs) in out.chunks_mut(LANES).zip(cols.chunks(LANES)) {
-        for (x, &col) in c.iter_mut().zip(cs) {
-            *x = col as f64;
-        }
-        sky_chunk(sky, cam, row as f64, &c, chunk);
-    }
+    sky_cols(sky, cam, row, cols, out);
 }
 
 crate::simd::simd_dispatch! {
-    /// [`sky_chunk_body`] built for the best instruction set the CPU has.
-    fn sky_chunk = sky_chunk_body(sky: &Sky, cam: &Camera, row: f64, cols: &Lane, out: &mut [PixelSky])
+    /// [`sky_cols_body`] built for the best instruction set the CPU has.
+    fn sky_cols = sky_cols_body(sky: &Sky, cam: &Camera, row: usize, cols: &[usize], out: &mut [PixelSky])
 }
 
-/// [`pixel_sky`] for the pixels (cols[k], row), k = 0..out.len() ≤ [`LANES`].
+/// The arrays of one chunk of [`pixel_sky_cols`], made (zeroed) once per call.
+struct ChunkLanes {
+    /// Column of each lane.
+    col: Lane,
+    /// Camera-frame rays, as `Intrinsics::ray`.
+    ray: [Lane; 3],
+    /// Unit ENU view vectors.
+    d: [Lane; 3],
+    /// False outside a fisheye's image circle.
+    lit: [bool; LANES],
+    /// The sky's lanes (the pixels that see the sky, packed) ...
+    sky: SkyLanes,
+    /// ... their index in the chunk, their rays ...
+    idx: [usize; LANES],
+    ray_sky: [Lane; 3],
+    /// ... the unit rays and camera-frame E-vectors (ideal lens) ...
+    u: [Lane; 3],
+    ec: [Lane; 3],
+    /// ... √(u_x² + u_y²) (ideal lens) and the sensor-plane E-vector.
+    h: Lane,
+    ex: Lane,
+    ey: Lane,
+}
+
+/// [`pixel_sky_cols`], a chunk of [`LANES`] pixels at a time.
 #[inline(always)]
-fn sky_chunk_body(sky: &Sky, cam: &Camera, row: f64, cols: &Lane, out: &mut [PixelSky]) {
+fn sky_cols_body(sky: &Sky, cam: &Camera, row: usize, cols: &[usize], out: &mut [PixelSky]) {
+    let z = [0.0; LANES];
+    let mut l = ChunkLanes {
+        col: z,
+        ray: [z; 3],
+        d: [z; 3],
+        lit: [true; LANES],
+        sky: SkyLanes::default(),
+        idx: [0; LANES],
+        ray_sky: [z; 3],
+        u: [z; 3],
+        ec: [z; 3],
+        h: z,
+        ex: z,
+        ey: z,
+    };
+    for (cs, o) in cols.chunks(LANES).zip(out.chunks_mut(LANES)) {
+        for (x, &c) in l.col.iter_mut().zip(cs) {
+            *x = c as f64;
+        }
+        sky_chunk(sky, cam, row as f64, &mut l, o);
+    }
+}
+
+/// [`pixel_sky`] for the pixels (l.col[k], row), k = 0..out.len() ≤ [`LANES`].
+#[inline(always)]
+fn sky_chunk(sky: &Sky, cam: &Camera, row: f64, l: &mut ChunkLanes, out: &mut [PixelSky]) {
     let n = out.len();
     assert!(n <= LANES);
     let intr = &cam.intrinsics;
     let (m, mt) = (cam.enu_to_camera, cam.enu_to_camera.transpose());
-    // camera-frame rays as Intrinsics::ray; `lit` false outside a fisheye's image circle
-    let mut ray = [[0.0; LANES]; 3];
-    let mut lit = [true; LANES];
+    let (cols, ray, lit) = (&l.col, &mut l.ray, &mut l.lit);
     if intr.projection == Projection::Rectilinear {
         let (c0, r0) = intr.principal();
         let f = intr.focal_px();
@@ -141,41 +178,39 @@ fn sky_chunk_body(sky: &Sky, cam: &Camera, row: f64, cols: &Lane, out: &mut [Pix
             (ray[0][j], ray[1][j], ray[2][j]) = (r.x, r.y, r.z);
         }
     }
-    // unit ENU view vectors
-    let mut d = [[0.0; LANES]; 3];
+    let d = &mut l.d;
     for j in 0..n {
         let v = (mt * DVec3::new(ray[0][j], ray[1][j], ray[2][j])).normalize();
         (d[0][j], d[1][j], d[2][j]) = (v.x, v.y, v.z);
     }
     // pack the lanes that see the sky (as Sky::sample: v.z > 0, not NaN), with their rays
-    let mut sky_lanes = SkyLanes::default();
-    let (mut idx, mut pray) = ([0usize; LANES], [[0.0; LANES]; 3]);
+    let (v, idx, pray) = (&mut l.sky.v, &mut l.idx, &mut l.ray_sky);
     let mut k = 0;
     for j in 0..n {
         for a in 0..3 {
-            sky_lanes.v[a][k] = d[a][j];
+            v[a][k] = d[a][j];
             pray[a][k] = ray[a][j];
         }
         idx[k] = j;
         k += (lit[j] && d[2][j] > 0.0) as usize;
     }
-    sky_lanes.n = k;
-    sky.sample_lanes(&mut sky_lanes);
-    let l = &sky_lanes;
+    l.sky.n = k;
+    sky.sample_lanes(&mut l.sky);
+    let s = &l.sky;
     // the E-vector into the camera frame and through the lens onto the sensor
-    let (mut ex, mut ey) = ([0.0; LANES], [0.0; LANES]);
+    let (ex, ey) = (&mut l.ex, &mut l.ey);
     match intr.lens() {
         Lens::Pinhole => {
             for i in 0..k {
-                let e = m * DVec3::new(l.e[0][i], l.e[1][i], l.e[2][i]);
+                let e = m * DVec3::new(s.e[0][i], s.e[1][i], s.e[2][i]);
                 (ex[i], ey[i]) = (e.x, e.y);
             }
         }
         Lens::Ideal => {
-            let (mut u, mut ec, mut h) = ([[0.0; LANES]; 3], [[0.0; LANES]; 3], [0.0; LANES]);
+            let (u, ec, h) = (&mut l.u, &mut l.ec, &mut l.h);
             for i in 0..k {
                 let ui = DVec3::new(pray[0][i], pray[1][i], pray[2][i]).normalize();
-                let e = m * DVec3::new(l.e[0][i], l.e[1][i], l.e[2][i]);
+                let e = m * DVec3::new(s.e[0][i], s.e[1][i], s.e[2][i]);
                 (u[0][i], u[1][i], u[2][i]) = (ui.x, ui.y, ui.z);
                 (ec[0][i], ec[1][i], ec[2][i]) = (e.x, e.y, e.z);
             }
@@ -194,11 +229,11 @@ fn sky_chunk_body(sky: &Sky, cam: &Camera, row: f64, cols: &Lane, out: &mut [Pix
         li: sky.params().ground_radiance.unwrap_or(0.0),
         ..PixelSky::default()
     };
-    for (o, &lit) in out.iter_mut().zip(&lit) {
+    for (o, &lit) in out.iter_mut().zip(lit.iter()) {
         *o = if lit { ground } else { PixelSky::default() };
     }
     for i in 0..k {
-        let (x, y, dop) = (ex[i], ey[i], l.dop[i]);
+        let (x, y, dop) = (ex[i], ey[i], s.dop[i]);
         let n2 = x * x + y * y;
         let (cos2, sin2) = if dop > 0.0 && n2 > 0.0 {
             ((x * x - y * y) / n2, 2.0 * x * y / n2)
@@ -206,7 +241,7 @@ fn sky_chunk_body(sky: &Sky, cam: &Camera, row: f64, cols: &Lane, out: &mut [Pix
             (0.0, 0.0)
         };
         out[idx[i]] = PixelSky {
-            li: l.radiance[i],
+            li: s.radiance[i],
             dop,
             cos2,
             sin2,
@@ -279,22 +314,19 @@ fn render_ideal_rows(sky: &Sky, cam: &Camera, pol: Option<&mut [Image<f32>; 4]>)
         .into_par_iter()
         .enumerate()
         .for_each(|(r, (li, dop, aop, valid, i0, i45, i90, i135))| {
-            let mut px = [PixelSky::default(); LANES];
-            for a in (0..w).step_by(LANES) {
-                let px = &mut px[..LANES.min(w - a)];
-                pixel_sky_row(sky, cam, r, a, px);
-                for (c, p) in (a..).zip(px.iter()) {
-                    li[c] = p.li as f32;
-                    dop[c] = p.dop as f32;
-                    aop[c] = p.aop_deg() as f32;
-                    valid[c] = p.valid as u8;
-                    if with_pol {
-                        let [s0, s1, s2] = p.stokes();
-                        i0[c] = (0.5 * (s0 + s1)) as f32;
-                        i45[c] = (0.5 * (s0 + s2)) as f32;
-                        i90[c] = (0.5 * (s0 - s1)) as f32;
-                        i135[c] = (0.5 * (s0 - s2)) as f32;
-                    }
+            let mut px = vec![PixelSky::default(); w];
+            pixel_sky_row(sky, cam, r, 0, &mut px);
+            for (c, p) in px.iter().enumerate() {
+                li[c] = p.li as f32;
+                dop[c] = p.dop as f32;
+                aop[c] = p.aop_deg() as f32;
+                valid[c] = p.valid as u8;
+                if with_pol {
+                    let [s0, s1, s2] = p.stokes();
+                    i0[c] = (0.5 * (s0 + s1)) as f32;
+                    i45[c] = (0.5 * (s0 + s2)) as f32;
+                    i90[c] = (0.5 * (s0 - s1)) as f32;
+                    i135[c] = (0.5 * (s0 - s2)) as f32;
                 }
             }
         });
@@ -326,18 +358,15 @@ pub fn render_stokes(sky: &Sky, cam: &Camera, opts: StokesOptions) -> (StokesIma
     (out, n_sun)
 }
 
-/// The exact sky's S0, S1, S2 (f32) of the pixels (c, r), c in `cols`, into `s[p][c]`; the
-/// row evaluator ([`pixel_sky_cols`]), a chunk of [`LANES`] at a time.
+/// The exact sky's S0, S1, S2 (f32) of the pixels (c, r), c in `cols`, into `s[p][c]`, by the
+/// row evaluator ([`pixel_sky_cols`]).
 fn stokes_at(sky: &Sky, cam: &Camera, r: usize, cols: &[usize], s: [&mut [f32]; 3]) {
     let [s0, s1, s2] = s;
-    let mut px = [PixelSky::default(); LANES];
-    for cs in cols.chunks(LANES) {
-        let px = &mut px[..cs.len()];
-        pixel_sky_cols(sky, cam, r, cs, px);
-        for (&c, p) in cs.iter().zip(px.iter()) {
-            let [a, b, d] = p.stokes();
-            (s0[c], s1[c], s2[c]) = (a as f32, b as f32, d as f32);
-        }
+    let mut px = vec![PixelSky::default(); cols.len()];
+    pixel_sky_cols(sky, cam, r, cols, &mut px);
+    for (&c, p) in cols.iter().zip(&px) {
+        let [a, b, d] = p.stokes();
+        (s0[c], s1[c], s2[c]) = (a as f32, b as f32, d as f32);
     }
 }
 
@@ -1022,7 +1051,13 @@ impl StokesRows for SkyGrid<'_> {
                 }
             }
         }
-        stokes_at(self.sky, self.cam, r, &exact, [&mut *s0, &mut *s1, &mut *s2]);
+        stokes_at(
+            self.sky,
+            self.cam,
+            r,
+            &exact,
+            [&mut *s0, &mut *s1, &mut *s2],
+        );
         // the solar disc, exactly as render_stokes adds it
         let lo = self.disc.partition_point(|&(k, _)| k < r * w);
         for &(k, add) in self.disc[lo..]

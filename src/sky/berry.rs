@@ -175,12 +175,21 @@ impl BerryField {
     }
 
     /// [`Self::eval`] of lanes 0..n (n ≤ [`LANES`]) of the row evaluator, unit ENU vectors
-    /// `v` (x, y, z), the same bits: |w| into `abs_w`, the E-vector into `e` (x, y, z).
+    /// `v` (x, y, z), the same bits: |w| into `abs_w`, the E-vector into `e` (x, y, z); `work`
+    /// is scratch (4 lanes).
     #[inline(always)]
-    pub fn eval_lanes(&self, n: usize, v: &[Lane; 3], abs_w: &mut Lane, e: &mut [Lane; 3]) {
+    pub fn eval_lanes(
+        &self,
+        n: usize,
+        v: &[Lane; 3],
+        abs_w: &mut Lane,
+        e: &mut [Lane; 3],
+        work: &mut [Lane],
+    ) {
         assert!(n <= LANES);
-        let (mut k, mut re, mut im, mut r) =
-            ([0.0; LANES], [0.0; LANES], [0.0; LANES], [0.0; LANES]);
+        let [k, re, im, r, ..] = work else {
+            panic!("eval_lanes needs 4 work lanes")
+        };
         for j in 0..n {
             let (kj, p) = self.chart_p(DVec3::new(v[0][j], v[1][j], v[2][j]));
             (k[j], re[j], im[j]) = (kj, p.re, p.im);

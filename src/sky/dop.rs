@@ -240,7 +240,8 @@ impl Preetham {
         self.s_d_yxy(self.yxy(cos_theta, gamma, cos_gamma))
     }
 
-    /// [`Self::s_d`] of lanes 0..n (n ≤ [`LANES`]): each exponential one loop over the lanes.
+    /// [`Self::s_d`] of lanes 0..n (n ≤ [`LANES`]): each exponential one loop over the lanes;
+    /// `work` is scratch (5 lanes).
     #[inline(always)]
     fn s_d_lanes(
         &self,
@@ -249,10 +250,13 @@ impl Preetham {
         gamma: &Lane,
         cos_gamma: &Lane,
         out: &mut Lane,
+        work: &mut [Lane],
     ) {
         assert!(n <= LANES);
-        let mut yxy = [[0.0; LANES]; 3];
-        let (mut ea, mut eb) = ([0.0; LANES], [0.0; LANES]);
+        let [y0, y1, y2, ea, eb, ..] = work else {
+            panic!("s_d_lanes needs 5 work lanes")
+        };
+        let yxy = [y0, y1, y2];
         for q in 0..3 {
             let c = &self.coef[q];
             for j in 0..n {
@@ -485,7 +489,8 @@ impl WangDop {
 
     /// [`Self::dop`] of lanes 0..n (n ≤ [`LANES`]) of the row evaluator, the same bits: each
     /// transcendental one loop over the lanes, the model chosen outside the loops, and the soft
-    /// caps' tanh (rare: above the knees) in a scalar pass over the lanes that need it.
+    /// caps' tanh (rare: above the knees) in a scalar pass over the lanes that need it. `work`
+    /// is scratch (7 lanes).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     pub fn dop_lanes(
@@ -497,11 +502,14 @@ impl WangDop {
         gamma: &Lane,
         cos_gamma: &Lane,
         out: &mut Lane,
+        work: &mut [Lane],
     ) {
         assert!(n <= LANES);
-        let mut s = [0.0; LANES];
+        let [s, e, rest @ ..] = work else {
+            panic!("dop_lanes needs 7 work lanes")
+        };
         self.preetham
-            .s_d_lanes(n, cos_theta, gamma, cos_gamma, &mut s);
+            .s_d_lanes(n, cos_theta, gamma, cos_gamma, s, rest);
         match self.model {
             DopModel::WangPaper => {
                 for v in &mut s[..n] {
@@ -515,7 +523,6 @@ impl WangDop {
                 cap_lanes(&mut s[..n], S_KNEE, S_CEILING);
             }
         }
-        let mut e = [0.0; LANES];
         for j in 0..n {
             e[j] = vmath::powf(cos_theta[j].max(0.0), self.albedo);
         }

@@ -180,9 +180,18 @@ impl Channel {
 
     /// Adds (`add`) or writes this channel's [`Self::eval`] for `n` lanes of
     /// [`HosekWilkie::radiance_lanes`]: each exponential one loop over the lanes.
+    #[allow(clippy::too_many_arguments)]
     #[inline(always)]
-    fn eval_lanes(&self, n: usize, ct: &Lane, gamma: &Lane, cg: &Lane, out: &mut Lane, add: bool) {
-        let (mut ea, mut eb) = ([0.0; LANES], [0.0; LANES]);
+    fn eval_lanes(
+        &self,
+        n: usize,
+        ct: &Lane,
+        gamma: &Lane,
+        cg: &Lane,
+        out: &mut Lane,
+        add: bool,
+        [ea, eb]: [&mut Lane; 2],
+    ) {
         for j in 0..n {
             ea[j] = vmath::exp(self.b * (1.0 / (ct[j] + 0.01)));
         }
@@ -353,7 +362,7 @@ impl HosekWilkie {
     }
 
     /// [`radiance_cos`](Self::radiance_cos) of lanes 0..n (n ≤ [`LANES`]) of the row evaluator
-    /// (`render::pixel_sky_row`), the same bits.
+    /// (`render::pixel_sky_row`), the same bits; `work` is scratch (2 lanes).
     #[inline(always)]
     pub fn radiance_lanes(
         &self,
@@ -362,11 +371,16 @@ impl HosekWilkie {
         gamma: &Lane,
         cos_gamma: &Lane,
         out: &mut Lane,
+        work: &mut [Lane],
     ) {
         assert!(n <= LANES);
-        self.chan[0].eval_lanes(n, cos_theta, gamma, cos_gamma, out, false);
+        let [ea, eb, ..] = work else {
+            panic!("radiance_lanes needs 2 work lanes")
+        };
+        let (ct, g, cg) = (cos_theta, gamma, cos_gamma);
+        self.chan[0].eval_lanes(n, ct, g, cg, out, false, [&mut *ea, &mut *eb]);
         if self.two {
-            self.chan[1].eval_lanes(n, cos_theta, gamma, cos_gamma, out, true);
+            self.chan[1].eval_lanes(n, ct, g, cg, out, true, [ea, eb]);
         }
     }
 

@@ -289,8 +289,12 @@ pub const LANES: usize = 64;
 /// One f64 per lane.
 pub type Lane = [f64; LANES];
 
+/// Scratch lanes of [`Sky::sample_lanes`]: 9 of its own, 7 for the DOP.
+const WORK: usize = 16;
+
 /// Up to [`LANES`] directions and their sky, structure of arrays: the chunk that
-/// [`Sky::sample_lanes`] evaluates.
+/// [`Sky::sample_lanes`] evaluates. One `SkyLanes` serves chunk after chunk (its arrays are
+/// zeroed once, when made).
 #[derive(Clone, Debug)]
 pub struct SkyLanes {
     /// Lanes in use, at most [`LANES`].
@@ -303,6 +307,8 @@ pub struct SkyLanes {
     pub dop: Lane,
     /// E-vector (x, y, z), as [`SkySample::e`].
     pub e: [Lane; 3],
+    /// Intermediate values.
+    work: [Lane; WORK],
 }
 
 impl Default for SkyLanes {
@@ -313,6 +319,7 @@ impl Default for SkyLanes {
             radiance: [0.0; LANES],
             dop: [0.0; LANES],
             e: [[0.0; LANES]; 3],
+            work: [[0.0; LANES]; WORK],
         }
     }
 }
@@ -387,43 +394,46 @@ impl Sky {
     /// vectorise (the caller builds this for the CPU's instruction set, `render::pixel_sky_row`).
     #[inline(always)]
     pub fn sample_lanes(&self, l: &mut SkyLanes) {
-        let n = l.n;
+        let SkyLanes {
+            n,
+            v,
+            radiance,
+            dop,
+            e,
+            work,
+        } = l;
+        let n = *n;
         assert!(n <= LANES);
+        let [ct, sg2, cg, gamma, theta, abs_w, cx, cy, cz, rest @ ..] = work;
         let p = &self.pol;
-        let (mut ct, mut sg2, mut cg) = ([0.0; LANES], [0.0; LANES], [0.0; LANES]);
-        let mut cross = [[0.0; LANES]; 3];
         for j in 0..n {
-            let (c, x, s, g) = p.geometry(DVec3::new(l.v[0][j], l.v[1][j], l.v[2][j]));
+            let (c, x, s, g) = p.geometry(DVec3::new(v[0][j], v[1][j], v[2][j]));
             (ct[j], sg2[j], cg[j]) = (c, s, g);
-            (cross[0][j], cross[1][j], cross[2][j]) = (x.x, x.y, x.z);
+            (cx[j], cy[j], cz[j]) = (x.x, x.y, x.z);
         }
-        let mut gamma = [0.0; LANES];
         for j in 0..n {
             gamma[j] = vmath::atan2(sg2[j].sqrt(), cg[j]);
         }
         match p.model {
             PolarizationModel::Wang => {
-                let mut theta = [0.0; LANES];
                 for j in 0..n {
                     theta[j] = vmath::acos(ct[j]);
                 }
-                let mut abs_w = [0.0; LANES];
-                p.berry.eval_lanes(n, &l.v, &mut abs_w, &mut l.e);
-                p.wang
-                    .dop_lanes(n, &abs_w, &theta, &ct, &gamma, &cg, &mut l.dop);
+                p.berry.eval_lanes(n, v, abs_w, e, rest);
+                p.wang.dop_lanes(n, abs_w, theta, ct, gamma, cg, dop, rest);
             }
             PolarizationModel::Rayleigh => {
                 for j in 0..n {
-                    let v = DVec3::new(l.v[0][j], l.v[1][j], l.v[2][j]);
-                    let x = DVec3::new(cross[0][j], cross[1][j], cross[2][j]);
-                    let (d, e) = p.rayleigh(v, x, sg2[j], cg[j]);
-                    l.dop[j] = d;
-                    (l.e[0][j], l.e[1][j], l.e[2][j]) = (e.x, e.y, e.z);
+                    let vj = DVec3::new(v[0][j], v[1][j], v[2][j]);
+                    let x = DVec3::new(cx[j], cy[j], cz[j]);
+                    let (d, ej) = p.rayleigh(vj, x, sg2[j], cg[j]);
+                    dop[j] = d;
+                    (e[0][j], e[1][j], e[2][j]) = (ej.x, ej.y, ej.z);
                 }
             }
         }
-        self.hw.radiance_lanes(n, &ct, &gamma, &cg, &mut l.radiance);
-        for r in &mut l.radiance[..n] {
+        self.hw.radiance_lanes(n, ct, gamma, cg, radiance, rest);
+        for r in &mut radiance[..n] {
             *r = r.max(0.0);
         }
     }
