@@ -7,6 +7,10 @@
 //! AOP_s = atan2(e_c,y, e_c,x) mod 180°, from +x = columns toward +y = rows, down). Pixels that
 //! look at or below the horizon, or lie outside a fisheye's image circle, are invalid:
 //! LI = DOP = AOP = 0 (ground: the ground radiance) and mask 0 (never NaN).
+//!
+//! [`pixel_sky`] is one pixel; [`pixel_sky_cols`] (the row evaluator) gives the same bits for a
+//! row's pixels a chunk at a time, in loops that vectorise, and is what the renders and the
+//! fast path's [`SkyGrid`] use.
 
 use crate::camera::{Camera, Lens, Projection};
 use crate::image::{round_clamp, Image, StokesImage, StokesRows};

@@ -256,8 +256,7 @@ impl Preetham {
         let [y0, y1, y2, ea, eb, ..] = work else {
             panic!("s_d_lanes needs 5 work lanes")
         };
-        let yxy = [y0, y1, y2];
-        for q in 0..3 {
+        for (q, yq) in [&mut *y0, &mut *y1, &mut *y2].into_iter().enumerate() {
             let c = &self.coef[q];
             for j in 0..n {
                 ea[j] = vmath::exp(c[1] / cos_theta[j].max(0.01));
@@ -266,11 +265,11 @@ impl Preetham {
                 eb[j] = vmath::exp(c[3] * gamma[j]);
             }
             for j in 0..n {
-                yxy[q][j] = self.scale[q] * perez_exp(c, ea[j], eb[j], cos_gamma[j]);
+                yq[j] = self.scale[q] * perez_exp(c, ea[j], eb[j], cos_gamma[j]);
             }
         }
         for j in 0..n {
-            out[j] = self.s_d_yxy([yxy[0][j], yxy[1][j], yxy[2][j]]);
+            out[j] = self.s_d_yxy([y0[j], y1[j], y2[j]]);
         }
     }
 

@@ -14,7 +14,10 @@
 //! [`Sky::sample`] is the per-pixel path: no allocation, three inverse trigonometric/square-root
 //! calls shared between radiance and polarization, and ground (v.z ≤ 0) short-circuited to
 //! [`SkySample::GROUND`] — Hosek–Wilkie and Preetham are never evaluated below the horizon
-//! (`sky.md` §8). [`PolarizationField`] is the same without radiance.
+//! (`sky.md` §8). [`PolarizationField`] is the same without radiance. [`Sky::sample_lanes`]
+//! computes the same bits for a chunk of [`LANES`] directions at once, in structure-of-arrays
+//! form (`render::pixel_sky_cols`, the row evaluator); both paths take their elementary
+//! functions from [`crate::vmath`] and share the per-direction arithmetic.
 //!
 //! References: Hošek & Wilkie, ACM TOG 31(4):95 (2012) and IEEE CG&A 33(3):44 (2013);
 //! Berry, Dennis & Lee, New J. Phys. 6:162 (2004); Wang, Gao, Fan & Roberts, J. Opt.
@@ -252,9 +255,7 @@ impl PolarizationField {
             },
         )
     }
-}
 
-impl PolarizationField {
     /// cos θ (at most 1), s × v, |s × v|² = sin²γ and cos γ of a unit view vector `v`.
     #[inline(always)]
     fn geometry(&self, v: DVec3) -> (f64, DVec3, f64, f64) {
