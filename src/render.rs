@@ -37,10 +37,17 @@ pub struct PixelSky {
 impl PixelSky {
     /// AOP_s in degrees, [0, 180) (0 where undefined).
     pub fn aop_deg(&self) -> f64 {
+        self.aop_deg_from(crate::vmath::atan2(self.sin2, self.cos2))
+    }
+
+    /// [`Self::aop_deg`] given `a` = atan2(sin2, cos2) (the ideal render computes a row of
+    /// them in one loop).
+    #[inline]
+    fn aop_deg_from(&self, a: f64) -> f64 {
         if self.cos2 == 0.0 && self.sin2 == 0.0 {
             0.0
         } else {
-            crate::angle::SensorAngle::from_deg(0.5 * self.sin2.atan2(self.cos2).to_degrees()).deg()
+            crate::angle::SensorAngle::from_deg(0.5 * a.to_degrees()).deg()
         }
     }
     /// Sensor-frame Stokes (S0, S1, S2) in radiance units.
@@ -320,10 +327,12 @@ fn render_ideal_rows(sky: &Sky, cam: &Camera, pol: Option<&mut [Image<f32>; 4]>)
         .for_each(|(r, (li, dop, aop, valid, i0, i45, i90, i135))| {
             let mut px = vec![PixelSky::default(); w];
             pixel_sky_row(sky, cam, r, 0, &mut px);
+            let mut two_aop = vec![0.0; w];
+            two_aop_row(&px, &mut two_aop);
             for (c, p) in px.iter().enumerate() {
                 li[c] = p.li as f32;
                 dop[c] = p.dop as f32;
-                aop[c] = p.aop_deg() as f32;
+                aop[c] = p.aop_deg_from(two_aop[c]) as f32;
                 valid[c] = p.valid as u8;
                 if with_pol {
                     let [s0, s1, s2] = p.stokes();
@@ -335,6 +344,18 @@ fn render_ideal_rows(sky: &Sky, cam: &Camera, pol: Option<&mut [Image<f32>; 4]>)
             }
         });
     out
+}
+
+crate::simd::simd_dispatch! {
+    /// atan2(sin2, cos2) = 2 AOP_s (radians) of every pixel, for the AOP image.
+    fn two_aop_row = two_aop_row_body(px: &[PixelSky], out: &mut [f64])
+}
+
+#[inline(always)]
+fn two_aop_row_body(px: &[PixelSky], out: &mut [f64]) {
+    for (o, p) in out.iter_mut().zip(px) {
+        *o = crate::vmath::atan2(p.sin2, p.cos2);
+    }
 }
 
 /// Options for the Stokes render.
@@ -1171,7 +1192,8 @@ mod tests {
     /// instruction set the CPU has: skies from the zenith sun to 89°, turbidity 1.7 to 8, both
     /// DOP forms and normalisations, the Rayleigh model, one and two Hosek–Wilkie channels, a
     /// ground radiance; the ideal and pinhole lenses and a fisheye; looking at the sun, at the
-    /// horizon (ground in view) and at the zenith; widths that leave partial chunks.
+    /// horizon (ground in view) and at the zenith; widths that leave partial chunks. Also the
+    /// ideal render's AOP from a row of atan2 (`two_aop_row`).
     #[test]
     fn pixel_sky_row_is_pixel_sky_bit_for_bit() {
         use crate::camera::{Lens, Projection};
@@ -1295,6 +1317,13 @@ mod tests {
                                 }
                                 for (k, &c) in cols.iter().enumerate() {
                                     assert_eq!(bits(&sel[k]), bits(&row[c]), "cols: {c},{r}");
+                                }
+                                // the ideal render's AOP: atan2 a row at a time
+                                let mut two_aop = vec![0.0; w];
+                                two_aop_row(&row, &mut two_aop);
+                                for (p, &a) in row.iter().zip(&two_aop) {
+                                    let (got, want) = (p.aop_deg_from(a), p.aop_deg());
+                                    assert_eq!(got.to_bits(), want.to_bits(), "AOP row {r}");
                                 }
                             }
                             // a part row starting mid-chunk
