@@ -390,20 +390,25 @@ impl Lens {
 
     /// Sensor-plane vector (x, y) of the camera-frame E-vector `e` of a ray with unit
     /// camera-frame direction `d` (its angle is the sensor AOP; its length is not normalised).
-    #[inline]
+    #[inline(always)]
     pub fn sensor_vector(self, d: DVec3, e: DVec3) -> (f64, f64) {
         match self {
             Lens::Pinhole => (e.x, e.y),
-            Lens::Ideal => {
-                let h = d.x.hypot(d.y);
-                if h < 1e-12 {
-                    return (e.x, e.y);
-                }
-                let (ux, uy) = (d.x / h, d.y / h); // ρ̂; φ̂ = (−uy, ux)
-                let a = e.x * d.z * ux + e.y * d.z * uy - e.z * h; // e · m
-                let b = -e.x * uy + e.y * ux; // e · s
-                (a * ux - b * uy, a * uy + b * ux)
-            }
+            Lens::Ideal => Self::ideal_sensor_vector(d, e, crate::vmath::hypot(d.x, d.y)),
+        }
+    }
+
+    /// The ideal lens's [`Self::sensor_vector`] given h = √(d_x² + d_y²) (the row evaluator
+    /// computes h for a chunk of rays in one loop). Branch-free but for a select.
+    #[inline(always)]
+    pub fn ideal_sensor_vector(d: DVec3, e: DVec3, h: f64) -> (f64, f64) {
+        let (ux, uy) = (d.x / h, d.y / h); // ρ̂; φ̂ = (−uy, ux)
+        let a = e.x * d.z * ux + e.y * d.z * uy - e.z * h; // e · m
+        let b = -e.x * uy + e.y * ux; // e · s
+        if h < 1e-12 {
+            (e.x, e.y) // on the axis
+        } else {
+            (a * ux - b * uy, a * uy + b * ux)
         }
     }
 
@@ -572,7 +577,7 @@ impl Intrinsics {
         if self.projection == Projection::Rectilinear {
             return Some(DVec3::new(x, y, f));
         }
-        let r = x.hypot(y);
+        let r = crate::vmath::hypot(x, y);
         let theta = self.projection.field_angle(r / f)?;
         if r == 0.0 {
             return Some(DVec3::Z);

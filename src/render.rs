@@ -7,11 +7,15 @@
 //! AOP_s = atan2(e_c,y, e_c,x) mod 180°, from +x = columns toward +y = rows, down). Pixels that
 //! look at or below the horizon, or lie outside a fisheye's image circle, are invalid:
 //! LI = DOP = AOP = 0 (ground: the ground radiance) and mask 0 (never NaN).
+//!
+//! [`pixel_sky`] is one pixel; [`pixel_sky_cols`] (the row evaluator) gives the same bits for a
+//! row's pixels a chunk at a time, in loops that vectorise, and is what the renders and the
+//! fast path's [`SkyGrid`] use.
 
-use crate::camera::Camera;
+use crate::camera::{Camera, Lens, Projection};
 use crate::image::{round_clamp, Image, StokesImage, StokesRows};
 use crate::sky::hosek::{HosekWilkie, SUN_RADIUS_RAD};
-use crate::sky::Sky;
+use crate::sky::{Lane, Sky, SkyLanes, LANES};
 use glam::DVec3;
 use rayon::prelude::*;
 
@@ -33,10 +37,17 @@ pub struct PixelSky {
 impl PixelSky {
     /// AOP_s in degrees, [0, 180) (0 where undefined).
     pub fn aop_deg(&self) -> f64 {
+        self.aop_deg_from(crate::vmath::atan2(self.sin2, self.cos2))
+    }
+
+    /// [`Self::aop_deg`] given `a` = atan2(sin2, cos2) (the ideal render computes a row of
+    /// them in one loop).
+    #[inline]
+    fn aop_deg_from(&self, a: f64) -> f64 {
         if self.cos2 == 0.0 && self.sin2 == 0.0 {
             0.0
         } else {
-            crate::angle::SensorAngle::from_deg(0.5 * self.sin2.atan2(self.cos2).to_degrees()).deg()
+            crate::angle::SensorAngle::from_deg(0.5 * a.to_degrees()).deg()
         }
     }
     /// Sensor-frame Stokes (S0, S1, S2) in radiance units.
@@ -79,6 +90,177 @@ pub fn pixel_sky(sky: &Sky, cam: &Camera, col: f64, row: f64) -> PixelSky {
         cos2,
         sin2,
         valid: true,
+    }
+}
+
+/// [`pixel_sky`] for the pixels (col0 + k, row), k = 0..out.len(), into `out[k]`: the same
+/// values bit for bit, by [`pixel_sky_cols`].
+pub fn pixel_sky_row(sky: &Sky, cam: &Camera, row: usize, col0: usize, out: &mut [PixelSky]) {
+    let cols: Vec<usize> = (col0..col0 + out.len()).collect();
+    pixel_sky_cols(sky, cam, row, &cols, out);
+}
+
+/// [`pixel_sky`] for the pixels (cols[k], row) into `out[k]` (same length), the same values bit
+/// for bit. Works on chunks of [`LANES`] pixels in structure-of-arrays form: camera geometry
+/// and the lens in loops over the chunk, ground and dark pixels set aside before the sky
+/// ([`Sky::sample_lanes`]), every transcendental ([`crate::vmath`]) one loop over the chunk, and
+/// branches as selects; built for the CPU's instruction set (`simd_dispatch!`), the same bits in
+/// each.
+pub fn pixel_sky_cols(sky: &Sky, cam: &Camera, row: usize, cols: &[usize], out: &mut [PixelSky]) {
+    assert_eq!(cols.len(), out.len());
+    // (the fast path asks every row for its exact pixels; most have none)
+    if !cols.is_empty() {
+        sky_cols(sky, cam, row, cols, out);
+    }
+}
+
+crate::simd::simd_dispatch! {
+    /// [`sky_cols_body`] built for the best instruction set the CPU has.
+    fn sky_cols = sky_cols_body(sky: &Sky, cam: &Camera, row: usize, cols: &[usize], out: &mut [PixelSky])
+}
+
+/// The arrays of one chunk of [`pixel_sky_cols`], made (zeroed) once per call.
+struct ChunkLanes {
+    /// Column of each lane.
+    col: Lane,
+    /// Camera-frame rays, as `Intrinsics::ray`.
+    ray: [Lane; 3],
+    /// Unit ENU view vectors.
+    d: [Lane; 3],
+    /// False outside a fisheye's image circle.
+    lit: [bool; LANES],
+    /// The sky's lanes (the pixels that see the sky, packed) ...
+    sky: SkyLanes,
+    /// ... their index in the chunk, their rays ...
+    idx: [usize; LANES],
+    ray_sky: [Lane; 3],
+    /// ... the unit rays and camera-frame E-vectors (ideal lens) ...
+    u: [Lane; 3],
+    ec: [Lane; 3],
+    /// ... √(u_x² + u_y²) (ideal lens) and the sensor-plane E-vector.
+    h: Lane,
+    ex: Lane,
+    ey: Lane,
+}
+
+/// [`pixel_sky_cols`], a chunk of [`LANES`] pixels at a time.
+#[inline(always)]
+fn sky_cols_body(sky: &Sky, cam: &Camera, row: usize, cols: &[usize], out: &mut [PixelSky]) {
+    let z = [0.0; LANES];
+    let mut l = ChunkLanes {
+        col: z,
+        ray: [z; 3],
+        d: [z; 3],
+        lit: [true; LANES],
+        sky: SkyLanes::default(),
+        idx: [0; LANES],
+        ray_sky: [z; 3],
+        u: [z; 3],
+        ec: [z; 3],
+        h: z,
+        ex: z,
+        ey: z,
+    };
+    for (cs, o) in cols.chunks(LANES).zip(out.chunks_mut(LANES)) {
+        for (x, &c) in l.col.iter_mut().zip(cs) {
+            *x = c as f64;
+        }
+        sky_chunk(sky, cam, row as f64, &mut l, o);
+    }
+}
+
+/// [`pixel_sky`] for the pixels (l.col[k], row), k = 0..out.len() ≤ [`LANES`].
+#[inline(always)]
+fn sky_chunk(sky: &Sky, cam: &Camera, row: f64, l: &mut ChunkLanes, out: &mut [PixelSky]) {
+    let n = out.len();
+    assert!(n <= LANES);
+    let intr = &cam.intrinsics;
+    let (m, mt) = (cam.enu_to_camera, cam.enu_to_camera.transpose());
+    let (cols, ray, lit) = (&l.col, &mut l.ray, &mut l.lit);
+    if intr.projection == Projection::Rectilinear {
+        let (c0, r0) = intr.principal();
+        let f = intr.focal_px();
+        for j in 0..n {
+            (ray[0][j], ray[1][j], ray[2][j]) = (cols[j] - c0, row - r0, f);
+        }
+    } else {
+        // fisheyes: the projection's trigonometry stays scalar (libm)
+        for j in 0..n {
+            let r = intr.ray(cols[j], row);
+            lit[j] = r.is_some();
+            let r = r.unwrap_or(DVec3::Z);
+            (ray[0][j], ray[1][j], ray[2][j]) = (r.x, r.y, r.z);
+        }
+    }
+    let d = &mut l.d;
+    for j in 0..n {
+        let v = (mt * DVec3::new(ray[0][j], ray[1][j], ray[2][j])).normalize();
+        (d[0][j], d[1][j], d[2][j]) = (v.x, v.y, v.z);
+    }
+    // pack the lanes that see the sky (as Sky::sample: v.z > 0, not NaN), with their rays
+    let (v, idx, pray) = (&mut l.sky.v, &mut l.idx, &mut l.ray_sky);
+    let mut k = 0;
+    for j in 0..n {
+        for a in 0..3 {
+            v[a][k] = d[a][j];
+            pray[a][k] = ray[a][j];
+        }
+        idx[k] = j;
+        k += (lit[j] && d[2][j] > 0.0) as usize;
+    }
+    l.sky.n = k;
+    sky.sample_lanes(&mut l.sky);
+    let s = &l.sky;
+    // the E-vector into the camera frame and through the lens onto the sensor
+    let (ex, ey) = (&mut l.ex, &mut l.ey);
+    match intr.lens() {
+        Lens::Pinhole => {
+            for i in 0..k {
+                let e = m * DVec3::new(s.e[0][i], s.e[1][i], s.e[2][i]);
+                (ex[i], ey[i]) = (e.x, e.y);
+            }
+        }
+        Lens::Ideal => {
+            let (u, ec, h) = (&mut l.u, &mut l.ec, &mut l.h);
+            for i in 0..k {
+                let ui = DVec3::new(pray[0][i], pray[1][i], pray[2][i]).normalize();
+                let e = m * DVec3::new(s.e[0][i], s.e[1][i], s.e[2][i]);
+                (u[0][i], u[1][i], u[2][i]) = (ui.x, ui.y, ui.z);
+                (ec[0][i], ec[1][i], ec[2][i]) = (e.x, e.y, e.z);
+            }
+            for i in 0..k {
+                h[i] = crate::vmath::hypot(u[0][i], u[1][i]);
+            }
+            for i in 0..k {
+                let ui = DVec3::new(u[0][i], u[1][i], u[2][i]);
+                let e = DVec3::new(ec[0][i], ec[1][i], ec[2][i]);
+                (ex[i], ey[i]) = Lens::ideal_sensor_vector(ui, e, h[i]);
+            }
+        }
+    }
+    // ground (lit, below the horizon) and dark pixels, then the sky's
+    let ground = PixelSky {
+        li: sky.params().ground_radiance.unwrap_or(0.0),
+        ..PixelSky::default()
+    };
+    for (o, &lit) in out.iter_mut().zip(lit.iter()) {
+        *o = if lit { ground } else { PixelSky::default() };
+    }
+    for i in 0..k {
+        let (x, y, dop) = (ex[i], ey[i], s.dop[i]);
+        let n2 = x * x + y * y;
+        let (cos2, sin2) = if dop > 0.0 && n2 > 0.0 {
+            ((x * x - y * y) / n2, 2.0 * x * y / n2)
+        } else {
+            (0.0, 0.0)
+        };
+        out[idx[i]] = PixelSky {
+            li: s.radiance[i],
+            dop,
+            cos2,
+            sin2,
+            valid: true,
+        };
     }
 }
 
@@ -146,11 +328,14 @@ fn render_ideal_rows(sky: &Sky, cam: &Camera, pol: Option<&mut [Image<f32>; 4]>)
         .into_par_iter()
         .enumerate()
         .for_each(|(r, (li, dop, aop, valid, i0, i45, i90, i135))| {
-            for c in 0..w {
-                let p = pixel_sky(sky, cam, c as f64, r as f64);
+            let mut px = vec![PixelSky::default(); w];
+            pixel_sky_row(sky, cam, r, 0, &mut px);
+            let mut two_aop = vec![0.0; w];
+            two_aop_row(&px, &mut two_aop);
+            for (c, p) in px.iter().enumerate() {
                 li[c] = p.li as f32;
                 dop[c] = p.dop as f32;
-                aop[c] = p.aop_deg() as f32;
+                aop[c] = p.aop_deg_from(two_aop[c]) as f32;
                 valid[c] = p.valid as u8;
                 if with_pol {
                     let [s0, s1, s2] = p.stokes();
@@ -162,6 +347,18 @@ fn render_ideal_rows(sky: &Sky, cam: &Camera, pol: Option<&mut [Image<f32>; 4]>)
             }
         });
     out
+}
+
+crate::simd::simd_dispatch! {
+    /// atan2(sin2, cos2) = 2 AOP_s (radians) of every pixel, for the AOP image.
+    fn two_aop_row = two_aop_row_body(px: &[PixelSky], out: &mut [f64])
+}
+
+#[inline(always)]
+fn two_aop_row_body(px: &[PixelSky], out: &mut [f64]) {
+    for (o, p) in out.iter_mut().zip(px) {
+        *o = crate::vmath::atan2(p.sin2, p.cos2);
+    }
 }
 
 /// Options for the Stokes render.
@@ -178,12 +375,8 @@ pub fn render_stokes(sky: &Sky, cam: &Camera, opts: StokesOptions) -> (StokesIma
     let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
     let mut out = StokesImage::zeros(w, h);
     out.par_rows(|r, s0, s1, s2| {
-        for c in 0..w {
-            let [a, b, d] = pixel_sky(sky, cam, c as f64, r as f64).stokes();
-            s0[c] = a as f32;
-            s1[c] = b as f32;
-            s2[c] = d as f32;
-        }
+        let cols: Vec<usize> = (0..w).collect();
+        stokes_at(sky, cam, r, &cols, [s0, s1, s2]);
     });
     let n_sun = if opts.sun_disc {
         add_sun_disc(sky, cam, &mut out)
@@ -191,6 +384,18 @@ pub fn render_stokes(sky: &Sky, cam: &Camera, opts: StokesOptions) -> (StokesIma
         0
     };
     (out, n_sun)
+}
+
+/// The exact sky's S0, S1, S2 (f32) of the pixels (c, r), c in `cols`, into `s[p][c]`, by the
+/// row evaluator ([`pixel_sky_cols`]).
+fn stokes_at(sky: &Sky, cam: &Camera, r: usize, cols: &[usize], s: [&mut [f32]; 3]) {
+    let [s0, s1, s2] = s;
+    let mut px = vec![PixelSky::default(); cols.len()];
+    pixel_sky_cols(sky, cam, r, cols, &mut px);
+    for (&c, p) in cols.iter().zip(&px) {
+        let [a, b, d] = p.stokes();
+        (s0[c], s1[c], s2[c]) = (a as f32, b as f32, d as f32);
+    }
 }
 
 /// Adds the solar disc to S0 where it is in view; returns the number of pixels touched.
@@ -522,17 +727,22 @@ impl<'a> SkyGrid<'a> {
         // fisheyes: a node near the horizon or the image-circle rim counts as invalid, so the
         // cells around it are refined and evaluated exactly (`clear_of_edges`)
         let fisheye = cam.intrinsics.projection != crate::camera::Projection::Rectilinear;
-        let eval_at = |c: usize, r: usize, span: usize| -> ([f32; 3], bool) {
-            let p = pixel_sky(sky, cam, c as f64, r as f64);
-            let [a, b, d] = p.stokes();
-            let ok = p.valid && (!fisheye || clear_of_edges(cam, c, r, span));
-            ([a as f32, b as f32, d as f32], ok)
+        // the nodes (cols[k], r) of one row: Stokes and whether to trust them
+        let eval_row = |r: usize, cols: &[usize], span: usize| -> Vec<([f32; 3], bool)> {
+            let mut px = vec![PixelSky::default(); cols.len()];
+            pixel_sky_cols(sky, cam, r, cols, &mut px);
+            px.iter()
+                .zip(cols)
+                .map(|(p, &c)| {
+                    let [a, b, d] = p.stokes();
+                    let ok = p.valid && (!fisheye || clear_of_edges(cam, c, r, span));
+                    ([a as f32, b as f32, d as f32], ok)
+                })
+                .collect()
         };
-        let eval = |c: usize, r: usize| eval_at(c, r, step);
-        let eval_sub = |c: usize, r: usize| eval_at(c, r, sub_step);
         let evaluated: Vec<([f32; 3], bool)> = rows
             .par_iter()
-            .flat_map_iter(|&r| cols.iter().map(move |&c| eval(c, r)))
+            .flat_map_iter(|&r| eval_row(r, &cols, step))
             .collect();
         let nodes: Vec<[f32; 3]> = evaluated.iter().map(|e| e.0).collect();
         let valid: Vec<bool> = evaluated.iter().map(|e| e.1).collect();
@@ -558,7 +768,7 @@ impl<'a> SkyGrid<'a> {
                 let (sw, sh) = (sc.len(), sr.len());
                 let ev: Vec<([f32; 3], bool)> = sr
                     .iter()
-                    .flat_map(|&r| sc.iter().map(move |&c| eval_sub(c, r)))
+                    .flat_map(|&r| eval_row(r, &sc, sub_step))
                     .collect();
                 let sn: Vec<[f32; 3]> = ev.iter().map(|e| e.0).collect();
                 let sv: Vec<bool> = ev.iter().map(|e| e.1).collect();
@@ -811,16 +1021,10 @@ impl StokesRows for SkyGrid<'_> {
     fn fill_row(&self, r: usize, s0: &mut [f32], s1: &mut [f32], s2: &mut [f32]) {
         let (w, gw) = (self.width, self.cols.len());
         let step = self.step;
-        let exact_pixel = |c: usize, s0: &mut [f32], s1: &mut [f32], s2: &mut [f32]| {
-            let [a, b, d] = pixel_sky(self.sky, self.cam, c as f64, r as f64).stokes();
-            s0[c] = a as f32;
-            s1[c] = b as f32;
-            s2[c] = d as f32;
-        };
+        // columns evaluated exactly, gathered so that the row evaluator gets whole chunks
+        let mut exact: Vec<usize> = Vec::new();
         if gw < 2 || self.rows.len() < 2 {
-            for c in 0..w {
-                exact_pixel(c, s0, s1, s2);
-            }
+            exact.extend(0..w);
         } else {
             let j = Self::interval(&self.rows, step, r);
             let (r0, r1) = (self.rows[j], self.rows[j + 1]);
@@ -865,9 +1069,7 @@ impl StokesRows for SkyGrid<'_> {
                     let (a0, a1) = (sg.cols[ii], sg.cols[ii + 1]);
                     let a_end = if ii + 2 == sw { c_end } else { a1 };
                     if sg.exact[jj * (sw - 1) + ii] {
-                        for c in a0..a_end {
-                            exact_pixel(c, s0, s1, s2);
-                        }
+                        exact.extend(a0..a_end);
                     } else {
                         let n = |x: usize, y: usize| sg.nodes[y * sw + x];
                         let left = lerp3(n(ii, jj), n(ii, jj + 1), fy);
@@ -877,6 +1079,13 @@ impl StokesRows for SkyGrid<'_> {
                 }
             }
         }
+        stokes_at(
+            self.sky,
+            self.cam,
+            r,
+            &exact,
+            [&mut *s0, &mut *s1, &mut *s2],
+        );
         // the solar disc, exactly as render_stokes adds it
         let lo = self.disc.partition_point(|&(k, _)| k < r * w);
         for &(k, add) in self.disc[lo..]
@@ -981,6 +1190,162 @@ mod tests {
     }
     use crate::camera::{Attitude, Intrinsics};
     use crate::sky::{SkyParams, SunPosition};
+
+    /// The row evaluator (pixel_sky_row, pixel_sky_cols) gives pixel_sky's bits in every
+    /// instruction set the CPU has: skies from the zenith sun to 89°, turbidity 1.7 to 8, both
+    /// DOP forms and normalisations, the Rayleigh model, one and two Hosek–Wilkie channels, a
+    /// ground radiance; the ideal and pinhole lenses and a fisheye; looking at the sun, at the
+    /// horizon (ground in view) and at the zenith; widths that leave partial chunks. Also the
+    /// ideal render's AOP from a row of atan2 (`two_aop_row`).
+    #[test]
+    fn pixel_sky_row_is_pixel_sky_bit_for_bit() {
+        use crate::camera::{Lens, Projection};
+        use crate::sky::dop::DOP_KNEE;
+        use crate::sky::{DopModel, DopNorm, PolarizationModel};
+        let d = SkyParams::default();
+        let skies = [
+            (
+                0.0,
+                0.0,
+                SkyParams {
+                    turbidity: 2.0,
+                    ..d.clone()
+                },
+            ),
+            (40.0, 100.0, d.clone()),
+            (
+                89.0,
+                250.0,
+                SkyParams {
+                    turbidity: 8.0,
+                    ground_radiance: Some(0.05),
+                    ..d.clone()
+                },
+            ),
+            (
+                60.0,
+                30.0,
+                SkyParams {
+                    model: PolarizationModel::Rayleigh,
+                    dop_max: 0.8,
+                    ..d.clone()
+                },
+            ),
+            (
+                75.0,
+                300.0,
+                SkyParams {
+                    dop_model: DopModel::WangPaper,
+                    dop_norm: DopNorm::Wilkie,
+                    turbidity: 6.0,
+                    ..d.clone()
+                },
+            ),
+            // Rayleigh limit of the Berry field, clear air: DOP above the soft ceiling's knee;
+            // 600 nm is a Hosek–Wilkie channel (one channel, not two)
+            (
+                30.0,
+                200.0,
+                SkyParams {
+                    turbidity: 1.7,
+                    babinet_deg: 0.0,
+                    brewster_deg: 0.0,
+                    wavelength_nm: 600.0,
+                    albedo: 0.5,
+                    ..d.clone()
+                },
+            ),
+            (
+                85.0,
+                10.0,
+                SkyParams {
+                    dop_model: DopModel::WangPaper,
+                    turbidity: 1.2,
+                    ..d.clone()
+                },
+            ),
+        ];
+        let rect = Intrinsics {
+            pixel_pitch_um: 3.45 * 30.0,
+            ..Intrinsics::with_size(151, 37)
+        };
+        let cams = [
+            Intrinsics {
+                lens: Some(Lens::Ideal),
+                ..rect
+            },
+            Intrinsics {
+                lens: Some(Lens::Pinhole),
+                ..rect
+            },
+            Intrinsics {
+                projection: Projection::Equidistant,
+                focal_length_mm: 1.8,
+                pixel_pitch_um: 3.45 * 20.0,
+                lens: Some(Lens::Ideal),
+                ..Intrinsics::with_size(130, 41)
+            },
+        ];
+        let bits = |p: &PixelSky| [p.li, p.dop, p.cos2, p.sin2].map(f64::to_bits);
+        let (mut above_knee, mut ground, mut dark) = (0, 0, 0);
+        for (zen, az, params) in &skies {
+            let sun = SunPosition::new(*zen, *az);
+            let sky = Sky::new(sun, params).unwrap();
+            for intr in cams {
+                for att in [
+                    Attitude::solar(0.0, -zen, 0.0),
+                    Attitude::solar(90.0, -88.0, 10.0),
+                    Attitude::solar(0.0, 0.0, 0.0),
+                ] {
+                    let cam = Camera::new(intr, &att, *az).unwrap();
+                    let (w, h) = (intr.width, intr.height);
+                    let cols: Vec<usize> = (0..w).step_by(7).chain([w - 1]).collect();
+                    for level in crate::simd::Simd::available() {
+                        crate::simd::with_simd(level, || {
+                            let mut row = vec![PixelSky::default(); w];
+                            let mut sel = vec![PixelSky::default(); cols.len()];
+                            for r in 0..h {
+                                pixel_sky_row(&sky, &cam, r, 0, &mut row);
+                                pixel_sky_cols(&sky, &cam, r, &cols, &mut sel);
+                                for (c, got) in row.iter().enumerate() {
+                                    let want = pixel_sky(&sky, &cam, c as f64, r as f64);
+                                    assert!(
+                                        bits(got) == bits(&want) && got.valid == want.valid,
+                                        "{level:?} sun {zen},{az} {intr:?} {att:?} px {c},{r}: \
+                                         {got:?} vs {want:?}"
+                                    );
+                                    above_knee += (want.dop > DOP_KNEE) as usize;
+                                    ground += (!want.valid && want.li > 0.0) as usize;
+                                    dark += (!want.valid && want.li == 0.0) as usize;
+                                }
+                                for (k, &c) in cols.iter().enumerate() {
+                                    assert_eq!(bits(&sel[k]), bits(&row[c]), "cols: {c},{r}");
+                                }
+                                // the ideal render's AOP: atan2 a row at a time
+                                let mut two_aop = vec![0.0; w];
+                                two_aop_row(&row, &mut two_aop);
+                                for (p, &a) in row.iter().zip(&two_aop) {
+                                    let (got, want) = (p.aop_deg_from(a), p.aop_deg());
+                                    assert_eq!(got.to_bits(), want.to_bits(), "AOP row {r}");
+                                }
+                            }
+                            // a part row starting mid-chunk
+                            let mut part = vec![PixelSky::default(); w - 70];
+                            pixel_sky_row(&sky, &cam, h / 2, 70, &mut part);
+                            for (k, p) in part.iter().enumerate() {
+                                let want = pixel_sky(&sky, &cam, (70 + k) as f64, (h / 2) as f64);
+                                assert_eq!(bits(p), bits(&want));
+                            }
+                        });
+                    }
+                }
+            }
+        }
+        assert!(
+            above_knee > 100 && ground > 1000 && dark > 1000,
+            "{above_knee} {ground} {dark}"
+        );
+    }
 
     /// A 64 × 64 window of camera `big` (attitude `att`, sun azimuth 200°) centred on the sun.
     fn window_on_sun(big: Intrinsics, att: &Attitude, sun: SunPosition) -> Intrinsics {

@@ -23,6 +23,7 @@
 //! (Re ζ, Im ζ) = (north, east) components, so ζ = (v_y + i v_x)/(1 + v_z) — no trigonometry on
 //! the per-pixel path.
 
+use super::{Lane, LANES};
 use glam::DVec3;
 use num_complex::Complex64;
 
@@ -41,7 +42,7 @@ pub fn chart(v: DVec3) -> Complex64 {
 ///
 /// A chart angle χ (from north toward east) becomes the 3-D direction cos χ N + sin χ E, which
 /// equals cos(χ−A) e_θ + sin(χ−A) e_A away from the zenith.
-#[inline]
+#[inline(always)]
 pub fn chart_basis(v: DVec3) -> (DVec3, DVec3) {
     let k = 1.0 / (1.0 + v.z);
     let xy = v.x * v.y * k;
@@ -161,33 +162,77 @@ impl BerryField {
     #[inline]
     pub fn e_only(&self, v: DVec3) -> DVec3 {
         let (k, p) = self.chart_p(v);
-        self.e_vector(v, k, p, (p.re * p.re + p.im * p.im).sqrt())
+        self.finish(v, k, p, (p.re * p.re + p.im * p.im).sqrt()).e
     }
 
     /// |w| and the unit 3-D E-vector for a unit ENU view vector `v` with v.z > −1 (any point of
     /// the sphere but the nadir). No trigonometric calls: two square roots and a few complex
     /// products.
-    #[inline]
+    #[inline(always)]
     pub fn eval(&self, v: DVec3) -> BerryEval {
         let (k, p) = self.chart_p(v);
-        let r = p.norm();
+        self.finish(v, k, p, crate::vmath::hypot(p.re, p.im))
+    }
+
+    /// [`Self::eval`] of lanes 0..n (n ≤ [`LANES`]) of the row evaluator, unit ENU vectors
+    /// `v` (x, y, z), the same bits: |w| into `abs_w`, the E-vector into `e` (x, y, z); `work`
+    /// is scratch (4 lanes).
+    #[inline(always)]
+    pub fn eval_lanes(
+        &self,
+        n: usize,
+        v: &[Lane; 3],
+        abs_w: &mut Lane,
+        e: &mut [Lane; 3],
+        work: &mut [Lane],
+    ) {
+        assert!(n <= LANES);
+        let [k, re, im, r, ..] = work else {
+            panic!("eval_lanes needs 4 work lanes")
+        };
+        for j in 0..n {
+            let (kj, p) = self.chart_p(DVec3::new(v[0][j], v[1][j], v[2][j]));
+            (k[j], re[j], im[j]) = (kj, p.re, p.im);
+        }
+        for j in 0..n {
+            r[j] = crate::vmath::hypot(re[j], im[j]);
+        }
+        for j in 0..n {
+            let vj = DVec3::new(v[0][j], v[1][j], v[2][j]);
+            let b = self.finish(vj, k[j], Complex64::new(re[j], im[j]), r[j]);
+            abs_w[j] = b.abs_w;
+            (e[0][j], e[1][j], e[2][j]) = (b.e.x, b.e.y, b.e.z);
+        }
+    }
+
+    /// |w| and the E-vector of direction χ = A_s + ½ arg p at `v`, from k and p of
+    /// [`Self::chart_p`] and r = |p|; at a neutral point (half-angle direction undefined) |w| = 0
+    /// and χ = 0, the chart's north. Branch-free but for selects.
+    #[inline(always)]
+    fn finish(&self, v: DVec3, k: f64, p: Complex64, r: f64) -> BerryEval {
         // (1 + |ζ|²)² = 4/(1 + v_z)², so |w| = |p| (1 + v_z)² / ((1+t₊²)(1+t₋²)).
         let opz = 1.0 + v.z;
-        if self.is_neutral(p, r) {
-            // neutral point: direction undefined, return χ = 0
-            return BerryEval {
-                abs_w: 0.0,
-                e: chart_basis(v).0,
-            };
-        }
-        BerryEval {
-            abs_w: r * opz * opz * self.inv_norm,
-            e: self.e_vector(v, k, p, r),
+        let (hx, hy) = half_angle(p, r);
+        let h2 = hx * hx + hy * hy;
+        let inv = 1.0 / h2.sqrt();
+        // Rotate back by A_s: e^{iχ} = e^{iA_s} (c + i s).
+        let q = self.sun_dir * Complex64::new(hx * inv, hy * inv);
+        // the chart basis (chart_basis) with k = 1/(1 + v_z)
+        let xy = v.x * v.y * k;
+        let n = DVec3::new(-xy, 1.0 - v.y * v.y * k, -v.y);
+        let east = DVec3::new(1.0 - v.x * v.x * k, -xy, -v.x);
+        if h2 <= 0.0 {
+            BerryEval { abs_w: 0.0, e: n }
+        } else {
+            BerryEval {
+                abs_w: r * opz * opz * self.inv_norm,
+                e: n * q.re + east * q.im,
+            }
         }
     }
 
     /// k = 1/(1 + v_z) and p, with w e^{−2iA_s} = e^{2iA_s} p × (positive), so χ = A_s + ½ arg p.
-    #[inline]
+    #[inline(always)]
     fn chart_p(&self, v: DVec3) -> (f64, Complex64) {
         let k = 1.0 / (1.0 + v.z);
         // ζ' = ζ e^{−iA_s}: chart rotated so the sun's azimuth is the real axis.
@@ -200,36 +245,11 @@ impl BerryField {
         let f4 = Complex64::new(1.0 + tm * zr.re, tm * zr.im);
         (k, -((f1 * f2) * (f3 * f4)))
     }
-
-    /// Whether the half-angle direction of p (|p| = r) is undefined (a neutral point).
-    #[inline]
-    fn is_neutral(&self, p: Complex64, r: f64) -> bool {
-        let (hx, hy) = half_angle(p, r);
-        hx * hx + hy * hy <= 0.0
-    }
-
-    /// The unit E-vector of direction χ = A_s + ½ arg p at `v` (k and p from
-    /// [`Self::chart_p`], r = |p|); the chart's first basis vector at a neutral point.
-    #[inline]
-    fn e_vector(&self, v: DVec3, k: f64, p: Complex64, r: f64) -> DVec3 {
-        let (hx, hy) = half_angle(p, r);
-        let h2 = hx * hx + hy * hy;
-        if h2 <= 0.0 {
-            return chart_basis(v).0;
-        }
-        let inv = 1.0 / h2.sqrt();
-        // Rotate back by A_s: e^{iχ} = e^{iA_s} (c + i s).
-        let q = self.sun_dir * Complex64::new(hx * inv, hy * inv);
-        let xy = v.x * v.y * k;
-        let n = DVec3::new(-xy, 1.0 - v.y * v.y * k, -v.y);
-        let east = DVec3::new(1.0 - v.x * v.x * k, -xy, -v.x);
-        n * q.re + east * q.im
-    }
 }
 
 /// Half-angle direction of p without trig: ∝ (r + Re p, Im p), or (Im p, r − Re p) when Re p < 0
 /// (the same direction, better conditioned); r = |p|.
-#[inline]
+#[inline(always)]
 fn half_angle(p: Complex64, r: f64) -> (f64, f64) {
     if p.re >= 0.0 {
         (r + p.re, p.im)

@@ -38,7 +38,9 @@
 
 pub use super::DopModel;
 use super::DopNorm;
+use super::{Lane, LANES};
 use crate::error::{check_range, Result};
+use crate::vmath;
 use std::f64::consts::{FRAC_PI_2, PI};
 
 /// First wavelength of [`CIE_DAYLIGHT`], nm.
@@ -153,11 +155,21 @@ pub fn preetham_zenith(t: f64, sun_zenith_rad: f64) -> [f64; 3] {
 }
 
 /// Perez distribution F(θ, γ) = (1 + A e^{B/cos θ})(1 + C e^{Dγ} + E cos²γ), cos θ floored at 0.01.
-#[inline]
+#[inline(always)]
 pub fn perez(c: &[f64; 5], cos_theta: f64, gamma: f64, cos_gamma: f64) -> f64 {
     let ct = cos_theta.max(0.01);
-    (1.0 + c[0] * (c[1] / ct).exp())
-        * (1.0 + c[2] * (c[3] * gamma).exp() + c[4] * cos_gamma * cos_gamma)
+    perez_exp(
+        c,
+        vmath::exp(c[1] / ct),
+        vmath::exp(c[3] * gamma),
+        cos_gamma,
+    )
+}
+
+/// [`perez`] given its two exponentials e^{B/cos θ} (`ea`, cos θ floored) and e^{Dγ} (`eb`).
+#[inline(always)]
+fn perez_exp(c: &[f64; 5], ea: f64, eb: f64, cos_gamma: f64) -> f64 {
+    (1.0 + c[0] * ea) * (1.0 + c[2] * eb + c[4] * cos_gamma * cos_gamma)
 }
 
 /// CIE daylight basis at `wavelength_nm` (linear interpolation, 320..780 nm): (S0, S1, S2).
@@ -217,15 +229,53 @@ impl Preetham {
     }
 
     /// Luminance Y and chromaticity x, y at view zenith cos θ and scattering angle γ.
-    #[inline]
+    #[inline(always)]
     pub fn yxy(&self, cos_theta: f64, gamma: f64, cos_gamma: f64) -> [f64; 3] {
         std::array::from_fn(|q| self.scale[q] * perez(&self.coef[q], cos_theta, gamma, cos_gamma))
     }
 
     /// S_D at view zenith cos θ and scattering angle γ (radians, with its cosine).
-    #[inline]
+    #[inline(always)]
     pub fn s_d(&self, cos_theta: f64, gamma: f64, cos_gamma: f64) -> f64 {
-        let [yl, x, y] = self.yxy(cos_theta, gamma, cos_gamma);
+        self.s_d_yxy(self.yxy(cos_theta, gamma, cos_gamma))
+    }
+
+    /// [`Self::s_d`] of lanes 0..n (n ≤ [`LANES`]): each exponential one loop over the lanes;
+    /// `work` is scratch (5 lanes).
+    #[inline(always)]
+    fn s_d_lanes(
+        &self,
+        n: usize,
+        cos_theta: &Lane,
+        gamma: &Lane,
+        cos_gamma: &Lane,
+        out: &mut Lane,
+        work: &mut [Lane],
+    ) {
+        assert!(n <= LANES);
+        let [y0, y1, y2, ea, eb, ..] = work else {
+            panic!("s_d_lanes needs 5 work lanes")
+        };
+        for (q, yq) in [&mut *y0, &mut *y1, &mut *y2].into_iter().enumerate() {
+            let c = &self.coef[q];
+            for j in 0..n {
+                ea[j] = vmath::exp(c[1] / cos_theta[j].max(0.01));
+            }
+            for j in 0..n {
+                eb[j] = vmath::exp(c[3] * gamma[j]);
+            }
+            for j in 0..n {
+                yq[j] = self.scale[q] * perez_exp(c, ea[j], eb[j], cos_gamma[j]);
+            }
+        }
+        for j in 0..n {
+            out[j] = self.s_d_yxy([y0[j], y1[j], y2[j]]);
+        }
+    }
+
+    /// S_D from luminance Y and chromaticity x, y ([`Self::yxy`]).
+    #[inline(always)]
+    fn s_d_yxy(&self, [yl, x, y]: [f64; 3]) -> f64 {
         // M₁ = a₁/m, M₂ = a₂/m; multiplying numerator and denominator by m saves two divisions.
         let m = 0.0241 + 0.2562 * x - 0.7341 * y;
         let a1 = -1.3515 - 1.7703 * x + 5.9114 * y;
@@ -387,40 +437,110 @@ impl WangDop {
 
     /// Brightness weight S at view zenith cos θ and scattering angle γ (with its cosine):
     /// (1/S_D − 1/S_ref)·coef, floored at 0 for the bounded model.
-    #[inline]
+    #[inline(always)]
     pub fn s_weight(&self, cos_theta: f64, gamma: f64, cos_gamma: f64) -> f64 {
         let sd = self.preetham.s_d(cos_theta, gamma, cos_gamma);
         match self.model {
-            DopModel::WangPaper => (1.0 / sd - self.inv_s_ref) * self.s_coef,
-            DopModel::WangBounded => {
-                // f64::max ignores a NaN S_D
-                let sd = sd.max(S_D_FLOOR * self.s_ref);
-                soft_cap(
-                    ((1.0 / sd - self.inv_s_ref) * self.s_coef).max(0.0),
-                    S_KNEE,
-                    S_CEILING,
-                )
-            }
+            DopModel::WangPaper => self.s_paper(sd),
+            DopModel::WangBounded => soft_cap(self.s_bounded_uncapped(sd), S_KNEE, S_CEILING),
         }
     }
 
+    /// The paper's S from S_D.
+    #[inline(always)]
+    fn s_paper(&self, sd: f64) -> f64 {
+        (1.0 / sd - self.inv_s_ref) * self.s_coef
+    }
+
+    /// The bounded model's S from S_D, before [`soft_cap`].
+    #[inline(always)]
+    fn s_bounded_uncapped(&self, sd: f64) -> f64 {
+        // f64::max ignores a NaN S_D
+        let sd = sd.max(S_D_FLOOR * self.s_ref);
+        ((1.0 / sd - self.inv_s_ref) * self.s_coef).max(0.0)
+    }
+
     /// Unnormalised, unclamped DOP |w|·[θE + (π/2 − θ)S]·M_DOP (θ in radians).
-    #[inline]
+    #[inline(always)]
     pub fn seed(&self, abs_w: f64, theta: f64, cos_theta: f64, gamma: f64, cos_gamma: f64) -> f64 {
-        let e = cos_theta.max(0.0).powf(self.albedo);
+        let e = vmath::powf(cos_theta.max(0.0), self.albedo);
         let s = self.s_weight(cos_theta, gamma, cos_gamma);
+        self.seed_es(abs_w, theta, e, s)
+    }
+
+    /// [`Self::seed`] from E = cos(θ)^ρ and S.
+    #[inline(always)]
+    fn seed_es(&self, abs_w: f64, theta: f64, e: f64, s: f64) -> f64 {
         abs_w * (theta * e + (FRAC_PI_2 - theta) * s) * self.m
     }
 
     /// The DOP: seed × (1 or 2/π), then clamped to [0, 1] (paper; a non-finite seed, possible
     /// where Preetham's luminance crosses zero for T < 1.645, gives 0 or 1, never NaN) or
     /// passed through [`soft_ceiling`] (bounded).
-    #[inline]
+    #[inline(always)]
     pub fn dop(&self, abs_w: f64, theta: f64, cos_theta: f64, gamma: f64, cos_gamma: f64) -> f64 {
         let x = self.seed(abs_w, theta, cos_theta, gamma, cos_gamma) * self.norm;
         match self.model {
             DopModel::WangPaper => clamp01(x),
             DopModel::WangBounded => soft_ceiling(x),
+        }
+    }
+
+    /// [`Self::dop`] of lanes 0..n (n ≤ [`LANES`]) of the row evaluator, the same bits: each
+    /// transcendental one loop over the lanes, the model chosen outside the loops, and the soft
+    /// caps' tanh (rare: above the knees) in a scalar pass over the lanes that need it. `work`
+    /// is scratch (7 lanes).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    pub fn dop_lanes(
+        &self,
+        n: usize,
+        abs_w: &Lane,
+        theta: &Lane,
+        cos_theta: &Lane,
+        gamma: &Lane,
+        cos_gamma: &Lane,
+        out: &mut Lane,
+        work: &mut [Lane],
+    ) {
+        assert!(n <= LANES);
+        let [s, e, rest @ ..] = work else {
+            panic!("dop_lanes needs 7 work lanes")
+        };
+        self.preetham
+            .s_d_lanes(n, cos_theta, gamma, cos_gamma, s, rest);
+        match self.model {
+            DopModel::WangPaper => {
+                for v in &mut s[..n] {
+                    *v = self.s_paper(*v);
+                }
+            }
+            DopModel::WangBounded => {
+                for v in &mut s[..n] {
+                    *v = self.s_bounded_uncapped(*v);
+                }
+                cap_lanes(&mut s[..n], S_KNEE, S_CEILING);
+            }
+        }
+        for j in 0..n {
+            e[j] = vmath::powf(cos_theta[j].max(0.0), self.albedo);
+        }
+        for j in 0..n {
+            out[j] = self.seed_es(abs_w[j], theta[j], e[j], s[j]) * self.norm;
+        }
+        match self.model {
+            DopModel::WangPaper => {
+                for v in &mut out[..n] {
+                    *v = clamp01(*v);
+                }
+            }
+            DopModel::WangBounded => {
+                // soft_ceiling: 0 for x ≤ 0 and NaN, then soft_cap
+                for v in &mut out[..n] {
+                    *v = if *v > 0.0 { *v } else { 0.0 };
+                }
+                cap_lanes(&mut out[..n], DOP_KNEE, DOP_CEILING);
+            }
         }
     }
 }
@@ -440,6 +560,16 @@ pub fn check_turbidity(turbidity: f64, model: DopModel) -> Result<f64> {
                      1..10 with --dop-model wang-paper",
                 ))
             }
+        }
+    }
+}
+
+/// [`soft_cap`] of every lane, the tanh only where x > knee.
+#[inline(always)]
+fn cap_lanes(x: &mut [f64], knee: f64, c: f64) {
+    for v in x {
+        if *v > knee {
+            *v = soft_cap(*v, knee, c);
         }
     }
 }
@@ -469,7 +599,7 @@ pub fn soft_ceiling(x: f64) -> f64 {
 }
 
 /// Clamp to [0, 1] with NaN → 0.
-#[inline]
+#[inline(always)]
 pub fn clamp01(x: f64) -> f64 {
     if x > 1.0 {
         1.0

@@ -52,7 +52,9 @@
 //! in `data/hosek-wilkie/LICENSE` and available at run time as [`LICENSE`]. Anything that
 //! redistributes this crate must ship that notice.
 
+use super::{Lane, LANES};
 use crate::error::{check_range, Result};
+use crate::vmath;
 use std::f64::consts::FRAC_PI_2;
 
 /// Angular radius of the solar disc used by the model, radians (0.255°).
@@ -163,14 +165,43 @@ impl Channel {
     /// Weighted radiance from the shared per-direction inputs.
     #[inline(always)]
     fn eval(&self, inv_ct: f64, sqrt_ct: f64, gamma: f64, cg: f64, cg2: f64) -> f64 {
+        let (ea, eb) = (vmath::exp(self.b * inv_ct), vmath::exp(self.e * gamma));
+        self.eval_exp(sqrt_ct, cg, cg2, ea, eb)
+    }
+
+    /// [`Self::eval`] given its two exponentials e^{B/(cos θ + 0.01)} (`ea`) and e^{Eγ} (`eb`).
+    #[inline(always)]
+    fn eval_exp(&self, sqrt_ct: f64, cg: f64, cg2: f64, ea: f64, eb: f64) -> f64 {
         let q = self.h1 - self.h2 * cg;
         let mie = (1.0 + cg2) / (q * q.sqrt());
-        (1.0 + self.a * (self.b * inv_ct).exp())
-            * (self.c
-                + self.d * (self.e * gamma).exp()
-                + self.f * cg2
-                + self.g * mie
-                + self.i * sqrt_ct)
+        (1.0 + self.a * ea)
+            * (self.c + self.d * eb + self.f * cg2 + self.g * mie + self.i * sqrt_ct)
+    }
+
+    /// Adds (`add`) or writes this channel's [`Self::eval`] for `n` lanes of
+    /// [`HosekWilkie::radiance_lanes`]: each exponential one loop over the lanes.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn eval_lanes(
+        &self,
+        n: usize,
+        ct: &Lane,
+        gamma: &Lane,
+        cg: &Lane,
+        out: &mut Lane,
+        add: bool,
+        [ea, eb]: [&mut Lane; 2],
+    ) {
+        for j in 0..n {
+            ea[j] = vmath::exp(self.b * (1.0 / (ct[j] + 0.01)));
+        }
+        for j in 0..n {
+            eb[j] = vmath::exp(self.e * gamma[j]);
+        }
+        for j in 0..n {
+            let l = self.eval_exp(ct[j].sqrt(), cg[j], cg[j] * cg[j], ea[j], eb[j]);
+            out[j] = if add { out[j] + l } else { l };
+        }
     }
 }
 
@@ -327,6 +358,29 @@ impl HosekWilkie {
             l + self.chan[1].eval(inv_ct, sqrt_ct, gamma_rad, cos_gamma, cg2)
         } else {
             l
+        }
+    }
+
+    /// [`radiance_cos`](Self::radiance_cos) of lanes 0..n (n ≤ [`LANES`]) of the row evaluator
+    /// (`render::pixel_sky_row`), the same bits; `work` is scratch (2 lanes).
+    #[inline(always)]
+    pub fn radiance_lanes(
+        &self,
+        n: usize,
+        cos_theta: &Lane,
+        gamma: &Lane,
+        cos_gamma: &Lane,
+        out: &mut Lane,
+        work: &mut [Lane],
+    ) {
+        assert!(n <= LANES);
+        let [ea, eb, ..] = work else {
+            panic!("radiance_lanes needs 2 work lanes")
+        };
+        let (ct, g, cg) = (cos_theta, gamma, cos_gamma);
+        self.chan[0].eval_lanes(n, ct, g, cg, out, false, [&mut *ea, &mut *eb]);
+        if self.two {
+            self.chan[1].eval_lanes(n, ct, g, cg, out, true, [ea, eb]);
         }
     }
 

@@ -14,7 +14,10 @@
 //! [`Sky::sample`] is the per-pixel path: no allocation, three inverse trigonometric/square-root
 //! calls shared between radiance and polarization, and ground (v.z ≤ 0) short-circuited to
 //! [`SkySample::GROUND`] — Hosek–Wilkie and Preetham are never evaluated below the horizon
-//! (`sky.md` §8). [`PolarizationField`] is the same without radiance.
+//! (`sky.md` §8). [`PolarizationField`] is the same without radiance. [`Sky::sample_lanes`]
+//! computes the same bits for a chunk of [`LANES`] directions at once, in structure-of-arrays
+//! form (`render::pixel_sky_cols`, the row evaluator); both paths take their elementary
+//! functions from [`crate::vmath`] and share the per-direction arithmetic.
 //!
 //! References: Hošek & Wilkie, ACM TOG 31(4):95 (2012) and IEEE CG&A 33(3):44 (2013);
 //! Berry, Dennis & Lee, New J. Phys. 6:162 (2004); Wang, Gao, Fan & Roberts, J. Opt.
@@ -30,6 +33,7 @@ pub mod stability;
 
 use crate::error::{check_range, Result};
 pub use crate::sun::SunPosition;
+use crate::vmath;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
@@ -226,29 +230,18 @@ impl PolarizationField {
     }
 
     /// cos θ, cos γ and the sample; requires v.z > 0.
-    #[inline]
+    #[inline(always)]
     fn eval(&self, v: DVec3) -> (f64, f64, SkySample) {
-        let cos_t = v.z.min(1.0);
-        let theta = cos_t.acos();
-        let cross = self.sun_vec.cross(v);
-        let sin_g2 = cross.length_squared();
-        let cos_g = self.sun_vec.dot(v);
-        let gamma = sin_g2.sqrt().atan2(cos_g);
+        let (cos_t, cross, sin_g2, cos_g) = self.geometry(v);
+        let theta = vmath::acos(cos_t);
+        let gamma = vmath::atan2(sin_g2.sqrt(), cos_g);
         let (dop, e) = match self.model {
             PolarizationModel::Wang => {
                 let b = self.berry.eval(v);
                 let d = self.wang.dop(b.abs_w, theta, cos_t, gamma, cos_g);
                 (d, b.e)
             }
-            PolarizationModel::Rayleigh => {
-                if sin_g2 > 0.0 {
-                    let c2 = cos_g * cos_g;
-                    let d = self.dop_max * sin_g2 / (sin_g2 + 2.0 * c2);
-                    (dop::clamp01(d), cross / sin_g2.sqrt())
-                } else {
-                    (0.0, berry::chart_basis(v).0)
-                }
-            }
+            PolarizationModel::Rayleigh => self.rayleigh(v, cross, sin_g2, cos_g),
         };
         (
             cos_t,
@@ -261,6 +254,74 @@ impl PolarizationField {
                 e,
             },
         )
+    }
+
+    /// cos θ (at most 1), s × v, |s × v|² = sin²γ and cos γ of a unit view vector `v`.
+    #[inline(always)]
+    fn geometry(&self, v: DVec3) -> (f64, DVec3, f64, f64) {
+        let cross = self.sun_vec.cross(v);
+        (
+            v.z.min(1.0),
+            cross,
+            cross.length_squared(),
+            self.sun_vec.dot(v),
+        )
+    }
+
+    /// The Rayleigh model's DOP and E-vector ∝ s × v; at the sun and the anti-sun (s ∥ v) DOP 0
+    /// and the chart's north. Branch-free but for selects.
+    #[inline(always)]
+    fn rayleigh(&self, v: DVec3, cross: DVec3, sin_g2: f64, cos_g: f64) -> (f64, DVec3) {
+        let c2 = cos_g * cos_g;
+        let d = self.dop_max * sin_g2 / (sin_g2 + 2.0 * c2);
+        let e = cross / sin_g2.sqrt();
+        let north = berry::chart_basis(v).0;
+        if sin_g2 > 0.0 {
+            (dop::clamp01(d), e)
+        } else {
+            (0.0, north)
+        }
+    }
+}
+
+/// Number of lanes of the chunk evaluators ([`Sky::sample_lanes`], `render::pixel_sky_row`).
+pub const LANES: usize = 64;
+
+/// One f64 per lane.
+pub type Lane = [f64; LANES];
+
+/// Scratch lanes of [`Sky::sample_lanes`]: 9 of its own, 7 for the DOP.
+const WORK: usize = 16;
+
+/// Up to [`LANES`] directions and their sky, structure of arrays: the chunk that
+/// [`Sky::sample_lanes`] evaluates. One `SkyLanes` serves chunk after chunk (its arrays are
+/// zeroed once, when made).
+#[derive(Clone, Debug)]
+pub struct SkyLanes {
+    /// Lanes in use, at most [`LANES`].
+    pub n: usize,
+    /// Unit ENU view vectors (x, y, z), above the horizon (v.z > 0).
+    pub v: [Lane; 3],
+    /// Radiance, as [`SkySample::radiance`].
+    pub radiance: Lane,
+    /// DOP, as [`SkySample::dop`].
+    pub dop: Lane,
+    /// E-vector (x, y, z), as [`SkySample::e`].
+    pub e: [Lane; 3],
+    /// Intermediate values.
+    work: [Lane; WORK],
+}
+
+impl Default for SkyLanes {
+    fn default() -> Self {
+        SkyLanes {
+            n: 0,
+            v: [[0.0; LANES]; 3],
+            radiance: [0.0; LANES],
+            dop: [0.0; LANES],
+            e: [[0.0; LANES]; 3],
+            work: [[0.0; LANES]; WORK],
+        }
     }
 }
 
@@ -326,6 +387,56 @@ impl Sky {
         // θ_s = 84°, A − A_s = 100°, 450 nm, T = 4; docs/sky.md); radiance cannot be negative.
         s.radiance = self.hw.radiance_cos(cos_t, s.gamma_rad, cos_g).max(0.0);
         s
+    }
+
+    /// [`Sky::sample`]'s radiance, DOP and E-vector for lanes 0..`l.n` of `l`, the same bits;
+    /// every `l.v` above the horizon. Geometry and each transcendental run as one loop over the
+    /// lanes, the model is chosen outside the loops, so with vectorised [`vmath`] the loops
+    /// vectorise (the caller builds this for the CPU's instruction set, `render::pixel_sky_row`).
+    #[inline(always)]
+    pub fn sample_lanes(&self, l: &mut SkyLanes) {
+        let SkyLanes {
+            n,
+            v,
+            radiance,
+            dop,
+            e,
+            work,
+        } = l;
+        let n = *n;
+        assert!(n <= LANES);
+        let [ct, sg2, cg, gamma, theta, abs_w, cx, cy, cz, rest @ ..] = work;
+        let p = &self.pol;
+        for j in 0..n {
+            let (c, x, s, g) = p.geometry(DVec3::new(v[0][j], v[1][j], v[2][j]));
+            (ct[j], sg2[j], cg[j]) = (c, s, g);
+            (cx[j], cy[j], cz[j]) = (x.x, x.y, x.z);
+        }
+        for j in 0..n {
+            gamma[j] = vmath::atan2(sg2[j].sqrt(), cg[j]);
+        }
+        match p.model {
+            PolarizationModel::Wang => {
+                for j in 0..n {
+                    theta[j] = vmath::acos(ct[j]);
+                }
+                p.berry.eval_lanes(n, v, abs_w, e, rest);
+                p.wang.dop_lanes(n, abs_w, theta, ct, gamma, cg, dop, rest);
+            }
+            PolarizationModel::Rayleigh => {
+                for j in 0..n {
+                    let vj = DVec3::new(v[0][j], v[1][j], v[2][j]);
+                    let x = DVec3::new(cx[j], cy[j], cz[j]);
+                    let (d, ej) = p.rayleigh(vj, x, sg2[j], cg[j]);
+                    dop[j] = d;
+                    (e[0][j], e[1][j], e[2][j]) = (ej.x, ej.y, ej.z);
+                }
+            }
+        }
+        self.hw.radiance_lanes(n, ct, gamma, cg, radiance, rest);
+        for r in &mut radiance[..n] {
+            *r = r.max(0.0);
+        }
     }
 }
 
