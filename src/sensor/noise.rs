@@ -59,47 +59,84 @@ const POISSON_PTRS_ABOVE: f64 = 12.0;
 /// (W. Hörmann, "The transformed rejection method for generating Poisson random variables",
 /// Insurance: Mathematics and Economics 12, 1993; the algorithm NumPy uses), and N(μ, μ) only
 /// above 1e15 e⁻. Non-positive or non-finite means give 0.
-#[inline]
+#[inline(always)]
 pub fn poisson<R: Rng + ?Sized>(rng: &mut R, mean: f64) -> f64 {
     if !mean.is_finite() || mean <= 0.0 {
         return 0.0;
     }
     if mean < POISSON_PTRS_ABOVE {
-        match Poisson::new(mean) {
-            Ok(p) => p.sample(rng),
-            Err(_) => 0.0,
-        }
+        poisson_knuth(rng, mean)
     } else if mean < POISSON_NORMAL_ABOVE {
         poisson_ptrs(rng, mean)
     } else {
-        let z: f64 = rng.sample(StandardNormal);
-        (mean + mean.sqrt() * z).max(0.0)
+        poisson_huge(rng, mean)
     }
 }
 
-/// PTRS for λ ≥ 10 (Hörmann 1993, algorithm PTRS); the squeeze accepts ~89 % of draws without
-/// a logarithm.
+// Kept out of line: the PTRS loop of a row of sky pixels stays small.
+#[inline(never)]
+fn poisson_knuth<R: Rng + ?Sized>(rng: &mut R, mean: f64) -> f64 {
+    match Poisson::new(mean) {
+        Ok(p) => p.sample(rng),
+        Err(_) => 0.0,
+    }
+}
+
+#[cold]
+#[inline(never)]
+fn poisson_huge<R: Rng + ?Sized>(rng: &mut R, mean: f64) -> f64 {
+    let z: f64 = rng.sample(StandardNormal);
+    (mean + mean.sqrt() * z).max(0.0)
+}
+
+/// PTRS for λ ≥ 10 (Hörmann 1993, algorithm PTRS): the first candidate and the squeeze, which
+/// accepts ~89 % of draws without a logarithm, inline; everything else in [`ptrs_rest`].
+#[inline(always)]
 fn poisson_ptrs<R: Rng + ?Sized>(rng: &mut R, lam: f64) -> f64 {
     let slam = lam.sqrt();
     let b = 0.931 + 2.53 * slam;
     let a = -0.059 + 0.02483 * b;
     let vr = 0.9277 - 3.6224 / (b - 2.0);
-    let mut slow: Option<(f64, f64)> = None; // (ln λ, ln(1/α)), computed on first need
+    let u = rng.random::<f64>() - 0.5;
+    let v = rng.random::<f64>();
+    let us = 0.5 - u.abs();
+    let k = ((2.0 * a / us + b) * u + lam + 0.43).floor();
+    if us >= 0.07 && v <= vr {
+        return k;
+    }
+    ptrs_rest(rng, lam, a, b, vr, v, us, k)
+}
+
+/// The rest of PTRS from a rejected first squeeze (same draws and operations as one loop). Out
+/// of line and cold: where the logarithms were computed lazily inside the loop, the compiler
+/// hoisted ln λ and ln(1/α) into every draw (two libm calls per pixel).
+#[cold]
+#[inline(never)]
+#[allow(clippy::too_many_arguments)]
+fn ptrs_rest<R: Rng + ?Sized>(
+    rng: &mut R,
+    lam: f64,
+    a: f64,
+    b: f64,
+    vr: f64,
+    mut v: f64,
+    mut us: f64,
+    mut k: f64,
+) -> f64 {
+    let loglam = lam.ln();
+    let log_inv_alpha = (1.1239 + 1.1328 / (b - 3.4)).ln();
     loop {
-        let u = rng.random::<f64>() - 0.5;
-        let v = rng.random::<f64>();
-        let us = 0.5 - u.abs();
-        let k = ((2.0 * a / us + b) * u + lam + 0.43).floor();
-        if us >= 0.07 && v <= vr {
+        if !(k < 0.0 || (us < 0.013 && v > us))
+            && v.ln() + log_inv_alpha - (a / (us * us) + b).ln()
+                <= -lam + k * loglam - ln_factorial(k)
+        {
             return k;
         }
-        if k < 0.0 || (us < 0.013 && v > us) {
-            continue;
-        }
-        let (loglam, log_inv_alpha) =
-            *slow.get_or_insert_with(|| (lam.ln(), (1.1239 + 1.1328 / (b - 3.4)).ln()));
-        if v.ln() + log_inv_alpha - (a / (us * us) + b).ln() <= -lam + k * loglam - ln_factorial(k)
-        {
+        let u = rng.random::<f64>() - 0.5;
+        v = rng.random::<f64>();
+        us = 0.5 - u.abs();
+        k = ((2.0 * a / us + b) * u + lam + 0.43).floor();
+        if us >= 0.07 && v <= vr {
             return k;
         }
     }
