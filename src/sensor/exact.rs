@@ -1,4 +1,5 @@
-//! The exact path's row kernel ([`super::Sensor::frame`], `--exact`): per-row ChaCha8 streams,
+//! The exact path's row kernel ([`super::Sensor::frame`], `--exact`): per-row ChaCha8 streams
+//! ([`crate::rng::frame_stream`]),
 //! exact Poisson, f64 arithmetic (`docs/sensor.md` §6).
 //!
 //! A row runs in four passes over per-thread buffers, each doing per pixel exactly what the
@@ -9,7 +10,7 @@
 
 use super::{adc, noise, polarizer};
 use crate::simd::simd_dispatch;
-use rand_chacha::ChaCha8Rng;
+use crate::rng::Stream;
 
 /// Per-frame constants of the exact path.
 pub(crate) struct ExactConsts {
@@ -187,8 +188,8 @@ fn combine_any(
 fn row_body(
     fc: &ExactConsts,
     inp: &RowIn,
-    rs: &mut ChaCha8Rng,
-    rr: &mut ChaCha8Rng,
+    rs: &mut Stream,
+    rr: &mut Stream,
     mean: &mut [f64],
     z: &mut [f64],
     codes: &mut [u16],
@@ -229,8 +230,8 @@ simd_dispatch! {
     pub(crate) fn row_kernel = row_body(
         fc: &ExactConsts,
         inp: &RowIn,
-        rs: &mut ChaCha8Rng,
-        rr: &mut ChaCha8Rng,
+        rs: &mut Stream,
+        rr: &mut Stream,
         mean: &mut [f64],
         z: &mut [f64],
         codes: &mut [u16],

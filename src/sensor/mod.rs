@@ -960,8 +960,8 @@ impl Sensor {
                 nominal: [nominal_axis(layout, r, 0), nominal_axis(layout, r, 1)],
                 dsnu: self.dsnu.as_ref().map(|v| &v[span.clone()]),
             };
-            let mut rs = noise::frame_rng(seed, frame_index, noise::STAGE_SHOT, r as u64);
-            let mut rr = noise::frame_rng(seed, frame_index, noise::STAGE_READ, r as u64);
+            let mut rs = crate::rng::frame_stream(seed, frame_index, noise::STAGE_SHOT, r as u64);
+            let mut rr = crate::rng::frame_stream(seed, frame_index, noise::STAGE_READ, r as u64);
             let [even, odd] =
                 exact::row_kernel(&fc, &inp, &mut rs, &mut rr, &mut buf.0, &mut buf.1, row, an);
             let mut sat = [0u32; 4];
