@@ -183,20 +183,36 @@ fn combine_any(
     sat
 }
 
+/// A thread's row buffers: mean electrons (then electrons), read-noise draws, PTRS constants.
+pub(crate) struct RowBufs {
+    mean: Vec<f64>,
+    z: Vec<f64>,
+    ptrs: [Vec<f64>; 3],
+}
+
+impl RowBufs {
+    pub(crate) fn new(w: usize) -> Self {
+        let v = || vec![0f64; w];
+        RowBufs {
+            mean: v(),
+            z: v(),
+            ptrs: [v(), v(), v()],
+        }
+    }
+}
+
 #[inline(always)]
-#[allow(clippy::too_many_arguments)]
 fn row_body(
     fc: &ExactConsts,
     inp: &RowIn,
     rs: &mut Stream,
     rr: &mut Stream,
-    mean: &mut [f64],
-    z: &mut [f64],
+    bufs: &mut RowBufs,
     codes: &mut [u16],
     analog: Option<&mut [f32]>,
 ) -> [u32; 2] {
     let w = codes.len();
-    let (mean, z) = (&mut mean[..w], &mut z[..w]);
+    let (mean, z) = (&mut bufs.mean[..w], &mut bufs.z[..w]);
     match (inp.rate, inp.ri, inp.prnu, inp.axis) {
         (Some(rate), ..) => {
             for (m, &r) in mean.iter_mut().zip(&rate[..w]) {
@@ -207,8 +223,13 @@ fn row_body(
         _ => means_any(fc, inp, mean),
     }
     if fc.shot {
-        for m in mean.iter_mut() {
-            *m = noise::poisson(rs, *m);
+        let [pb, pa, pvr] = &mut bufs.ptrs;
+        let (pb, pa, pvr) = (&mut pb[..w], &mut pa[..w], &mut pvr[..w]);
+        for c in 0..w {
+            [pb[c], pa[c], pvr[c]] = noise::ptrs_consts(mean[c]);
+        }
+        for c in 0..w {
+            mean[c] = noise::poisson_with(rs, mean[c], [pb[c], pa[c], pvr[c]]);
         }
     }
     if fc.read_sigma.is_some() {
@@ -232,8 +253,7 @@ simd_dispatch! {
         inp: &RowIn,
         rs: &mut Stream,
         rr: &mut Stream,
-        mean: &mut [f64],
-        z: &mut [f64],
+        bufs: &mut RowBufs,
         codes: &mut [u16],
         analog: Option<&mut [f32]>,
     ) -> [u32; 2]

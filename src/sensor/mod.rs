@@ -944,7 +944,7 @@ impl Sensor {
         let row_sat = |r: usize,
                        row: &mut [u16],
                        an: Option<&mut [f32]>,
-                       buf: &mut (Vec<f64>, Vec<f64>)|
+                       buf: &mut exact::RowBufs|
          -> [u32; 4] {
             let span = r * w..(r + 1) * w;
             let inp = exact::RowIn {
@@ -963,14 +963,14 @@ impl Sensor {
             let mut rs = crate::rng::frame_stream(seed, frame_index, noise::STAGE_SHOT, r as u64);
             let mut rr = crate::rng::frame_stream(seed, frame_index, noise::STAGE_READ, r as u64);
             let [even, odd] =
-                exact::row_kernel(&fc, &inp, &mut rs, &mut rr, &mut buf.0, &mut buf.1, row, an);
+                exact::row_kernel(&fc, &inp, &mut rs, &mut rr, buf, row, an);
             let mut sat = [0u32; 4];
             sat[(r & 1) << 1] = even;
             sat[((r & 1) << 1) | 1] = odd;
             sat
         };
         // per-thread row buffers of the kernel's passes
-        let bufs = || (vec![0f64; w], vec![0f64; w]);
+        let bufs = || exact::RowBufs::new(w);
         let sat_rows: Vec<[u32; 4]> = match analog.as_mut() {
             None => codes
                 .par_chunks_mut(w)

@@ -61,10 +61,27 @@ const POISSON_PTRS_ABOVE: f64 = 12.0;
 /// above 1e15 e⁻. Non-positive or non-finite means give 0.
 #[inline(always)]
 pub fn poisson<R: Rng + ?Sized>(rng: &mut R, mean: f64) -> f64 {
+    poisson_with(rng, mean, ptrs_consts(mean))
+}
+
+/// PTRS's constants (b, a, v_r) of mean λ, as [`poisson_with`] takes them.
+#[inline(always)]
+pub(crate) fn ptrs_consts(lam: f64) -> [f64; 3] {
+    let slam = lam.sqrt();
+    let b = 0.931 + 2.53 * slam;
+    let a = -0.059 + 0.02483 * b;
+    let vr = 0.9277 - 3.6224 / (b - 2.0);
+    [b, a, vr]
+}
+
+/// [`poisson`] given [`ptrs_consts`]`(mean)` (a row loop computes them for every pixel first,
+/// vectorised: the square root and the division leave the loop of draws).
+#[inline(always)]
+pub(crate) fn poisson_with<R: Rng + ?Sized>(rng: &mut R, mean: f64, c: [f64; 3]) -> f64 {
     // the usual sky pixel first; comparisons rather than `is_finite`, which compiled to ~20
     // integer instructions (NaN fails every comparison)
     if mean >= POISSON_PTRS_ABOVE && mean < POISSON_NORMAL_ABOVE {
-        poisson_ptrs(rng, mean)
+        poisson_ptrs(rng, mean, c)
     } else if mean > 0.0 && mean < POISSON_PTRS_ABOVE {
         poisson_knuth(rng, mean)
     } else if mean >= POISSON_NORMAL_ABOVE && mean < f64::INFINITY {
@@ -99,11 +116,7 @@ fn uniform<R: Rng + ?Sized>(rng: &mut R) -> f64 {
 /// PTRS for λ ≥ 10 (Hörmann 1993, algorithm PTRS): the first candidate and the squeeze inline
 /// (it accepts ~77 % of the draws of a sky frame); everything else in [`ptrs_rest`].
 #[inline(always)]
-fn poisson_ptrs<R: Rng + ?Sized>(rng: &mut R, lam: f64) -> f64 {
-    let slam = lam.sqrt();
-    let b = 0.931 + 2.53 * slam;
-    let a = -0.059 + 0.02483 * b;
-    let vr = 0.9277 - 3.6224 / (b - 2.0);
+fn poisson_ptrs<R: Rng + ?Sized>(rng: &mut R, lam: f64, [b, a, vr]: [f64; 3]) -> f64 {
     let u = uniform(rng) - 0.5;
     let v = uniform(rng);
     let us = 0.5 - u.abs();
