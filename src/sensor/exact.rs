@@ -124,13 +124,22 @@ fn combine_common(fc: &ExactConsts, n: &[f64], d: &[f32], z: &[f64], sigma: f64,
     let (n, d, z) = (&n[..w], &d[..w], &z[..w]);
     let (fwc, kg, black, scale, max) = (fc.fwc, fc.kg, fc.black, fc.scale, fc.max);
     let mut sat = [0u32; 2];
-    for c in 0..w {
-        let n0 = n[c];
-        let well_full = n0 >= fwc;
-        let e = n0.min(fwc) + d[c] as f64 + sigma * z[c];
-        let code = adc::quantize((kg * e + black) * scale, max);
-        codes[c] = code;
-        sat[c & 1] += (code == max || well_full) as u32;
+    // pixel pairs (the width is a multiple of 4): even and odd columns count apart, and the loop
+    // vectorises
+    for (((cp, np), dp), zp) in codes
+        .chunks_exact_mut(2)
+        .zip(n.chunks_exact(2))
+        .zip(d.chunks_exact(2))
+        .zip(z.chunks_exact(2))
+    {
+        for j in 0..2 {
+            let n0 = np[j];
+            let well_full = n0 >= fwc;
+            let e = n0.min(fwc) + dp[j] as f64 + sigma * zp[j];
+            let code = adc::quantize((kg * e + black) * scale, max);
+            cp[j] = code;
+            sat[j] += (code == max || well_full) as u32;
+        }
     }
     sat
 }
