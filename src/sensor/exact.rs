@@ -237,8 +237,9 @@ fn row_body(
         for c in 0..w {
             [pb[c], pa[c], pvr[c]] = noise::ptrs_consts(mean[c]);
         }
+        let t = noise::ptrs_tables();
         for c in 0..w {
-            mean[c] = noise::poisson_with(rs, mean[c], [pb[c], pa[c], pvr[c]]);
+            mean[c] = noise::poisson_with(rs, mean[c], [pb[c], pa[c], pvr[c]], t);
         }
     }
     if fc.read_sigma.is_some() {

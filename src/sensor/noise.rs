@@ -61,7 +61,7 @@ const POISSON_PTRS_ABOVE: f64 = 12.0;
 /// above 1e15 e⁻. Non-positive or non-finite means give 0.
 #[inline(always)]
 pub fn poisson<R: Rng + ?Sized>(rng: &mut R, mean: f64) -> f64 {
-    poisson_with(rng, mean, ptrs_consts(mean))
+    poisson_with(rng, mean, ptrs_consts(mean), ptrs_tables())
 }
 
 /// PTRS's constants (b, a, v_r) of mean λ, as [`poisson_with`] takes them.
@@ -75,13 +75,18 @@ pub(crate) fn ptrs_consts(lam: f64) -> [f64; 3] {
 }
 
 /// [`poisson`] given [`ptrs_consts`]`(mean)` (a row loop computes them for every pixel first,
-/// vectorised: the square root and the division leave the loop of draws).
+/// vectorised: the square root and the division leave the loop of draws) and [`ptrs_tables`].
 #[inline(always)]
-pub(crate) fn poisson_with<R: Rng + ?Sized>(rng: &mut R, mean: f64, c: [f64; 3]) -> f64 {
+pub(crate) fn poisson_with<R: Rng + ?Sized>(
+    rng: &mut R,
+    mean: f64,
+    c: [f64; 3],
+    t: &PtrsTables,
+) -> f64 {
     // the usual sky pixel first; comparisons rather than `is_finite`, which compiled to ~20
     // integer instructions (NaN fails every comparison)
     if mean >= POISSON_PTRS_ABOVE && mean < POISSON_NORMAL_ABOVE {
-        poisson_ptrs(rng, mean, c)
+        poisson_ptrs(rng, mean, c, t)
     } else if mean > 0.0 && mean < POISSON_PTRS_ABOVE {
         poisson_knuth(rng, mean)
     } else if mean >= POISSON_NORMAL_ABOVE && mean < f64::INFINITY {
@@ -116,7 +121,12 @@ fn uniform<R: Rng + ?Sized>(rng: &mut R) -> f64 {
 /// PTRS for λ ≥ 10 (Hörmann 1993, algorithm PTRS): the first candidate and the squeeze inline
 /// (it accepts ~77 % of the draws of a sky frame); everything else in [`ptrs_rest`].
 #[inline(always)]
-fn poisson_ptrs<R: Rng + ?Sized>(rng: &mut R, lam: f64, [b, a, vr]: [f64; 3]) -> f64 {
+fn poisson_ptrs<R: Rng + ?Sized>(
+    rng: &mut R,
+    lam: f64,
+    [b, a, vr]: [f64; 3],
+    t: &PtrsTables,
+) -> f64 {
     let u = uniform(rng) - 0.5;
     let v = uniform(rng);
     let us = 0.5 - u.abs();
@@ -124,7 +134,7 @@ fn poisson_ptrs<R: Rng + ?Sized>(rng: &mut R, lam: f64, [b, a, vr]: [f64; 3]) ->
     if us >= 0.07 && v <= vr {
         return k;
     }
-    ptrs_rest(rng, lam, a, b, vr, v, us, k)
+    ptrs_rest(rng, t, lam, a, b, vr, v, us, k)
 }
 
 /// The rest of PTRS from a rejected first squeeze: the same candidates and the same decisions
@@ -144,6 +154,7 @@ fn poisson_ptrs<R: Rng + ?Sized>(rng: &mut R, lam: f64, [b, a, vr]: [f64; 3]) ->
 #[allow(clippy::too_many_arguments)]
 fn ptrs_rest<R: Rng + ?Sized>(
     rng: &mut R,
+    t: &PtrsTables,
     lam: f64,
     a: f64,
     b: f64,
@@ -153,15 +164,18 @@ fn ptrs_rest<R: Rng + ?Sized>(
     mut k: f64,
 ) -> f64 {
     let alpha_arg = 1.1239 + 1.1328 / (b - 3.4);
-    let lt = ln_table();
-    let (loglam_f, lia_f) = (ln_fast(lt, lam), ln_fast(lt, alpha_arg));
+    let (loglam_f, lia_f) = (ln_fast(t, lam), ln_fast(t, alpha_arg));
     loop {
         if !(k < 0.0 || (us < 0.013 && v > us)) {
             let q = a / (us * us) + b;
             // ln_fast needs a normal argument: v = 0 (ln v = −∞) takes the exact test
             let filtered = if v >= f64::MIN_POSITIVE {
-                let (lv, lq) = (ln_fast(lt, v), ln_fast(lt, q));
-                let lf = ln_factorial_with(k, |n| ln_fast(lt, n));
+                let (lv, lq) = (ln_fast(t, v), ln_fast(t, q));
+                // k ≥ 0 here; the table holds the reference's own values
+                let lf = match t.ln_factorial.get(k as usize) {
+                    Some(&f) => f,
+                    None => ln_factorial_with(k, |n| ln_fast(t, n)),
+                };
                 let kl = k * loglam_f;
                 let d = (lv + lia_f - lq) - (-lam + kl - lf);
                 let tol = 1e-13
@@ -212,19 +226,27 @@ fn ptrs_accepts(lam: f64, a: f64, b: f64, v: f64, us: f64, k: f64) -> bool {
     v.ln() + log_inv_alpha - (a / (us * us) + b).ln() <= -lam + k * loglam - ln_factorial(k)
 }
 
-/// Table of [`ln_fast`]: for m in [1 + i/128, 1 + (i + 1)/128), c ≈ 1/m at the interval's centre
+/// Tables of PTRS's rejection branch: ln k! for k < 2¹⁵ as [`ln_factorial`] gives it, and
+/// [`ln_fast`]'s table: for m in [1 + i/128, 1 + (i + 1)/128), c ≈ 1/m at the interval's centre
 /// and −ln c by libm.
-struct LnTable([[f64; 2]; 128]);
+pub(crate) struct PtrsTables {
+    ln_factorial: Vec<f64>,
+    ln: [[f64; 2]; 128],
+}
 
-fn ln_table() -> &'static LnTable {
-    static T: std::sync::OnceLock<LnTable> = std::sync::OnceLock::new();
+/// The tables of PTRS (built on first use, ~1 ms).
+pub(crate) fn ptrs_tables() -> &'static PtrsTables {
+    static T: std::sync::OnceLock<PtrsTables> = std::sync::OnceLock::new();
     T.get_or_init(|| {
-        let mut t = [[0.0; 2]; 128];
-        for (i, e) in t.iter_mut().enumerate() {
+        let mut ln = [[0.0; 2]; 128];
+        for (i, e) in ln.iter_mut().enumerate() {
             let c = 1.0 / (1.0 + (i as f64 + 0.5) / 128.0);
             *e = [c, -c.ln()];
         }
-        LnTable(t)
+        PtrsTables {
+            ln_factorial: (0..1u32 << 15).map(|k| ln_factorial(k as f64)).collect(),
+            ln,
+        }
     })
 }
 
@@ -233,11 +255,11 @@ fn ln_table() -> &'static LnTable {
 /// series of ln(1 + r) to r⁵ (the rest is below r⁶/6 < 1e-15). For [`ptrs_rest`]'s filtered
 /// decision only: inline, short dependency chains, no libm call.
 #[inline(always)]
-fn ln_fast(t: &LnTable, x: f64) -> f64 {
+fn ln_fast(t: &PtrsTables, x: f64) -> f64 {
     let bits = x.to_bits();
     let e = ((bits >> 52) & 0x7ff) as i64 - 1023;
     let m = f64::from_bits((bits & 0x000f_ffff_ffff_ffff) | 0x3ff0_0000_0000_0000);
-    let [c, minus_ln_c] = t.0[((bits >> 45) & 0x7f) as usize];
+    let [c, minus_ln_c] = t.ln[((bits >> 45) & 0x7f) as usize];
     let r = m * c - 1.0;
     let r2 = r * r;
     let p = r - r2 * 0.5 + r2 * r * (1.0 / 3.0 - r * 0.25 + r2 * 0.2);
@@ -437,11 +459,11 @@ mod tests {
             let e = (x % 200) as i32 - 60;
             let m = 1.0 + (x >> 11) as f64 / (1u64 << 53) as f64;
             let v = m * 2f64.powi(e);
-            let (f, l) = (ln_fast(ln_table(), v), v.ln());
+            let (f, l) = (ln_fast(ptrs_tables(), v), v.ln());
             assert!((f - l).abs() <= 2e-15 + 6e-16 * l.abs(), "{v}: {f} vs {l}");
         }
         for v in [f64::MIN_POSITIVE, 2f64.powi(-53), 0.5, 1.0, 2.0, std::f64::consts::SQRT_2, 1e300] {
-            let (f, l) = (ln_fast(ln_table(), v), v.ln());
+            let (f, l) = (ln_fast(ptrs_tables(), v), v.ln());
             assert!((f - l).abs() <= 2e-15 + 6e-16 * l.abs(), "{v}");
         }
     }
