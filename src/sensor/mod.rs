@@ -863,16 +863,33 @@ impl Sensor {
 
     /// Renders frame `frame_index` of this camera.
     pub fn frame(&self, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
-        self.render(stokes, frame_index, true)
+        self.render(stokes, frame_index, true, Vec::new())
     }
 
     /// [`Sensor::frame`] without the ground truth: the same codes, exposure, flags and saturation
     /// counts, but `truth` is an empty 0 × 0 image (for streams, which never read it).
     pub fn frame_codes(&self, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
-        self.render(stokes, frame_index, false)
+        self.render(stokes, frame_index, false, Vec::new())
     }
 
-    fn render(&self, stokes: &StokesImage, frame_index: u64, want_truth: bool) -> Result<RawFrame> {
+    /// [`Sensor::frame_codes`] into `codes`, a buffer to reuse (a stream's previous frame: no
+    /// allocation and no page faults per frame).
+    pub fn frame_codes_into(
+        &self,
+        stokes: &StokesImage,
+        frame_index: u64,
+        codes: Vec<u16>,
+    ) -> Result<RawFrame> {
+        self.render(stokes, frame_index, false, codes)
+    }
+
+    fn render(
+        &self,
+        stokes: &StokesImage,
+        frame_index: u64,
+        want_truth: bool,
+        codes: Vec<u16>,
+    ) -> Result<RawFrame> {
         self.check_input(stokes)?;
         if self.cfg.psns.is_some() {
             return presets::psns_frame(
@@ -880,7 +897,7 @@ impl Sensor {
                 presets::PsnsSource::Planes(stokes),
                 frame_index,
                 want_truth,
-                Vec::new(),
+                codes,
             );
         }
         let cfg = &self.cfg;
@@ -937,7 +954,8 @@ impl Sensor {
             scale,
             max: adc::max_code(cfg.bit_depth),
         };
-        let mut codes = vec![0u16; w * h];
+        let mut codes = codes;
+        codes.resize(w * h, 0); // no clearing: the kernel writes every code
         let mut analog = (!st.quantize).then(|| vec![0f32; w * h]);
         let seed = self.seed;
         let layout = &cfg.layout;
