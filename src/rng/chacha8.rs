@@ -24,7 +24,10 @@ pub(crate) struct Stream {
 enum Gen {
     /// The key words and the next block's counter.
     #[cfg(target_arch = "x86_64")]
-    Avx512 { key: [u32; 8], block: u64 },
+    Avx512 {
+        key: [u32; 8],
+        block: u64,
+    },
     Core(ChaCha8Core),
 }
 
@@ -115,7 +118,12 @@ fn blocks16_avx512(key: &[u32; 8], block: u64, out: &mut [u32; WORDS]) {
     let lo = _mm512_add_epi32(s(block as u32), lanes);
     // 64-bit block counter in words 12 (low) and 13: carry where the low word wrapped
     let carry = _mm512_cmplt_epu32_mask(lo, s(block as u32));
-    let hi = _mm512_mask_add_epi32(s((block >> 32) as u32), carry, s((block >> 32) as u32), s(1));
+    let hi = _mm512_mask_add_epi32(
+        s((block >> 32) as u32),
+        carry,
+        s((block >> 32) as u32),
+        s(1),
+    );
     let init = [
         s(0x6170_7865),
         s(0x3320_646e),
@@ -218,7 +226,9 @@ mod tests {
                                 b.fill_bytes(&mut y);
                                 assert_eq!(x, y);
                             }
-                            _ => assert_eq!(a.next_u64(), b.next_u64(), "{s:?} seed {seed} draw {i}"),
+                            _ => {
+                                assert_eq!(a.next_u64(), b.next_u64(), "{s:?} seed {seed} draw {i}")
+                            }
                         }
                     }
                 }
@@ -238,5 +248,4 @@ mod tests {
             });
         }
     }
-
 }

@@ -1,6 +1,5 @@
 //! The exact path's row kernel ([`super::Sensor::frame`], `--exact`): per-row ChaCha8 streams
-//! ([`crate::rng::frame_stream`]),
-//! exact Poisson, f64 arithmetic (`docs/sensor.md` §6).
+//! ([`crate::rng::frame_stream`]), exact Poisson, f64 arithmetic (`docs/sensor.md` §6).
 //!
 //! A row runs in four passes over per-thread buffers, each doing per pixel exactly what the
 //! one-loop kernel did, in the same order: the mean electrons (rate, exposure, dark current), the
@@ -9,8 +8,8 @@
 //! noise, gain and ADC. The arithmetic passes vectorise; the draw loops stay small.
 
 use super::{adc, noise, polarizer};
-use crate::simd::simd_dispatch;
 use crate::rng::Stream;
+use crate::simd::simd_dispatch;
 
 /// Per-frame constants of the exact path.
 pub(crate) struct ExactConsts {
@@ -66,12 +65,28 @@ fn finite(v: f32) -> f64 {
 
 /// Mean electrons, the usual camera (RI, PRNU and orientation error on): vectorises.
 #[inline(always)]
-fn means_full(fc: &ExactConsts, s: [&[f32]; 3], ri: &[f32], g: &[f32], ax: &[[f32; 2]], mean: &mut [f64]) {
+fn means_full(
+    fc: &ExactConsts,
+    s: [&[f32]; 3],
+    ri: &[f32],
+    g: &[f32],
+    ax: &[[f32; 2]],
+    mean: &mut [f64],
+) {
     let w = mean.len();
-    let (s0, s1, s2, ri, g, ax) = (&s[0][..w], &s[1][..w], &s[2][..w], &ri[..w], &g[..w], &ax[..w]);
+    let (s0, s1, s2, ri, g, ax) = (
+        &s[0][..w],
+        &s[1][..w],
+        &s[2][..w],
+        &ri[..w],
+        &g[..w],
+        &ax[..w],
+    );
     for c in 0..w {
         let [co, si] = ax[c];
-        let rate = fc.pbase * ri[c] as f64 * g[c] as f64
+        let rate = fc.pbase
+            * ri[c] as f64
+            * g[c] as f64
             * polarizer::reading(
                 finite(s0[c]),
                 finite(s1[c]),
@@ -119,7 +134,14 @@ fn means_any(fc: &ExactConsts, inp: &RowIn, mean: &mut [f64]) {
 /// Full well, DSNU, read noise, gain, ADC of the usual camera (no digital gain, ADC on, no
 /// analog image); returns the saturated pixels at even and odd columns. Vectorises.
 #[inline(always)]
-fn combine_common(fc: &ExactConsts, n: &[f64], d: &[f32], z: &[f64], sigma: f64, codes: &mut [u16]) -> [u32; 2] {
+fn combine_common(
+    fc: &ExactConsts,
+    n: &[f64],
+    d: &[f32],
+    z: &[f64],
+    sigma: f64,
+    codes: &mut [u16],
+) -> [u32; 2] {
     let w = codes.len();
     let (n, d, z) = (&n[..w], &d[..w], &z[..w]);
     let (fwc, kg, black, scale, max) = (fc.fwc, fc.kg, fc.black, fc.scale, fc.max);

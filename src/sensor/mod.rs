@@ -980,8 +980,7 @@ impl Sensor {
             };
             let mut rs = crate::rng::frame_stream(seed, frame_index, noise::STAGE_SHOT, r as u64);
             let mut rr = crate::rng::frame_stream(seed, frame_index, noise::STAGE_READ, r as u64);
-            let [even, odd] =
-                exact::row_kernel(&fc, &inp, &mut rs, &mut rr, buf, row, an);
+            let [even, odd] = exact::row_kernel(&fc, &inp, &mut rs, &mut rr, buf, row, an);
             let mut sat = [0u32; 4];
             sat[(r & 1) << 1] = even;
             sat[((r & 1) << 1) | 1] = odd;

@@ -386,7 +386,8 @@ mod tests {
     }
 
     /// Filtered decisions taken exactly (counted by `ptrs_same_as_reference`).
-    pub(super) static FALLBACKS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
+    pub(super) static FALLBACKS: std::sync::atomic::AtomicU64 =
+        std::sync::atomic::AtomicU64::new(0);
 
     /// PTRS as it was written before the filtered decision: the reference of every exact frame.
     fn ptrs_reference<R: Rng + ?Sized>(rng: &mut R, lam: f64) -> f64 {
@@ -434,7 +435,11 @@ mod tests {
                 // log-uniform means over 12 .. 1.2e12, some repeated exactly
                 let lam = 12.0 * 10f64.powf((x >> 11) as f64 / (1u64 << 53) as f64 * 11.0);
                 // rows 0..30: 12 .. 1.2e7 (sky levels and far above), the rest up to 1.2e12
-                let lam = if row < 30 { lam.powf(6.0 / 11.0) * 12f64.powf(5.0 / 11.0) } else { lam };
+                let lam = if row < 30 {
+                    lam.powf(6.0 / 11.0) * 12f64.powf(5.0 / 11.0)
+                } else {
+                    lam
+                };
                 let n0 = FALLBACKS.load(Relaxed);
                 let (p, q) = (poisson(&mut a, lam), ptrs_reference(&mut b, lam));
                 assert_eq!(p.to_bits(), q.to_bits(), "λ {lam}");
@@ -445,7 +450,10 @@ mod tests {
             }
             assert_eq!(a.next_u64(), b.next_u64());
         }
-        assert!(fell_back * 1_000 < draws, "{fell_back} exact decisions in {draws} draws");
+        assert!(
+            fell_back * 1_000 < draws,
+            "{fell_back} exact decisions in {draws} draws"
+        );
     }
 
     /// `ln_fast` against libm over the arguments PTRS gives it.
@@ -462,7 +470,15 @@ mod tests {
             let (f, l) = (ln_fast(ptrs_tables(), v), v.ln());
             assert!((f - l).abs() <= 2e-15 + 6e-16 * l.abs(), "{v}: {f} vs {l}");
         }
-        for v in [f64::MIN_POSITIVE, 2f64.powi(-53), 0.5, 1.0, 2.0, std::f64::consts::SQRT_2, 1e300] {
+        for v in [
+            f64::MIN_POSITIVE,
+            2f64.powi(-53),
+            0.5,
+            1.0,
+            2.0,
+            std::f64::consts::SQRT_2,
+            1e300,
+        ] {
             let (f, l) = (ln_fast(ptrs_tables(), v), v.ln());
             assert!((f - l).abs() <= 2e-15 + 6e-16 * l.abs(), "{v}");
         }
