@@ -260,11 +260,19 @@ fn row_body(
             [pb[c], pa[c], pvr[c]] = noise::ptrs_consts(mean[c]);
         }
         let t = noise::ptrs_tables();
-        for c in 0..w {
-            mean[c] = noise::poisson_with(rs, mean[c], [pb[c], pa[c], pvr[c]], t);
+        if fc.read_sigma.is_some() {
+            // both streams in one loop (each in its own order): the normals fill the shot
+            // draws' latency
+            for c in 0..w {
+                mean[c] = noise::poisson_with(rs, mean[c], [pb[c], pa[c], pvr[c]], t);
+                z[c] = noise::normal(rr);
+            }
+        } else {
+            for c in 0..w {
+                mean[c] = noise::poisson_with(rs, mean[c], [pb[c], pa[c], pvr[c]], t);
+            }
         }
-    }
-    if fc.read_sigma.is_some() {
+    } else if fc.read_sigma.is_some() {
         for v in z.iter_mut() {
             *v = noise::normal(rr);
         }
