@@ -1,11 +1,11 @@
 //! The exact path's row kernel ([`super::Sensor::frame`], `--exact`): per-row ChaCha8 streams
 //! ([`crate::rng::frame_stream`]), exact Poisson, f64 arithmetic (`docs/sensor.md` §6).
 //!
-//! A row runs in four passes over per-thread buffers, each doing per pixel exactly what the
-//! one-loop kernel did, in the same order: the mean electrons (rate, exposure, dark current), the
-//! shot-noise draws from the row's shot stream, the read-noise draws from the row's read stream
-//! (a separate stream, so drawing all of them first changes nothing), then full well, DSNU, read
-//! noise, gain and ADC. The arithmetic passes vectorise; the draw loops stay small.
+//! A row runs in passes over per-thread buffers, each doing per pixel exactly what the one-loop
+//! kernel did, in the same order: the mean electrons (rate, exposure, dark current) and PTRS's
+//! constants, the shot- and read-noise draws (two streams, each drawn in its own order), then full
+//! well, DSNU, read noise, gain and ADC. The arithmetic passes vectorise; the draw loop stays
+//! small.
 
 use super::{adc, noise, polarizer};
 use crate::rng::Stream;
