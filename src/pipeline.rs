@@ -200,7 +200,7 @@ impl RawPipeline {
         let psns = self.sensor_cfg.psns.is_some() && !raw.exact;
         if !self.fast() && !psns {
             let (st, info) = self.stokes_in(sky, sun, attitude)?;
-            return Ok((self.frame_codes(&st, frame_index)?, info));
+            return Ok((self.sensor.frame_codes_into(&st, frame_index, codes)?, info));
         }
         let up = (0.0..=90.0).contains(&sun.zenith_deg);
         if raw.scene == SceneKind::Sky && raw.soft_clouds.is_none() && raw.sky_grid >= 2 && up {
@@ -232,7 +232,7 @@ impl RawPipeline {
         }
         let (st, info) = self.stokes_in(sky, sun, attitude)?;
         let f = if psns {
-            self.frame_codes(&st, frame_index)?
+            self.sensor.frame_codes_into(&st, frame_index, codes)?
         } else {
             self.sensor.frame_fast(&st, frame_index, codes)?
         };

@@ -25,6 +25,7 @@
 
 pub mod adc;
 pub mod emva;
+mod exact;
 pub mod fast;
 pub mod mosaic;
 pub mod noise;
@@ -33,6 +34,7 @@ pub mod packing;
 pub mod polarizer;
 pub mod presets;
 pub mod spectral;
+mod ziggurat;
 
 use crate::camera::Intrinsics;
 use crate::error::{check_range, Error, Result};
@@ -861,16 +863,33 @@ impl Sensor {
 
     /// Renders frame `frame_index` of this camera.
     pub fn frame(&self, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
-        self.render(stokes, frame_index, true)
+        self.render(stokes, frame_index, true, Vec::new())
     }
 
     /// [`Sensor::frame`] without the ground truth: the same codes, exposure, flags and saturation
     /// counts, but `truth` is an empty 0 × 0 image (for streams, which never read it).
     pub fn frame_codes(&self, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
-        self.render(stokes, frame_index, false)
+        self.render(stokes, frame_index, false, Vec::new())
     }
 
-    fn render(&self, stokes: &StokesImage, frame_index: u64, want_truth: bool) -> Result<RawFrame> {
+    /// [`Sensor::frame_codes`] into `codes`, a buffer to reuse (a stream's previous frame: no
+    /// allocation and no page faults per frame).
+    pub fn frame_codes_into(
+        &self,
+        stokes: &StokesImage,
+        frame_index: u64,
+        codes: Vec<u16>,
+    ) -> Result<RawFrame> {
+        self.render(stokes, frame_index, false, codes)
+    }
+
+    fn render(
+        &self,
+        stokes: &StokesImage,
+        frame_index: u64,
+        want_truth: bool,
+        codes: Vec<u16>,
+    ) -> Result<RawFrame> {
         self.check_input(stokes)?;
         if self.cfg.psns.is_some() {
             return presets::psns_frame(
@@ -878,7 +897,7 @@ impl Sensor {
                 presets::PsnsSource::Planes(stokes),
                 frame_index,
                 want_truth,
-                Vec::new(),
+                codes,
             );
         }
         let cfg = &self.cfg;
@@ -901,85 +920,86 @@ impl Sensor {
         let (pa, pb, pbase) = self.rate_coefficients();
         let axis = self.axis_map(); // built here, before the parallel loop, if still unbuilt
         let t = t_us * 1e-6;
-        let dark_e = if st.dark {
-            cfg.dark_current_at_temperature() * t
-        } else {
-            0.0
-        };
         let kg = adc::system_gain(cfg.k0, cfg.gain_db);
         // analog part before the ADC and an optional digital part after a 12-bit ADC
         let (g_analog, g_digital) = match cfg.digital_gain_above_db {
             Some(th) if cfg.gain_db > th => (th, cfg.gain_db - th),
             _ => (cfg.gain_db, 0.0),
         };
-        let kg_analog = adc::system_gain(cfg.k0, g_analog);
-        let digital = 10f64.powf(g_digital / 20.0);
         let scale = adc::output_scale(cfg.bit_depth);
-        let max = adc::max_code(cfg.bit_depth);
         let black = cfg.black_level_dn;
-        let fwc = cfg.full_well_e;
-        let sigma_d = cfg.read_noise_e;
-        let mut codes = vec![0u16; w * h];
+        let fc = exact::ExactConsts {
+            t,
+            dark_e: if st.dark {
+                cfg.dark_current_at_temperature() * t
+            } else {
+                0.0
+            },
+            pa,
+            pb,
+            pbase,
+            shot: st.shot,
+            fwc_clip: st.fwc_clip,
+            fwc: cfg.full_well_e,
+            read_sigma: (st.read && cfg.read_noise_e > 0.0).then_some(cfg.read_noise_e),
+            digital: (g_digital > 0.0).then(|| {
+                (
+                    adc::system_gain(cfg.k0, g_analog),
+                    10f64.powf(g_digital / 20.0),
+                )
+            }),
+            quantize: st.quantize,
+            kg,
+            black,
+            scale,
+            max: adc::max_code(cfg.bit_depth),
+        };
+        let mut codes = codes;
+        codes.resize(w * h, 0); // no clearing: the kernel writes every code
         let mut analog = (!st.quantize).then(|| vec![0f32; w * h]);
         let seed = self.seed;
-        let sat_rows: Vec<[u32; 4]> = {
-            let rows: Vec<(usize, &mut [u16])> = codes.chunks_mut(w).enumerate().collect();
-            let mut an_rows: Vec<Option<&mut [f32]>> = match analog.as_mut() {
-                Some(a) => a.chunks_mut(w).map(Some).collect(),
-                None => (0..h).map(|_| None).collect(),
+        let layout = &cfg.layout;
+        let row_sat = |r: usize,
+                       row: &mut [u16],
+                       an: Option<&mut [f32]>,
+                       buf: &mut exact::RowBufs|
+         -> [u32; 4] {
+            let span = r * w..(r + 1) * w;
+            let inp = exact::RowIn {
+                s: [
+                    &stokes.s0.data[span.clone()],
+                    &stokes.s1.data[span.clone()],
+                    &stokes.s2.data[span.clone()],
+                ],
+                rate: rate.as_ref().map(|v| &v[span.clone()]),
+                ri: self.ri.as_ref().map(|v| &v[span.clone()]),
+                prnu: self.prnu.as_ref().map(|v| &v[span.clone()]),
+                axis: axis.map(|v| &v[span.clone()]),
+                nominal: [nominal_axis(layout, r, 0), nominal_axis(layout, r, 1)],
+                dsnu: self.dsnu.as_ref().map(|v| &v[span.clone()]),
             };
-            rows.into_par_iter()
-                .zip(an_rows.par_iter_mut())
-                .map(|((r, row), an)| {
-                    let mut rs = noise::frame_rng(seed, frame_index, noise::STAGE_SHOT, r as u64);
-                    let mut rr = noise::frame_rng(seed, frame_index, noise::STAGE_READ, r as u64);
-                    let mut sat = [0u32; 4];
-                    for (c, code) in row.iter_mut().enumerate() {
-                        let k = r * w + c;
-                        let rate_k = match &rate {
-                            Some(rate) => rate[k],
-                            None => self.rate_at(stokes, axis, r, c, pa, pb, pbase),
-                        };
-                        let mean = rate_k * t + dark_e;
-                        let mut n = if st.shot {
-                            noise::poisson(&mut rs, mean)
-                        } else {
-                            mean
-                        };
-                        // with K0 = 4095/FWC a full well reads 4092..4095 after read noise: count it
-                        // as saturated too, not only the top code
-                        let well_full = st.fwc_clip && n >= fwc;
-                        if st.fwc_clip {
-                            n = n.min(fwc);
-                        }
-                        if let Some(d) = &self.dsnu {
-                            n += d[k] as f64;
-                        }
-                        if st.read && sigma_d > 0.0 {
-                            n += sigma_d * noise::normal(&mut rr);
-                        }
-                        let v = if g_digital > 0.0 {
-                            let a = kg_analog * n;
-                            let a = if st.quantize {
-                                adc::quantize(a, 4095) as f64
-                            } else {
-                                a
-                            };
-                            (a * digital + black) * scale
-                        } else {
-                            (kg * n + black) * scale
-                        };
-                        if let Some(a) = an.as_deref_mut() {
-                            a[c] = v as f32;
-                        }
-                        *code = adc::quantize(v, max);
-                        if *code == max || well_full {
-                            sat[((r & 1) << 1) | (c & 1)] += 1;
-                        }
-                    }
-                    sat
-                })
-                .collect()
+            let mut rs = crate::rng::frame_stream(seed, frame_index, noise::STAGE_SHOT, r as u64);
+            let mut rr = crate::rng::frame_stream(seed, frame_index, noise::STAGE_READ, r as u64);
+            let [even, odd] = exact::row_kernel(&fc, &inp, &mut rs, &mut rr, buf, row, an);
+            let mut sat = [0u32; 4];
+            sat[(r & 1) << 1] = even;
+            sat[((r & 1) << 1) | 1] = odd;
+            sat
+        };
+        // per-thread row buffers of the kernel's passes
+        let bufs = || exact::RowBufs::new(w);
+        let sat_rows: Vec<[u32; 4]> = match analog.as_mut() {
+            None => codes
+                .par_chunks_mut(w)
+                .enumerate()
+                .map_init(bufs, |buf, (r, row)| row_sat(r, row, None, buf))
+                .collect(),
+            Some(an) => codes
+                .par_chunks_mut(w)
+                .zip(an.par_chunks_mut(w))
+                .enumerate()
+                .map_init(bufs, |buf, (r, (row, a))| row_sat(r, row, Some(a), buf))
+                .collect(),
         };
         let mut saturated = [0u32; 4];
         for s in &sat_rows {
