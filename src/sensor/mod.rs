@@ -34,7 +34,6 @@ pub mod packing;
 pub mod polarizer;
 pub mod presets;
 pub mod spectral;
-mod ziggurat;
 
 use crate::camera::Intrinsics;
 use crate::error::{check_range, Error, Result};

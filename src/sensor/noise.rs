@@ -297,10 +297,10 @@ fn ln_factorial_with(k: f64, ln: impl Fn(f64) -> f64) -> f64 {
         + inv * (1.0 / 12.0 - inv2 * (1.0 / 360.0 - inv2 / 1260.0))
 }
 
-/// One standard-normal draw (`rand_distr::StandardNormal`'s, bit for bit, inline).
-#[inline(always)]
+/// One standard-normal draw (`rand_distr::StandardNormal`).
+#[inline]
 pub fn normal<R: Rng + ?Sized>(rng: &mut R) -> f64 {
-    super::ziggurat::normal(rng)
+    rng.sample(StandardNormal)
 }
 
 #[cfg(test)]
