@@ -253,7 +253,11 @@ pub fn bench_stream(cfg: &SceneConfig, o: &StreamBenchOptions) -> Result<Vec<Str
     let mut rss_mb = None;
     for (c, frames) in commands {
         let r = time_shell(&c, frames, o.runs)?;
-        eprintln!("{:.1} frames/s  {}", r.fps, r.command.replace(&exe, "psns"));
+        let shown = r
+            .command
+            .replace(&exe, "psns")
+            .replace(&t.to_string(), "$TMP");
+        eprintln!("{:.1} frames/s  {shown}", r.fps);
         if e2e.is_empty() {
             // The /dev/null runs are the first children, spawned while this process is still
             // small: a spawned child's peak RSS counts its parent's pages until exec.
@@ -262,7 +266,7 @@ pub fn bench_stream(cfg: &SceneConfig, o: &StreamBenchOptions) -> Result<Vec<Str
         e2e.push(r);
     }
     std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(tmp.display().to_string(), e))?;
-    let targets = targets(&e2e, rss_mb, &exe);
+    let targets = targets(&e2e, rss_mb, &exe, &t.to_string());
     eprintln!("target,measured,met");
     for r in &targets {
         eprintln!("{r}");
@@ -375,14 +379,14 @@ fn children_max_rss_mb() -> Option<f64> {
 
 /// Issue 9's targets against the end-to-end runs, as CSV rows: target, measured, and "yes",
 /// "no" or (streams between 75 and 100 frames/s) "floor only".
-fn targets(e2e: &[EndToEnd], rss_mb: Option<f64>, exe: &str) -> Vec<String> {
+fn targets(e2e: &[EndToEnd], rss_mb: Option<f64>, exe: &str, tmp: &str) -> Vec<String> {
     let mut rows = Vec::new();
     let mut row = |what: String, measured: String, met: &str| {
         rows.push(format!("\"{what}\",{measured},{met}"));
     };
     let yes_no = |b: bool| if b { "yes" } else { "no" };
     for r in e2e {
-        let cmd = r.command.replace(exe, "psns");
+        let cmd = r.command.replace(exe, "psns").replace(tmp, "$TMP");
         // the FIFO runs: name the stream and the reader, not the shell plumbing
         let cmd = match cmd.split_once(" && { ") {
             Some((_, rest)) => rest
