@@ -639,12 +639,7 @@ pub const MODEL_FIT_SAMPLES: f64 = 12_000.0;
 /// The model fit's sampling step: every `setup.step`-th pixel, or sparser so that about
 /// [`MODEL_FIT_SAMPLES`] pixels are read. Its eigenvector start reads the same pixels.
 pub fn model_fit_step(setup: &HeadingSetup) -> usize {
-    let i = &setup.intrinsics;
-    let n_px = (i.width * i.height) as f64;
-    setup
-        .step
-        .max((n_px / MODEL_FIT_SAMPLES).sqrt().floor() as usize)
-        .max(1)
+    step_for_samples(setup, MODEL_FIT_SAMPLES)
 }
 
 /// The model fit (issue 12 (c)): the yaw ψ and the Berry field's neutral-point distances δ_Ba,
@@ -1235,11 +1230,17 @@ pub const EIGEN_SAMPLES: f64 = 40_000.0;
 /// The sampling step of a frame: every `setup.step`-th pixel, or sparser so that no more than
 /// about [`EIGEN_SAMPLES`] pixels are read (frames up to about 800 × 800 are unaffected).
 pub fn sample_step(setup: &HeadingSetup) -> usize {
+    step_for_samples(setup, EIGEN_SAMPLES)
+}
+
+/// Every `setup.step`-th pixel in each direction, or sparser so that about `samples` pixels of
+/// the frame are read.
+fn step_for_samples(setup: &HeadingSetup, samples: f64) -> usize {
     let i = &setup.intrinsics;
     let n_px = (i.width * i.height) as f64;
     setup
         .step
-        .max((n_px / EIGEN_SAMPLES).sqrt().floor() as usize)
+        .max((n_px / samples).sqrt().floor() as usize)
         .max(1)
 }
 
