@@ -158,7 +158,7 @@ pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Res
 /// One end-to-end run: `psns stream` as a child process, process start included.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct EndToEnd {
-    /// What was run (shell form).
+    /// What was run (shell form; in `bench_stream`, `psns` for the binary and $TMP for its scratch).
     pub command: String,
     /// Frames streamed.
     pub frames: usize,
@@ -208,7 +208,8 @@ pub struct StreamBenchOptions {
     pub steps: Vec<usize>,
 }
 
-/// `psns bench stream`: prints and writes `stream_stages.csv` and `stream_e2e.csv`.
+/// `psns bench stream`: prints and writes `stream_e2e.csv`, `stream_targets.csv`,
+/// `stream_stages.csv`, `stream_accuracy.csv` and the chart `stream_speed_accuracy.svg`.
 pub fn bench_stream(cfg: &SceneConfig, o: &StreamBenchOptions) -> Result<Vec<String>> {
     create_dir(&o.out)?;
     let exe = std::env::current_exe().map_err(|e| Error::io("finding the psns binary", e))?;
@@ -251,22 +252,24 @@ pub fn bench_stream(cfg: &SceneConfig, o: &StreamBenchOptions) -> Result<Vec<Str
     commands.push((format!("{exe} render --raw --out {t}/render"), 1));
     let mut e2e = Vec::new();
     let mut rss_mb = None;
-    for (c, frames) in commands {
-        let r = time_shell(&c, frames, o.runs)?;
-        let shown = r
-            .command
-            .replace(&exe, "psns")
-            .replace(&t.to_string(), "$TMP");
-        eprintln!("{:.1} frames/s  {shown}", r.fps);
+    let runs = commands.into_iter().try_for_each(|(c, frames)| {
+        let mut r = time_shell(&c, frames, o.runs)?;
+        // shown and recorded as run by hand: `psns`, and $TMP for the scratch directory
+        r.command = c.replace(&exe, "psns").replace(&t.to_string(), "$TMP");
+        eprintln!("{:.1} frames/s ({:.2} s)  {}", r.fps, r.seconds, r.command);
         if e2e.is_empty() {
             // The /dev/null runs are the first children, spawned while this process is still
             // small: a spawned child's peak RSS counts its parent's pages until exec.
             rss_mb = children_max_rss_mb();
         }
         e2e.push(r);
-    }
-    std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(tmp.display().to_string(), e))?;
-    let targets = targets(&e2e, rss_mb, &exe, &t.to_string());
+        Ok::<_, Error>(())
+    });
+    // the scratch goes also when a run failed
+    let removed = std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(t.to_string(), e));
+    runs?;
+    removed?;
+    let targets = targets(&e2e, rss_mb);
     eprintln!("target,measured,met");
     for r in &targets {
         eprintln!("{r}");
@@ -332,12 +335,7 @@ pub fn bench_stream(cfg: &SceneConfig, o: &StreamBenchOptions) -> Result<Vec<Str
         e2e.iter().map(|r| {
             format!(
                 "\"{}\",{},{:.3},{:.2}",
-                r.command
-                    .replace(&exe, "psns")
-                    .replace(&t.to_string(), "$TMP"),
-                r.frames,
-                r.seconds,
-                r.fps
+                r.command, r.frames, r.seconds, r.fps
             )
         }),
     )?;
@@ -379,14 +377,14 @@ fn children_max_rss_mb() -> Option<f64> {
 
 /// Issue 9's targets against the end-to-end runs, as CSV rows: target, measured, and "yes",
 /// "no" or (streams between 75 and 100 frames/s) "floor only".
-fn targets(e2e: &[EndToEnd], rss_mb: Option<f64>, exe: &str, tmp: &str) -> Vec<String> {
+fn targets(e2e: &[EndToEnd], rss_mb: Option<f64>) -> Vec<String> {
     let mut rows = Vec::new();
     let mut row = |what: String, measured: String, met: &str| {
         rows.push(format!("\"{what}\",{measured},{met}"));
     };
     let yes_no = |b: bool| if b { "yes" } else { "no" };
     for r in e2e {
-        let cmd = r.command.replace(exe, "psns").replace(tmp, "$TMP");
+        let cmd = r.command.clone();
         // the FIFO runs: name the stream and the reader, not the shell plumbing
         let cmd = match cmd.split_once(" && { ") {
             Some((_, rest)) => rest
