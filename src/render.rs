@@ -374,10 +374,8 @@ pub struct StokesOptions {
 pub fn render_stokes(sky: &Sky, cam: &Camera, opts: StokesOptions) -> (StokesImage, usize) {
     let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
     let mut out = StokesImage::zeros(w, h);
-    out.par_rows(|r, s0, s1, s2| {
-        let cols: Vec<usize> = (0..w).collect();
-        stokes_at(sky, cam, r, &cols, [s0, s1, s2]);
-    });
+    let cols: Vec<usize> = (0..w).collect();
+    out.par_rows(|r, s0, s1, s2| stokes_at(sky, cam, r, &cols, [s0, s1, s2]));
     let n_sun = if opts.sun_disc {
         add_sun_disc(sky, cam, &mut out)
     } else {
