@@ -319,11 +319,9 @@ fn matches_rust(exe: &Path, dir: &Path) {
             "{name}: {}",
             String::from_utf8_lossy(&out.stderr)
         );
-        assert_eq!(
-            String::from_utf8(out.stdout).unwrap(),
-            rust_dump(&bytes),
-            "{name}"
-        );
+        let want = rust_dump(&bytes);
+        assert_eq!(String::from_utf8(out.stdout).unwrap(), want, "{name}");
+        check_matches_dump(exe, &p, &want, &name);
         // frame dump equals Rust's codes
         let raw = dir.join("f.raw");
         let st = Command::new(exe)
@@ -338,6 +336,31 @@ fn matches_rust(exe: &Path, dir: &Path) {
         let want: Vec<u8> = x.codes.iter().flat_map(|c| c.to_le_bytes()).collect();
         assert_eq!(std::fs::read(&raw).unwrap(), want, "{name}");
     }
+}
+
+/// `check` (the consumer's mode): one `frame INDEX SUM` line per frame whose payload CRC holds,
+/// with the sum of its values as the Rust reader unpacks them, and exit status 1 exactly when
+/// the Rust reader reports damage or loss (a failed payload CRC, a gap, a corrupt, truncated or
+/// skipped record); `want` is the Rust reader's `dump`.
+fn check_matches_dump(exe: &Path, p: &Path, want: &str, name: &str) {
+    let out = Command::new(exe).arg("check").arg(p).output().unwrap();
+    let mut lines = String::new();
+    let (mut damaged, mut restarted) = (false, false);
+    for l in want.lines() {
+        let f: Vec<&str> = l.split(' ').collect();
+        match f[0] {
+            "frame" if f[3] == "1" => lines += &format!("frame {} {}\n", f[1], f[f.len() - 2]),
+            "frame" => damaged = true,
+            "gap" | "corrupt" | "truncated" | "skipped" => damaged = true,
+            "restart" => restarted = true,
+            _ => {}
+        }
+    }
+    assert_eq!(String::from_utf8(out.stdout).unwrap(), lines, "check: {name}");
+    assert_eq!(out.status.code(), Some(damaged as i32), "check status: {name}");
+    // a restart is reported on stderr, but is not damage
+    let quiet = !damaged && !restarted;
+    assert_eq!(out.stderr.is_empty(), quiet, "check reports: {name}");
 }
 
 /// The C reader's CRC-32 (slicing by 16, long buffers in two halves joined by crc32_combine)
@@ -426,7 +449,8 @@ fn crc_equals_crc32fast(exe: &Path, dir: &Path) {
 }
 
 /// Full-size frames (2448 x 2048) in every format, one damaged in the middle of its payload:
-/// the C reader prints the Rust reader's lines (payload CRC, pixel sum, CRC of the values).
+/// the C reader prints the Rust reader's lines (payload CRC, pixel sum, CRC of the values), and
+/// its `check` the sums of the intact frames.
 #[test]
 fn c_reader_full_size_frames_match_rust() {
     let dir = tempfile::tempdir().unwrap();
@@ -449,6 +473,7 @@ fn c_reader_full_size_frames_match_rust() {
                 want,
                 "{exe:?}: {name}"
             );
+            check_matches_dump(exe, &p, &want, &name);
         }
     }
 }

@@ -4,6 +4,9 @@
  *   cc -std=c99 -O2 -o psns_stream tools/psns_stream.c
  *   psns_stream dump FILE|-          canonical header/frame lines (used by the tests)
  *   psns_stream frame FILE|- N OUT   write frame N's values as raw uint16 little-endian
+ *   psns_stream check FILE|-         read every frame as a consumer does: check its CRCs, unpack
+ *                                    its values, print "frame INDEX SUM"; damage on stderr,
+ *                                    exit status 1 if there was any
  *   psns_stream crc FILE|-           CRC-32 of the whole input, 8 hex digits (tests the CRC)
  *
  * Reads sequentially with fread (works on files, FIFOs and stdin), validates the file header
@@ -356,6 +359,7 @@ static int cmp_u64(const void *a, const void *b) {
 }
 
 static int dump; /* 1: canonical lines on stdout; 0: reports on stderr */
+static int damage; /* reports of damage or loss made on stderr (not in dump) */
 static void print_header(const stream_header *h) {
     printf("header %u %u %08x %u %u %llu %llu %llu %llu %d,%d,%d,%d\n", h->width, h->height,
            h->pfnc, h->bits_valid, h->msb_aligned, (unsigned long long)h->seed,
@@ -368,14 +372,14 @@ static void idx_str(char *s, int known, uint64_t i) {
 }
 static void ev_gap(uint64_t from, uint64_t to) {
     if (dump) printf("gap %llu..%llu\n", (unsigned long long)from, (unsigned long long)to);
-    else fprintf(stderr, "gap %llu..%llu: %llu frames dropped\n", (unsigned long long)from,
+    else damage++, fprintf(stderr, "gap %llu..%llu: %llu frames dropped\n", (unsigned long long)from,
                  (unsigned long long)to, (unsigned long long)(to - from));
 }
 static void ev_corrupt(int known, uint64_t i, uint64_t off, const char *why) {
     char s[24];
     idx_str(s, known, i);
     if (dump) printf("corrupt %s %llu\n", s, (unsigned long long)off);
-    else fprintf(stderr, "frame %s at byte %llu corrupt: %s\n", s, (unsigned long long)off, why);
+    else damage++, fprintf(stderr, "frame %s at byte %llu corrupt: %s\n", s, (unsigned long long)off, why);
 }
 static void ev_truncated(int known, uint64_t i, uint64_t off, uint64_t have, uint64_t need) {
     char s[24];
@@ -384,12 +388,12 @@ static void ev_truncated(int known, uint64_t i, uint64_t off, uint64_t have, uin
         printf("truncated %s %llu %llu %llu\n", s, (unsigned long long)off,
                (unsigned long long)have, (unsigned long long)need);
     else
-        fprintf(stderr, "frame %s at byte %llu truncated: %llu of %llu bytes\n", s,
+        damage++, fprintf(stderr, "frame %s at byte %llu truncated: %llu of %llu bytes\n", s,
                 (unsigned long long)off, (unsigned long long)have, (unsigned long long)need);
 }
 static void ev_skipped(uint64_t off, uint64_t n) {
     if (dump) printf("skipped %llu %llu\n", (unsigned long long)off, (unsigned long long)n);
-    else fprintf(stderr, "skipped %llu bytes at byte %llu\n", (unsigned long long)n,
+    else damage++, fprintf(stderr, "skipped %llu bytes at byte %llu\n", (unsigned long long)n,
                  (unsigned long long)off);
 }
 
@@ -480,9 +484,11 @@ static int crc_file(FILE *f) {
 
 int main(int argc, char **argv) {
     if (argc < 3 ||
-        (strcmp(argv[1], "dump") && strcmp(argv[1], "frame") && strcmp(argv[1], "crc")) ||
+        (strcmp(argv[1], "dump") && strcmp(argv[1], "frame") && strcmp(argv[1], "crc") &&
+         strcmp(argv[1], "check")) ||
         (!strcmp(argv[1], "frame") && argc < 5)) {
-        fprintf(stderr, "usage: %s dump FILE | frame FILE N OUT | crc FILE\n", argv[0]);
+        fprintf(stderr, "usage: %s dump FILE | frame FILE N OUT | check FILE | crc FILE\n",
+                argv[0]);
         return 2;
     }
     crc_init();
@@ -496,7 +502,8 @@ int main(int argc, char **argv) {
         return crc_file(f);
     }
     dump = !strcmp(argv[1], "dump");
-    uint64_t want_index = dump ? 0 : strtoull(argv[3], NULL, 10);
+    int check = !strcmp(argv[1], "check");
+    uint64_t want_index = dump || check ? 0 : strtoull(argv[3], NULL, 10);
     rbuf r = {0};
     r.f = strcmp(argv[2], "-") ? fopen(argv[2], "rb") : stdin;
     if (!r.f) { perror(argv[2]); return 2; }
@@ -509,7 +516,7 @@ int main(int argc, char **argv) {
     if (dump) print_header(&h);
     uint16_t *v = NULL; /* unpacked values */
     size_t v_cap = 0;
-    int status = dump ? 0 : 1;
+    int status = dump || check ? 0 : 1;
     int has_exp = 1;       /* 0 right after a producer restart */
     uint64_t expected = 0; /* next expected index */
     for (;;) {
@@ -559,13 +566,13 @@ int main(int argc, char **argv) {
                 expected = index + 1;
                 const uint8_t *fh = r.b, *pay = r.b + 256;
                 if (!dump && !ok)
-                    fprintf(stderr, "frame %llu: payload CRC mismatch\n", (unsigned long long)index);
+                    damage++, fprintf(stderr, "frame %llu: payload CRC mismatch\n", (unsigned long long)index);
                 size_t n = (size_t)h.width * h.height; /* <= 2^30 by parse_header */
                 /* LSB-aligned Mono16 on a little-endian host: the values are the payload's
                    bytes, so their sum is read from the payload and their CRC is pc */
                 int raw16 = h.pfnc == 0x01100007 && !h.msb_aligned;
-                int want = !dump && index == want_index && ok;
-                if ((dump && !raw16) || want) {
+                int want = !dump && !check && index == want_index && ok;
+                if (((dump || (check && ok)) && !raw16) || want) {
                     if (n > v_cap) { /* grows only with the frame size: no allocation per frame */
                         v = xrealloc(v, n * sizeof *v);
                         v_cap = n;
@@ -584,6 +591,11 @@ int main(int argc, char **argv) {
                     printf(" %u,%u,%u,%u %08x,%08x %llu %08x\n", rd32(fh + 176), rd32(fh + 180),
                            rd32(fh + 184), rd32(fh + 188), rd32(fh + 192), rd32(fh + 196),
                            (unsigned long long)sum, vc);
+                } else if (check && ok) {
+                    /* the values a consumer gets: the payload itself for raw16, else unpacked */
+                    const uint8_t *vb = raw16 ? pay : (const uint8_t *)v; /* LE host */
+                    printf("frame %llu %llu\n", (unsigned long long)index,
+                           (unsigned long long)sum_le16(vb, n));
                 } else if (want) {
                     FILE *o = fopen(argv[4], "wb");
                     if (!o || fwrite(v, 2, n, o) != n) { perror(argv[4]); return 2; }
@@ -611,7 +623,9 @@ int main(int argc, char **argv) {
         }
         if (resync(&r, &h, &has_exp, &expected, why)) break;
     }
-    if (!dump && status) fprintf(stderr, "frame %llu not found or damaged\n", (unsigned long long)want_index);
+    if (check) status = damage != 0;
+    else if (!dump && status)
+        fprintf(stderr, "frame %llu not found or damaged\n", (unsigned long long)want_index);
     free(v); free(r.b);
     return status;
 }

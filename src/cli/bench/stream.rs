@@ -231,13 +231,14 @@ pub fn bench_stream(cfg: &SceneConfig, o: &StreamBenchOptions) -> Result<Vec<Str
         Ok(reader) => {
             let r = reader.display();
             for fmt in ["mono16", "mono8", "mono12p"] {
-                // Fails unless the reader saw all n frames and reported nothing else.
+                // The reader as a consumer uses it (`check`: every frame's CRCs checked and its
+                // values unpacked); fails unless it read all n frames and reported no damage.
                 commands.push((
                     format!(
                         "rm -f {t}/fifo && mkfifo {t}/fifo && {{ {exe} stream --frames {n} \
-                         --pixel-format {fmt} --out {t}/fifo & p=$!; {r} dump {t}/fifo | awk \
-                         '/^frame /{{k++}} !/^(frame|header) /{{b++}} END{{exit !(k=={n} && !b)}}'; \
-                         s=$?; wait $p && [ $s -eq 0 ]; }}"
+                         --pixel-format {fmt} --out {t}/fifo & p=$!; {{ {r} check {t}/fifo; \
+                         echo status $?; }} | awk '/^frame /{{k++}} /^status 0$/{{ok=1}} \
+                         END{{exit !(k=={n} && ok)}}'; s=$?; wait $p && [ $s -eq 0 ]; }}"
                     ),
                     n,
                 ));
