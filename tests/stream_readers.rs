@@ -356,8 +356,16 @@ fn check_matches_dump(exe: &Path, p: &Path, want: &str, name: &str) {
             _ => {}
         }
     }
-    assert_eq!(String::from_utf8(out.stdout).unwrap(), lines, "check: {name}");
-    assert_eq!(out.status.code(), Some(damaged as i32), "check status: {name}");
+    assert_eq!(
+        String::from_utf8(out.stdout).unwrap(),
+        lines,
+        "check: {name}"
+    );
+    assert_eq!(
+        out.status.code(),
+        Some(damaged as i32),
+        "check status: {name}"
+    );
     // a restart is reported on stderr, but is not damage
     let quiet = !damaged && !restarted;
     assert_eq!(out.stderr.is_empty(), quiet, "check reports: {name}");
