@@ -737,6 +737,9 @@ pub(crate) fn render_codes(
     let mu_hi = fc.mu_high() as f32;
     let sats: Vec<[u32; 4]> = codes
         .par_chunks_mut(w * BAND)
+        // one band per task: a worker preempted by the writer or the reader holds up the
+        // frame's end by one band, not by a quarter of the frame
+        .with_max_len(1)
         .enumerate()
         // row scratch per rayon job, not per band (every row overwrites it)
         .map_init(
