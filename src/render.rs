@@ -646,25 +646,27 @@ fn curvature(nodes: &[[f32; 3]], gw: usize, gh: usize) -> Vec<f32> {
         (0..3).map(|k| (a[k] - 2.0 * b[k] + c[k]).abs()).sum()
     };
     let mut out = vec![0f32; gw * gh];
-    for j in 0..gh {
-        for i in 0..gw {
-            // with fewer than three nodes along an axis the curvature is unknown: infinite, so
-            // the cell is refined rather than trusted
-            let dx = if gw < 3 {
-                f32::INFINITY
-            } else {
-                let m = i.clamp(1, gw - 2);
-                d2(at(m - 1, j), at(m, j), at(m + 1, j))
-            };
-            let dy = if gh < 3 {
-                f32::INFINITY
-            } else {
-                let m = j.clamp(1, gh - 2);
-                d2(at(i, m - 1), at(i, m), at(i, m + 1))
-            };
-            out[j * gw + i] = (dx + dy) / 8.0;
-        }
-    }
+    out.par_chunks_mut(gw.max(1))
+        .enumerate()
+        .for_each(|(j, row)| {
+            for (i, o) in row.iter_mut().enumerate() {
+                // with fewer than three nodes along an axis the curvature is unknown: infinite, so
+                // the cell is refined rather than trusted
+                let dx = if gw < 3 {
+                    f32::INFINITY
+                } else {
+                    let m = i.clamp(1, gw - 2);
+                    d2(at(m - 1, j), at(m, j), at(m + 1, j))
+                };
+                let dy = if gh < 3 {
+                    f32::INFINITY
+                } else {
+                    let m = j.clamp(1, gh - 2);
+                    d2(at(i, m - 1), at(i, m), at(i, m + 1))
+                };
+                *o = (dx + dy) / 8.0;
+            }
+        });
     out
 }
 
@@ -738,77 +740,90 @@ impl<'a> SkyGrid<'a> {
                 })
                 .collect()
         };
-        let evaluated: Vec<([f32; 3], bool)> = rows
-            .par_iter()
-            .flat_map_iter(|&r| eval_row(r, &cols, step))
-            .collect();
-        let nodes: Vec<[f32; 3]> = evaluated.iter().map(|e| e.0).collect();
-        let valid: Vec<bool> = evaluated.iter().map(|e| e.1).collect();
-        let curv = curvature(&nodes, gw, gh);
-        let tol = tol as f32;
-        let mut flagged = Vec::new();
-        let mut cells = vec![Cell::Interp; (gw.max(2) - 1) * (gh.max(2) - 1)];
-        if gw >= 2 && gh >= 2 {
-            for j in 0..gh - 1 {
-                for i in 0..gw - 1 {
-                    if cell_needs_more(&nodes, &valid, &curv, gw, i, j, tol) {
-                        cells[j * (gw - 1) + i] = Cell::Sub(flagged.len() as u32);
-                        flagged.push((i, j));
-                    }
-                }
-            }
-        }
-        let subs: Vec<SubGrid> = flagged
-            .par_iter()
-            .map(|&(i, j)| {
-                let sc = grid_nodes(cols[i], cols[i + 1], sub_step);
-                let sr = grid_nodes(rows[j], rows[j + 1], sub_step);
-                let (sw, sh) = (sc.len(), sr.len());
-                let ev: Vec<([f32; 3], bool)> = sr
-                    .iter()
-                    .flat_map(|&r| eval_row(r, &sc, sub_step))
+        // the solar disc (sequential) beside the nodes and their refinement
+        let ((nodes, cells, subs, exact_pixels), disc) = rayon::join(
+            || {
+                let evaluated: Vec<([f32; 3], bool)> = rows
+                    .par_iter()
+                    .flat_map_iter(|&r| eval_row(r, &cols, step))
                     .collect();
-                let sn: Vec<[f32; 3]> = ev.iter().map(|e| e.0).collect();
-                let sv: Vec<bool> = ev.iter().map(|e| e.1).collect();
-                let scurv = curvature(&sn, sw, sh);
-                let mut exact = vec![true; (sw - 1) * (sh - 1)];
-                if sub_step > 1 {
-                    for jj in 0..sh - 1 {
-                        for ii in 0..sw - 1 {
-                            exact[jj * (sw - 1) + ii] =
-                                cell_needs_more(&sn, &sv, &scurv, sw, ii, jj, tol);
-                        }
+                let nodes: Vec<[f32; 3]> = evaluated.iter().map(|e| e.0).collect();
+                let valid: Vec<bool> = evaluated.iter().map(|e| e.1).collect();
+                let curv = curvature(&nodes, gw, gh);
+                let tol = tol as f32;
+                let mut flagged = Vec::new();
+                let mut cells = vec![Cell::Interp; (gw.max(2) - 1) * (gh.max(2) - 1)];
+                if gw >= 2 && gh >= 2 {
+                    // the test per cell in parallel, the numbering of the flagged ones in order
+                    let mut more = vec![false; cells.len()];
+                    more.par_chunks_mut(gw - 1)
+                        .enumerate()
+                        .for_each(|(j, row)| {
+                            for (i, m) in row.iter_mut().enumerate() {
+                                *m = cell_needs_more(&nodes, &valid, &curv, gw, i, j, tol);
+                            }
+                        });
+                    for (k, _) in more.iter().enumerate().filter(|(_, &m)| m) {
+                        cells[k] = Cell::Sub(flagged.len() as u32);
+                        flagged.push((k % (gw - 1), k / (gw - 1)));
                     }
                 }
-                SubGrid {
-                    step: sub_step,
-                    cols: sc,
-                    rows: sr,
-                    nodes: sn,
-                    exact,
-                }
-            })
-            .collect();
-        let exact_pixels = subs
-            .iter()
-            .map(|s| {
-                let sw = s.cols.len();
-                s.exact
-                    .iter()
-                    .enumerate()
-                    .filter(|(_, &e)| e)
-                    .map(|(k, _)| {
-                        let (ii, jj) = (k % (sw - 1), k / (sw - 1));
-                        (s.cols[ii + 1] - s.cols[ii]) * (s.rows[jj + 1] - s.rows[jj])
+                let subs: Vec<SubGrid> = flagged
+                    .par_iter()
+                    .map(|&(i, j)| {
+                        let sc = grid_nodes(cols[i], cols[i + 1], sub_step);
+                        let sr = grid_nodes(rows[j], rows[j + 1], sub_step);
+                        let (sw, sh) = (sc.len(), sr.len());
+                        let ev: Vec<([f32; 3], bool)> = sr
+                            .iter()
+                            .flat_map(|&r| eval_row(r, &sc, sub_step))
+                            .collect();
+                        let sn: Vec<[f32; 3]> = ev.iter().map(|e| e.0).collect();
+                        let sv: Vec<bool> = ev.iter().map(|e| e.1).collect();
+                        let scurv = curvature(&sn, sw, sh);
+                        let mut exact = vec![true; (sw - 1) * (sh - 1)];
+                        if sub_step > 1 {
+                            for jj in 0..sh - 1 {
+                                for ii in 0..sw - 1 {
+                                    exact[jj * (sw - 1) + ii] =
+                                        cell_needs_more(&sn, &sv, &scurv, sw, ii, jj, tol);
+                                }
+                            }
+                        }
+                        SubGrid {
+                            step: sub_step,
+                            cols: sc,
+                            rows: sr,
+                            nodes: sn,
+                            exact,
+                        }
                     })
-                    .sum::<usize>()
-            })
-            .sum();
-        let disc = if opts.sun_disc {
-            sun_disc_pixels(sky, cam)
-        } else {
-            Vec::new()
-        };
+                    .collect();
+                let exact_pixels = subs
+                    .iter()
+                    .map(|s| {
+                        let sw = s.cols.len();
+                        s.exact
+                            .iter()
+                            .enumerate()
+                            .filter(|(_, &e)| e)
+                            .map(|(k, _)| {
+                                let (ii, jj) = (k % (sw - 1), k / (sw - 1));
+                                (s.cols[ii + 1] - s.cols[ii]) * (s.rows[jj + 1] - s.rows[jj])
+                            })
+                            .sum::<usize>()
+                    })
+                    .sum();
+                (nodes, cells, subs, exact_pixels)
+            },
+            || {
+                if opts.sun_disc {
+                    sun_disc_pixels(sky, cam)
+                } else {
+                    Vec::new()
+                }
+            },
+        );
         SkyGrid {
             step,
             sky,
