@@ -745,6 +745,8 @@ impl<'a> SkyGrid<'a> {
             || {
                 let evaluated: Vec<([f32; 3], bool)> = rows
                     .par_iter()
+                    // small tasks, for the same reason as the sensor pass's bands
+                    .with_max_len(2)
                     .flat_map_iter(|&r| eval_row(r, &cols, step))
                     .collect();
                 let nodes: Vec<[f32; 3]> = evaluated.iter().map(|e| e.0).collect();
