@@ -275,3 +275,50 @@ fn fast_means_match_the_exact_path_through_a_fisheye() {
         );
     }
 }
+
+/// The fast path's payload packed band by band as the codes are made (`frame_fast_packed`, what
+/// `psns stream` uses) is byte for byte `packing::pack` of the same codes, in every format and
+/// bit depth that allows it, with 1 and 3 threads, on sizes whose last band of 16 rows is partial
+/// (or the only one). A depth a format cannot hold fails as `pack` does.
+#[test]
+fn payload_packed_while_made_is_pack_of_the_codes() {
+    use psns::sensor::packing::{self, PackInto, PixelFormat};
+    for (w, h) in [(332usize, 76usize), (64, 32), (20, 8)] {
+        for depth in [8u8, 10, 12] {
+            let cfg = SensorConfig {
+                bit_depth: depth,
+                ..SensorConfig::default()
+            };
+            let s = Sensor::new(&cfg, &Intrinsics::with_size(w, h), 3).unwrap();
+            let st = sensor::flat_field(w, h, 0.04, 0.3, 20.0).unwrap();
+            for fmt in PixelFormat::ALL {
+                let mut want = Vec::new();
+                let f = s.frame_fast(&st, 2, Vec::new()).unwrap();
+                let ok = packing::pack(&f.codes.data, depth, fmt, false, &mut want);
+                for threads in [1, 3] {
+                    let mut bytes = vec![0xA5u8; 3]; // reused buffers arrive with old contents
+                    let got = rayon::ThreadPoolBuilder::new()
+                        .num_threads(threads)
+                        .build()
+                        .unwrap()
+                        .install(|| {
+                            let p = Some(PackInto {
+                                fmt,
+                                out: &mut bytes,
+                            });
+                            s.frame_fast_packed(&st, 2, Vec::new(), p)
+                        });
+                    let name = format!("{w}x{h} {depth} bit {fmt}, {threads} threads");
+                    match (&ok, got) {
+                        (Ok(()), Ok(g)) => {
+                            assert_eq!(g.codes.data, f.codes.data, "{name}: codes");
+                            assert_eq!(bytes, want, "{name}: payload");
+                        }
+                        (Err(_), Err(_)) => {}
+                        (a, b) => panic!("{name}: pack {a:?}, packed while made {:?}", b.err()),
+                    }
+                }
+            }
+        }
+    }
+}
