@@ -231,15 +231,8 @@ pub fn bench_stream(cfg: &SceneConfig, o: &StreamBenchOptions) -> Result<Vec<Str
         Ok(reader) => {
             let r = reader.display();
             for fmt in ["mono16", "mono8", "mono12p"] {
-                // The reader as a consumer uses it (`check`: every frame's CRCs checked and its
-                // values unpacked); fails unless it read all n frames and reported no damage.
                 commands.push((
-                    format!(
-                        "rm -f {t}/fifo && mkfifo {t}/fifo && {{ {exe} stream --frames {n} \
-                         --pixel-format {fmt} --out {t}/fifo & p=$!; {{ {r} check {t}/fifo; \
-                         echo status $?; }} | awk '/^frame /{{k++}} /^status 0$/{{ok=1}} \
-                         END{{exit !(k=={n} && ok)}}'; s=$?; wait $p && [ $s -eq 0 ]; }}"
-                    ),
+                    fifo_command(&exe, &t.to_string(), &r.to_string(), n, fmt),
                     n,
                 ));
             }
@@ -378,6 +371,32 @@ fn children_max_rss_mb() -> Option<f64> {
 
 /// Issue 9's targets against the end-to-end runs, as CSV rows: target, measured, and "yes",
 /// "no" or (streams between 75 and 100 frames/s) "floor only".
+/// The FIFO run of `fmt`: `exe stream` into a FIFO in `tmp`, read by the C reader `reader` as a
+/// consumer uses it (`check`: every frame's CRCs checked and its values unpacked); fails unless
+/// the reader read all `n` frames and reported no damage, and the stream succeeded.
+fn fifo_command(exe: &str, tmp: &str, reader: &str, n: usize, fmt: &str) -> String {
+    format!(
+        "rm -f {tmp}/fifo && mkfifo {tmp}/fifo && {{ {exe} stream --frames {n} --pixel-format \
+         {fmt} --out {tmp}/fifo & p=$!; {{ {reader} check {tmp}/fifo; echo status $?; }} | awk \
+         '/^frame /{{k++}} /^status 0$/{{ok=1}} END{{exit !(k=={n} && ok)}}'; s=$?; wait $p && \
+         [ $s -eq 0 ]; }}"
+    )
+}
+
+/// A run's command as the targets name it: for the FIFO runs the stream and the reader, not
+/// the shell plumbing.
+fn target_name(cmd: &str) -> String {
+    match cmd.split_once(" && { ") {
+        Some((_, rest)) => rest
+            .split(" | awk")
+            .next()
+            .unwrap_or(rest)
+            .replace(" & p=$!; { ", " & ")
+            .replace("; echo status $?; }", ""),
+        None => cmd.to_string(),
+    }
+}
+
 fn targets(e2e: &[EndToEnd], rss_mb: Option<f64>) -> Vec<String> {
     let mut rows = Vec::new();
     let mut row = |what: String, measured: String, met: &str| {
@@ -385,16 +404,7 @@ fn targets(e2e: &[EndToEnd], rss_mb: Option<f64>) -> Vec<String> {
     };
     let yes_no = |b: bool| if b { "yes" } else { "no" };
     for r in e2e {
-        let cmd = r.command.clone();
-        // the FIFO runs: name the stream and the reader, not the shell plumbing
-        let cmd = match cmd.split_once(" && { ") {
-            Some((_, rest)) => rest
-                .split(" | awk")
-                .next()
-                .unwrap_or(rest)
-                .replace(" & p=$!;", " &"),
-            None => cmd,
-        };
+        let cmd = target_name(&r.command);
         if cmd.contains("render --raw") {
             row(
                 format!("{cmd} < 1 s"),
@@ -655,4 +665,55 @@ pub fn chart_svg(stages: &[StageTimes], acc: &[Accuracy]) -> Result<String> {
         root.present().map_err(perr)?;
     }
     Ok(svg)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fifo_runs_are_named_by_stream_and_reader() {
+        let c = fifo_command("psns", "$TMP", "$TMP/psns_stream_c", 300, "mono12p");
+        assert_eq!(
+            target_name(&c),
+            "psns stream --frames 300 --pixel-format mono12p --out $TMP/fifo & \
+             $TMP/psns_stream_c check $TMP/fifo"
+        );
+        let plain = "psns stream --frames 300 --out /dev/null";
+        assert_eq!(target_name(plain), plain);
+    }
+
+    /// The FIFO command runs as written: with a stand-in reader that prints the frame lines
+    /// and succeeds it passes; one frame short, or a reader exit status of 1, and it fails.
+    #[test]
+    fn fifo_command_checks_frames_and_status() {
+        let dir = tempfile::tempdir().unwrap();
+        let d = dir.path().display().to_string();
+        // stands in for `psns stream`: writes the FIFO's frames; the "reader" reads them
+        let exe = format!("{d}/stream.sh");
+        std::fs::write(
+            &exe,
+            "#!/bin/sh\nprintf 'frame 0 1\\nframe 1 2\\n' > \"$7\"\n",
+        )
+        .unwrap();
+        let ok = format!("{d}/ok.sh");
+        std::fs::write(&ok, "#!/bin/sh\ncat \"$2\"\n").unwrap();
+        let bad = format!("{d}/bad.sh");
+        std::fs::write(&bad, "#!/bin/sh\ncat \"$2\"; exit 1\n").unwrap();
+        for f in [&exe, &ok, &bad] {
+            use std::os::unix::fs::PermissionsExt;
+            std::fs::set_permissions(f, std::fs::Permissions::from_mode(0o755)).unwrap();
+        }
+        let run = |reader: &str, n: usize| {
+            let c = fifo_command(&exe, &d, reader, n, "mono16");
+            std::process::Command::new("sh")
+                .args(["-c", &c])
+                .status()
+                .unwrap()
+                .success()
+        };
+        assert!(run(&ok, 2));
+        assert!(!run(&ok, 3), "a frame short");
+        assert!(!run(&bad, 2), "reader status 1");
+    }
 }
