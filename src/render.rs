@@ -387,13 +387,23 @@ pub fn render_stokes(sky: &Sky, cam: &Camera, opts: StokesOptions) -> (StokesIma
 /// The exact sky's S0, S1, S2 (f32) of the pixels (c, r), c in `cols`, into `s[p][c]`, by the
 /// row evaluator ([`pixel_sky_cols`]).
 fn stokes_at(sky: &Sky, cam: &Camera, r: usize, cols: &[usize], s: [&mut [f32]; 3]) {
-    let [s0, s1, s2] = s;
-    let mut px = vec![PixelSky::default(); cols.len()];
-    pixel_sky_cols(sky, cam, r, cols, &mut px);
-    for (&c, p) in cols.iter().zip(&px) {
-        let [a, b, d] = p.stokes();
-        (s0[c], s1[c], s2[c]) = (a as f32, b as f32, d as f32);
+    thread_local! {
+        /// The row's pixels: one buffer per thread, grown as needed, not a new one per row
+        /// (`pixel_sky_cols` writes every element it is given).
+        static PX: std::cell::RefCell<Vec<PixelSky>> = const { std::cell::RefCell::new(Vec::new()) };
     }
+    let [s0, s1, s2] = s;
+    PX.with_borrow_mut(|buf| {
+        if buf.len() < cols.len() {
+            buf.resize(cols.len(), PixelSky::default());
+        }
+        let px = &mut buf[..cols.len()];
+        pixel_sky_cols(sky, cam, r, cols, px);
+        for (&c, p) in cols.iter().zip(px.iter()) {
+            let [a, b, d] = p.stokes();
+            (s0[c], s1[c], s2[c]) = (a as f32, b as f32, d as f32);
+        }
+    });
 }
 
 /// Adds the solar disc to S0 where it is in view; returns the number of pixels touched.
