@@ -3,8 +3,9 @@
 //! The per-pixel sky calls these instead of libm, so that one definition serves the scalar path
 //! (the sky's `Sky::sample`) and the row evaluator, and both give the same bits. libm's functions
 //! are opaque calls, one value at a time; these are branch-free `#[inline(always)]` code (range
-//! reduction, a polynomial, selects for the special cases, a 9-entry table for `atan2`), so a loop
-//! over a row compiles to AVX-512 or AVX2 vectors inside a `simd_dispatch!` kernel.
+//! reduction, a polynomial, selects for the special cases, a 9-entry table for `atan2` read by
+//! selects), so a loop over a row compiles to AVX-512 or AVX2 vectors inside a `simd_dispatch!`
+//! kernel; [`exp_in_place`] and [`powf_lanes`] take a chunk at a time.
 //!
 //! Only `*`, `+`, `-`, `/`, `sqrt`, comparisons and bit operations are used, never `mul_add`:
 //! each is one exactly rounded IEEE operation in every instruction set (Rust never fuses them),
@@ -116,8 +117,8 @@ fn exp_reduce(xc: f64) -> (f64, f64) {
 }
 
 /// [`exp`] of every value of `x`, in place, the same bits. A chunk whose values all lie in
-/// |x| ≤ 708 (one vectorised check; the sky's arguments always do) takes [`exp_normal`], without
-/// the clamp and the selects for ∞, 0 and NaN; any other chunk the full [`exp`].
+/// |x| ≤ 708 (one vectorised check; the sky's arguments lie far inside) takes `exp_normal`,
+/// without the clamp and the selects for ∞, 0 and NaN; any other chunk the full [`exp`].
 ///
 /// ```
 /// let mut x = [0.0, 1.0, -800.0];
@@ -461,7 +462,10 @@ mod tests {
             }
         }
         // exp_normal's whole range: the same bits as exp
-        for x in (0..200_000).map(|_| r.random_range(-708.0..=708.0)).chain([708.0, -708.0]) {
+        for x in (0..200_000)
+            .map(|_| r.random_range(-708.0..=708.0))
+            .chain([708.0, -708.0])
+        {
             assert_eq!(exp_normal(x).to_bits(), exp(x).to_bits(), "exp_normal({x})");
         }
     }
