@@ -197,17 +197,28 @@ fn sky_chunk(sky: &Sky, cam: &Camera, row: f64, l: &mut ChunkLanes, out: &mut [P
         let v = (mt * DVec3::new(ray[0][j], ray[1][j], ray[2][j])).normalize();
         (d[0][j], d[1][j], d[2][j]) = (v.x, v.y, v.z);
     }
-    // pack the lanes that see the sky (as Sky::sample: v.z > 0, not NaN), with their rays
+    // pack the lanes that see the sky (as Sky::sample: v.z > 0, not NaN), with their rays; a
+    // chunk that is all sky (the usual case) is copied as it is
     let (v, idx, pray) = (&mut l.sky.v, &mut l.idx, &mut l.ray_sky);
-    let mut k = 0;
-    for j in 0..n {
+    let all_sky = (0..n).fold(true, |a, j| a & lit[j] & (d[2][j] > 0.0));
+    let k = if all_sky {
         for a in 0..3 {
-            v[a][k] = d[a][j];
-            pray[a][k] = ray[a][j];
+            v[a][..n].copy_from_slice(&d[a][..n]);
+            pray[a][..n].copy_from_slice(&ray[a][..n]);
         }
-        idx[k] = j;
-        k += (lit[j] && d[2][j] > 0.0) as usize;
-    }
+        n
+    } else {
+        let mut k = 0;
+        for j in 0..n {
+            for a in 0..3 {
+                v[a][k] = d[a][j];
+                pray[a][k] = ray[a][j];
+            }
+            idx[k] = j;
+            k += (lit[j] && d[2][j] > 0.0) as usize;
+        }
+        k
+    };
     l.sky.n = k;
     sky.sample_lanes(&mut l.sky);
     let s = &l.sky;
@@ -238,6 +249,29 @@ fn sky_chunk(sky: &Sky, cam: &Camera, row: f64, l: &mut ChunkLanes, out: &mut [P
             }
         }
     }
+    // cos 2·AOP_s and sin 2·AOP_s in place of the sensor vector, one loop over the lanes
+    for i in 0..k {
+        let (x, y) = (ex[i], ey[i]);
+        let n2 = x * x + y * y;
+        (ex[i], ey[i]) = if s.dop[i] > 0.0 && n2 > 0.0 {
+            ((x * x - y * y) / n2, 2.0 * x * y / n2)
+        } else {
+            (0.0, 0.0)
+        };
+    }
+    let px = |i: usize| PixelSky {
+        li: s.radiance[i],
+        dop: s.dop[i],
+        cos2: ex[i],
+        sin2: ey[i],
+        valid: true,
+    };
+    if all_sky {
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = px(i);
+        }
+        return;
+    }
     // ground (lit, below the horizon) and dark pixels, then the sky's
     let ground = PixelSky {
         li: sky.params().ground_radiance.unwrap_or(0.0),
@@ -247,20 +281,7 @@ fn sky_chunk(sky: &Sky, cam: &Camera, row: f64, l: &mut ChunkLanes, out: &mut [P
         *o = if lit { ground } else { PixelSky::default() };
     }
     for i in 0..k {
-        let (x, y, dop) = (ex[i], ey[i], s.dop[i]);
-        let n2 = x * x + y * y;
-        let (cos2, sin2) = if dop > 0.0 && n2 > 0.0 {
-            ((x * x - y * y) / n2, 2.0 * x * y / n2)
-        } else {
-            (0.0, 0.0)
-        };
-        out[idx[i]] = PixelSky {
-            li: s.radiance[i],
-            dop,
-            cos2,
-            sin2,
-            valid: true,
-        };
+        out[idx[i]] = px(i);
     }
 }
 
@@ -387,13 +408,23 @@ pub fn render_stokes(sky: &Sky, cam: &Camera, opts: StokesOptions) -> (StokesIma
 /// The exact sky's S0, S1, S2 (f32) of the pixels (c, r), c in `cols`, into `s[p][c]`, by the
 /// row evaluator ([`pixel_sky_cols`]).
 fn stokes_at(sky: &Sky, cam: &Camera, r: usize, cols: &[usize], s: [&mut [f32]; 3]) {
-    let [s0, s1, s2] = s;
-    let mut px = vec![PixelSky::default(); cols.len()];
-    pixel_sky_cols(sky, cam, r, cols, &mut px);
-    for (&c, p) in cols.iter().zip(&px) {
-        let [a, b, d] = p.stokes();
-        (s0[c], s1[c], s2[c]) = (a as f32, b as f32, d as f32);
+    thread_local! {
+        /// The row's pixels: one buffer per thread, grown as needed, not a new one per row
+        /// (`pixel_sky_cols` writes every element it is given).
+        static PX: std::cell::RefCell<Vec<PixelSky>> = const { std::cell::RefCell::new(Vec::new()) };
     }
+    let [s0, s1, s2] = s;
+    PX.with_borrow_mut(|buf| {
+        if buf.len() < cols.len() {
+            buf.resize(cols.len(), PixelSky::default());
+        }
+        let px = &mut buf[..cols.len()];
+        pixel_sky_cols(sky, cam, r, cols, px);
+        for (&c, p) in cols.iter().zip(px.iter()) {
+            let [a, b, d] = p.stokes();
+            (s0[c], s1[c], s2[c]) = (a as f32, b as f32, d as f32);
+        }
+    });
 }
 
 /// Adds the solar disc to S0 where it is in view; returns the number of pixels touched.

@@ -3,8 +3,9 @@
 //! The per-pixel sky calls these instead of libm, so that one definition serves the scalar path
 //! (the sky's `Sky::sample`) and the row evaluator, and both give the same bits. libm's functions
 //! are opaque calls, one value at a time; these are branch-free `#[inline(always)]` code (range
-//! reduction, a polynomial, selects for the special cases, a 9-entry table for `atan2`), so a loop
-//! over a row compiles to AVX-512 or AVX2 vectors inside a `simd_dispatch!` kernel.
+//! reduction, a polynomial, selects for the special cases, a 9-entry table for `atan2` read by
+//! selects), so a loop over a row compiles to AVX-512 or AVX2 vectors inside a `simd_dispatch!`
+//! kernel; [`exp_in_place`] and [`powf_lanes`] take a chunk at a time.
 //!
 //! Only `*`, `+`, `-`, `/`, `sqrt`, comparisons and bit operations are used, never `mul_add`:
 //! each is one exactly rounded IEEE operation in every instruction set (Rust never fuses them),
@@ -72,7 +73,30 @@ fn pow2(n: f64) -> f64 {
 #[inline(always)]
 pub fn exp(x: f64) -> f64 {
     // Clamp first so the scale factors below stay finite; the selects at the end restore ±∞/0.
-    let xc = x.clamp(-746.0, 710.0);
+    let (n, p) = exp_reduce(x.clamp(-746.0, 710.0));
+    // 2ⁿ as two normal factors, so results down to the subnormals scale without overflow.
+    let n1 = ((n * 0.5 + ROUND) - ROUND).clamp(-1022.0, 1023.0);
+    let y = p * pow2(n1) * pow2(n - n1);
+    let y = sel(x > 709.782_712_893_384, f64::INFINITY, y);
+    let y = sel(x < -745.133_219_101_941_1, 0.0, y);
+    sel(x.is_nan(), x, y)
+}
+
+/// Largest |x| for which [`exp_normal`] equals [`exp`]: e^±708 and its p·2ⁿ are normal numbers.
+const EXP_NORMAL_MAX: f64 = 708.0;
+
+/// [`exp`] for |x| ≤ [`EXP_NORMAL_MAX`], the same bits: the result is a normal number, so
+/// p·2ⁿ is one exact scaling (the same value as `exp`'s two factors) and no clamp or select is
+/// needed. Outside that range the result is meaningless.
+#[inline(always)]
+fn exp_normal(x: f64) -> f64 {
+    let (n, p) = exp_reduce(x);
+    p * pow2(n)
+}
+
+/// n = round(x / ln 2) and p = e^r, r = x − n ln 2 (|r| ≤ 0.347), for |x| ≤ 746: eˣ = p·2ⁿ.
+#[inline(always)]
+fn exp_reduce(xc: f64) -> (f64, f64) {
     let n = (xc * std::f64::consts::LOG2_E + ROUND) - ROUND;
     // r = x − n ln 2 in two steps: n·LN2_HI is exact and x − n·LN2_HI cancels exactly.
     let r = (xc - n * LN2_HI) - n * LN2_LO;
@@ -89,13 +113,31 @@ pub fn exp(x: f64) -> f64 {
     q = q * r + 1.0 / 24.0;
     q = q * r + 1.0 / 6.0;
     q = q * r + 0.5;
-    let p = 1.0 + (r + r * r * q);
-    // 2ⁿ as two normal factors, so results down to the subnormals scale without overflow.
-    let n1 = ((n * 0.5 + ROUND) - ROUND).clamp(-1022.0, 1023.0);
-    let y = p * pow2(n1) * pow2(n - n1);
-    let y = sel(x > 709.782_712_893_384, f64::INFINITY, y);
-    let y = sel(x < -745.133_219_101_941_1, 0.0, y);
-    sel(x.is_nan(), x, y)
+    (n, 1.0 + (r + r * r * q))
+}
+
+/// [`exp`] of every value of `x`, in place, the same bits. A chunk whose values all lie in
+/// |x| ≤ 708 (one vectorised check; the sky's arguments lie far inside) takes `exp_normal`,
+/// without the clamp and the selects for ∞, 0 and NaN; any other chunk the full [`exp`].
+///
+/// ```
+/// let mut x = [0.0, 1.0, -800.0];
+/// psns::vmath::exp_in_place(&mut x);
+/// assert_eq!(x, [1.0, psns::vmath::exp(1.0), 0.0]);
+/// ```
+#[inline(always)]
+pub fn exp_in_place(x: &mut [f64]) {
+    // `&`, not `&&`: no early exit, so the check vectorises; NaN fails it
+    let normal = x.iter().fold(true, |a, &v| a & (v.abs() <= EXP_NORMAL_MAX));
+    if normal {
+        for v in x.iter_mut() {
+            *v = exp_normal(*v);
+        }
+    } else {
+        for v in x.iter_mut() {
+            *v = exp(*v);
+        }
+    }
 }
 
 /// Natural logarithm, within 1 ulp of libm. ln 0 = −∞, ln x = NaN for x < 0, ln ∞ = ∞.
@@ -149,9 +191,34 @@ pub fn ln(x: f64) -> f64 {
 /// ```
 #[inline(always)]
 pub fn powf(x: f64, y: f64) -> f64 {
-    let v = exp(y * ln(x));
+    powf_fix(x, y, exp(y * ln(x)))
+}
+
+/// [`powf`]'s special cases, given v = exp(y ln x).
+#[inline(always)]
+fn powf_fix(x: f64, y: f64, v: f64) -> f64 {
     let v = sel(x == 0.0, sel(y < 0.0, f64::INFINITY, 0.0), v);
     sel(y == 0.0 || x == 1.0, 1.0, v)
+}
+
+/// [`powf`]`(x[j], y)` into `out[j]` (same length), the same bits, the exponential by
+/// [`exp_in_place`].
+///
+/// ```
+/// let mut out = [0.0; 3];
+/// psns::vmath::powf_lanes(&[0.25, 0.0, 1.0], 0.5, &mut out);
+/// assert_eq!(out, [0.5, 0.0, 1.0]);
+/// ```
+#[inline(always)]
+pub fn powf_lanes(x: &[f64], y: f64, out: &mut [f64]) {
+    assert_eq!(x.len(), out.len());
+    for (o, &x) in out.iter_mut().zip(x) {
+        *o = y * ln(x);
+    }
+    exp_in_place(out);
+    for (o, &x) in out.iter_mut().zip(x) {
+        *o = powf_fix(x, y, *o);
+    }
 }
 
 /// atan(k/8) for k = 0..=8, high and low parts.
@@ -178,6 +245,17 @@ const ATAN_LO: [f64; 9] = [
     3.061_616_997_868_383e-17,
 ];
 
+/// `t[k]` for the integer-valued kf = k ≤ 8 by a chain of selects: blends, where an index
+/// would be a gather in vector code.
+#[inline(always)]
+fn table9(t: [f64; 9], kf: f64) -> f64 {
+    let mut v = t[0];
+    for (i, &ti) in t.iter().enumerate().skip(1) {
+        v = sel(kf >= i as f64, ti, v);
+    }
+    v
+}
+
 /// atan2(y, x) in [−π, π], within 2 ulp of libm (the signs of zeros as in IEEE 754:
 /// atan2(±0, −0) = ±π). Infinite arguments are not handled (atan2(∞, ∞) gives NaN).
 ///
@@ -195,7 +273,7 @@ pub fn atan2(y: f64, x: f64) -> f64 {
     let t = sel(den == 0.0, 0.0, num / den);
     // atan t = atan c + atan u, c = k/8 the nearest eighth, u = (t − c)/(1 + tc), |u| ≤ 1/16.
     let kf = (t * 8.0 + ROUND) - ROUND;
-    let k = to_int(kf).min(8) as usize; // NaN gives 8 (the result is NaN anyway)
+    // (NaN: any entry; the result is NaN anyway)
     let c = kf * 0.125;
     let u = (t - c) / (1.0 + t * c);
     let z = u * u;
@@ -209,7 +287,7 @@ pub fn atan2(y: f64, x: f64) -> f64 {
     p = p * z - 1.0 / 5.0;
     p = p * z + 1.0 / 3.0;
     // atan t = hi + lo; the quadrant gives C ± atan t with C ∈ {0, π/2, π}, each in two parts.
-    let (hi, lo) = (ATAN_HI[k], ATAN_LO[k] + (u - u * z * p));
+    let (hi, lo) = (table9(ATAN_HI, kf), table9(ATAN_LO, kf) + (u - u * z * p));
     let neg = x.is_sign_negative();
     let minus = swap != neg; // π/2 − a for x ≥ 0, π − a for x < 0
     let (c_hi, c_lo) = match (swap, neg) {
@@ -245,13 +323,12 @@ pub fn acos(x: f64) -> f64 {
 pub fn hypot(x: f64, y: f64) -> f64 {
     let (ax, ay) = (x.abs(), y.abs());
     let big = ax.max(ay);
-    let s = sel(
-        big > 1e150,
-        2f64.powi(-600),
-        sel(big < 1e-150, 2f64.powi(600), 1.0),
-    );
+    // s and its reciprocal are powers of two, so `* inv` is `/ s` exactly (no division).
+    let (hi, lo) = (big > 1e150, big < 1e-150);
+    let s = sel(hi, 2f64.powi(-600), sel(lo, 2f64.powi(600), 1.0));
+    let inv = sel(hi, 2f64.powi(600), sel(lo, 2f64.powi(-600), 1.0));
     let (sx, sy) = (ax * s, ay * s);
-    let h = (sx * sx + sy * sy).sqrt() / s;
+    let h = (sx * sx + sy * sy).sqrt() * inv;
     sel(ax == f64::INFINITY || ay == f64::INFINITY, f64::INFINITY, h)
 }
 
@@ -321,6 +398,76 @@ mod tests {
         assert!(exp(f64::NAN).is_nan());
         assert_eq!(exp(f64::INFINITY), f64::INFINITY);
         assert_eq!(exp(f64::NEG_INFINITY), 0.0);
+    }
+
+    /// `exp_in_place` and `powf_lanes` give `exp`'s and `powf`'s bits, in a dispatched loop (so
+    /// at the CPU's instruction set), for chunks in range (`exp_normal`) and chunks with one
+    /// value out of range, ±∞ or NaN (the full `exp`).
+    #[test]
+    fn exp_in_place_and_powf_lanes_are_exp_and_powf_bit_for_bit() {
+        mod lanes {
+            crate::simd::simd_dispatch!(pub fn exp_run = exp_body(x: &mut [f64]));
+            #[inline(always)]
+            fn exp_body(x: &mut [f64]) {
+                super::super::exp_in_place(x);
+            }
+            crate::simd::simd_dispatch!(pub fn pow_run = pow_body(x: &[f64], y: f64, out: &mut [f64]));
+            #[inline(always)]
+            fn pow_body(x: &[f64], y: f64, out: &mut [f64]) {
+                super::super::powf_lanes(x, y, out);
+            }
+        }
+        let mut r = rng();
+        for i in 0..4000 {
+            let n = 1 + i % 64;
+            let mut xs: Vec<f64> = (0..n)
+                .map(|k| match k % 3 {
+                    0 => r.random_range(-1.0..1.0),
+                    1 => r.random_range(-40.0..40.0),
+                    _ => r.random_range(-708.0..=708.0),
+                })
+                .collect();
+            if i % 4 == 1 {
+                xs[n / 2] = [
+                    708.0,
+                    -708.0,
+                    708.000_000_000_000_1,
+                    -708.000_000_000_000_1,
+                    709.8,
+                    -745.0,
+                    -746.0,
+                    1e300,
+                    f64::INFINITY,
+                    f64::NEG_INFINITY,
+                    f64::NAN,
+                ][(i / 4) % 11];
+            }
+            let mut got = xs.clone();
+            lanes::exp_run(&mut got);
+            for (&x, &g) in xs.iter().zip(&got) {
+                assert_eq!(g.to_bits(), exp(x).to_bits(), "exp_in_place({x})");
+            }
+            let y = [0.3, 0.0, -0.5, 1.0, 0.01][i % 5];
+            let px: Vec<f64> = (0..n)
+                .map(|k| match k % 4 {
+                    0 => r.random_range(1e-4..=1.0),
+                    1 => [0.0, 1.0, 1e-300, 1e300][(i / 5) % 4],
+                    _ => r.random_range(0.0..10.0),
+                })
+                .collect();
+            let mut out = vec![0.0; n];
+            lanes::pow_run(&px, y, &mut out);
+            for (&x, &g) in px.iter().zip(&out) {
+                assert_eq!(g.to_bits(), powf(x, y).to_bits(), "powf_lanes({x}, {y})");
+            }
+        }
+        // exp_normal's whole range: the same bits as exp
+        for x in (0..200_000)
+            .map(|_| r.random_range(-708.0..=708.0))
+            .chain([708.0, -708.0])
+        {
+            assert_eq!(exp_normal(x).to_bits(), exp(x).to_bits(), "exp_normal({x})");
+        }
     }
 
     #[test]

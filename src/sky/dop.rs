@@ -259,11 +259,13 @@ impl Preetham {
         for (q, yq) in [&mut *y0, &mut *y1, &mut *y2].into_iter().enumerate() {
             let c = &self.coef[q];
             for j in 0..n {
-                ea[j] = vmath::exp(c[1] / cos_theta[j].max(0.01));
+                ea[j] = c[1] / cos_theta[j].max(0.01);
             }
+            vmath::exp_in_place(&mut ea[..n]);
             for j in 0..n {
-                eb[j] = vmath::exp(c[3] * gamma[j]);
+                eb[j] = c[3] * gamma[j];
             }
+            vmath::exp_in_place(&mut eb[..n]);
             for j in 0..n {
                 yq[j] = self.scale[q] * perez_exp(c, ea[j], eb[j], cos_gamma[j]);
             }
@@ -522,9 +524,11 @@ impl WangDop {
                 cap_lanes(&mut s[..n], S_KNEE, S_CEILING);
             }
         }
+        let x = &mut rest[0];
         for j in 0..n {
-            e[j] = vmath::powf(cos_theta[j].max(0.0), self.albedo);
+            x[j] = cos_theta[j].max(0.0);
         }
+        vmath::powf_lanes(&x[..n], self.albedo, &mut e[..n]);
         for j in 0..n {
             out[j] = self.seed_es(abs_w[j], theta[j], e[j], s[j]) * self.norm;
         }

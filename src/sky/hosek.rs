@@ -179,27 +179,30 @@ impl Channel {
     }
 
     /// Adds (`add`) or writes this channel's [`Self::eval`] for `n` lanes of
-    /// [`HosekWilkie::radiance_lanes`]: each exponential one loop over the lanes.
+    /// [`HosekWilkie::radiance_lanes`], given its per-direction lanes `sh` (1/(cos θ + 0.01),
+    /// √cos θ, cos²γ): each exponential one loop over the lanes ([`vmath::exp_in_place`]).
     #[allow(clippy::too_many_arguments)]
     #[inline(always)]
     fn eval_lanes(
         &self,
         n: usize,
-        ct: &Lane,
         gamma: &Lane,
         cg: &Lane,
+        [inv_ct, sqrt_ct, cg2]: [&Lane; 3],
         out: &mut Lane,
         add: bool,
         [ea, eb]: [&mut Lane; 2],
     ) {
         for j in 0..n {
-            ea[j] = vmath::exp(self.b * (1.0 / (ct[j] + 0.01)));
+            ea[j] = self.b * inv_ct[j];
         }
+        vmath::exp_in_place(&mut ea[..n]);
         for j in 0..n {
-            eb[j] = vmath::exp(self.e * gamma[j]);
+            eb[j] = self.e * gamma[j];
         }
+        vmath::exp_in_place(&mut eb[..n]);
         for j in 0..n {
-            let l = self.eval_exp(ct[j].sqrt(), cg[j], cg[j] * cg[j], ea[j], eb[j]);
+            let l = self.eval_exp(sqrt_ct[j], cg[j], cg2[j], ea[j], eb[j]);
             out[j] = if add { out[j] + l } else { l };
         }
     }
@@ -362,7 +365,8 @@ impl HosekWilkie {
     }
 
     /// [`radiance_cos`](Self::radiance_cos) of lanes 0..n (n ≤ [`LANES`]) of the row evaluator
-    /// (`render::pixel_sky_row`), the same bits; `work` is scratch (2 lanes).
+    /// (`render::pixel_sky_row`), the same bits; `work` is scratch (5 lanes). The channels share
+    /// 1/(cos θ + 0.01), √cos θ and cos²γ, computed once.
     #[inline(always)]
     pub fn radiance_lanes(
         &self,
@@ -374,13 +378,19 @@ impl HosekWilkie {
         work: &mut [Lane],
     ) {
         assert!(n <= LANES);
-        let [ea, eb, ..] = work else {
-            panic!("radiance_lanes needs 2 work lanes")
+        let [ea, eb, inv_ct, sqrt_ct, cg2, ..] = work else {
+            panic!("radiance_lanes needs 5 work lanes")
         };
         let (ct, g, cg) = (cos_theta, gamma, cos_gamma);
-        self.chan[0].eval_lanes(n, ct, g, cg, out, false, [&mut *ea, &mut *eb]);
+        for j in 0..n {
+            inv_ct[j] = 1.0 / (ct[j] + 0.01);
+            sqrt_ct[j] = ct[j].sqrt();
+            cg2[j] = cg[j] * cg[j];
+        }
+        let sh = [&*inv_ct, &*sqrt_ct, &*cg2];
+        self.chan[0].eval_lanes(n, g, cg, sh, out, false, [&mut *ea, &mut *eb]);
         if self.two {
-            self.chan[1].eval_lanes(n, ct, g, cg, out, true, [ea, eb]);
+            self.chan[1].eval_lanes(n, g, cg, sh, out, true, [ea, eb]);
         }
     }
 
