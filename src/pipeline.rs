@@ -10,7 +10,6 @@ use crate::config::{RawConfig, SceneConfig, SceneKind};
 use crate::error::Result;
 use crate::image::StokesImage;
 use crate::render::{self, StokesOptions};
-use crate::sensor::packing::PackInto;
 use crate::sensor::{self, RawFrame, Sensor, SensorConfig};
 use crate::sky::{Sky, SkyParams};
 use crate::sun::SunPosition;
@@ -185,22 +184,7 @@ impl RawPipeline {
         frame_index: u64,
         codes: Vec<u16>,
     ) -> Result<(RawFrame, SceneInfo)> {
-        let (f, info, _) = self.frame_at_packed(sun, attitude, frame_index, codes, None)?;
-        Ok((f, info))
-    }
-
-    /// [`Self::frame_at`], and where the fast sky-grid path makes the frame, its payload packed
-    /// into `pack` band by band as the codes are made (`true` in the result; otherwise `pack` is
-    /// untouched and the caller packs the codes).
-    pub fn frame_at_packed(
-        &self,
-        sun: SunPosition,
-        attitude: &Attitude,
-        frame_index: u64,
-        codes: Vec<u16>,
-        pack: Option<PackInto<'_>>,
-    ) -> Result<(RawFrame, SceneInfo, bool)> {
-        self.frame_at_impl(&self.cfg.sky, sun, attitude, frame_index, codes, pack)
+        self.frame_at_in(&self.cfg.sky, sun, attitude, frame_index, codes)
     }
 
     /// [`Self::frame_at`] under the sky `sky` instead of the configured one.
@@ -212,25 +196,11 @@ impl RawPipeline {
         frame_index: u64,
         codes: Vec<u16>,
     ) -> Result<(RawFrame, SceneInfo)> {
-        let (f, info, _) = self.frame_at_impl(sky, sun, attitude, frame_index, codes, None)?;
-        Ok((f, info))
-    }
-
-    fn frame_at_impl(
-        &self,
-        sky: &SkyParams,
-        sun: SunPosition,
-        attitude: &Attitude,
-        frame_index: u64,
-        codes: Vec<u16>,
-        pack: Option<PackInto<'_>>,
-    ) -> Result<(RawFrame, SceneInfo, bool)> {
         let raw = &self.cfg.raw;
         let psns = self.sensor_cfg.psns.is_some() && !raw.exact;
         if !self.fast() && !psns {
             let (st, info) = self.stokes_in(sky, sun, attitude)?;
-            let f = self.sensor.frame_codes_into(&st, frame_index, codes)?;
-            return Ok((f, info, false));
+            return Ok((self.sensor.frame_codes_into(&st, frame_index, codes)?, info));
         }
         let up = (0.0..=90.0).contains(&sun.zenith_deg);
         if raw.scene == SceneKind::Sky && raw.soft_clouds.is_none() && raw.sky_grid >= 2 && up {
@@ -253,15 +223,12 @@ impl RawPipeline {
                 ground_pixels: render::ground_pixel_count(&cam),
                 enu_to_camera: Some(cam.enu_to_camera),
             };
-            if psns {
-                let f = self.sensor.frame_psns_rows(&grid, frame_index, codes)?;
-                return Ok((f, info, false));
-            }
-            let packed = pack.is_some();
-            let f = self
-                .sensor
-                .frame_fast_packed(&grid, frame_index, codes, pack)?;
-            return Ok((f, info, packed));
+            let f = if psns {
+                self.sensor.frame_psns_rows(&grid, frame_index, codes)?
+            } else {
+                self.sensor.frame_fast(&grid, frame_index, codes)?
+            };
+            return Ok((f, info));
         }
         let (st, info) = self.stokes_in(sky, sun, attitude)?;
         let f = if psns {
@@ -269,7 +236,7 @@ impl RawPipeline {
         } else {
             self.sensor.frame_fast(&st, frame_index, codes)?
         };
-        Ok((f, info, false))
+        Ok((f, info))
     }
 
     /// Interpolation tolerance of the sky grid, relative to S0: a quarter of a tenth of the

@@ -28,7 +28,7 @@ use psns::camera::camera_to_enu_quaternion;
 use psns::config::SceneConfig;
 use psns::error::{Error, Result};
 use psns::pipeline::RawPipeline;
-use psns::sensor::packing::{self, PackInto, PixelFormat};
+use psns::sensor::packing::{self, PixelFormat};
 use psns::sensor::Exposure;
 use psns::stream::{
     CameraConstants, FileHeader, FileStreamWriter, FrameMeta, StreamWriter, FLAG_AUTO_EXPOSURE,
@@ -304,28 +304,19 @@ impl FrameMaker {
             }
         }
         let codes = std::mem::take(&mut self.codes);
-        // little-endian Mono16 is the code buffer itself: no packing pass; the other formats are
-        // packed as the frame is made where the renderer can, else afterwards
+        let (mut frame, info) = self.pipe.frame_at(sun, &pose.attitude, index, codes)?;
+        // little-endian Mono16 is the code buffer itself: no packing pass
         let zero_copy = self.fmt == PixelFormat::Mono16 && cfg!(target_endian = "little");
-        let pack = (!zero_copy).then(|| PackInto {
-            fmt: self.fmt,
-            out: &mut bytes,
-        });
-        let (mut frame, info, packed) =
-            self.pipe
-                .frame_at_packed(sun, &pose.attitude, index, codes, pack)?;
         let payload = if zero_copy {
             Payload::Codes(std::mem::take(&mut frame.codes.data))
         } else {
-            if !packed {
-                packing::pack(
-                    &frame.codes.data,
-                    frame.bit_depth,
-                    self.fmt,
-                    false,
-                    &mut bytes,
-                )?;
-            }
+            packing::pack(
+                &frame.codes.data,
+                frame.bit_depth,
+                self.fmt,
+                false,
+                &mut bytes,
+            )?;
             Payload::Bytes(bytes)
         };
         let m = pose.attitude.enu_to_camera(sun.azimuth_deg);

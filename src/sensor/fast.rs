@@ -24,7 +24,6 @@
 //! full well, gain, black level, ADC) is the exact path's model with the exact path's fixed-pattern
 //! maps, stored as 16-bit fixed point ([`FastStatics`]).
 
-use super::packing::{pack_chunk, payload_size, PixelFormat};
 use super::Sensor;
 use crate::image::StokesRows;
 use rayon::prelude::*;
@@ -718,77 +717,53 @@ simd_dispatch! {
 pub(crate) struct FastCodes {
     pub codes: Vec<u16>,
     pub saturated: [u32; 4],
-    /// Every code OR-ed together when a payload was packed (≥ 2^depth: one was out of range).
-    pub packed_or: Option<u16>,
 }
 
 /// Rows per parallel task (several rows so the per-task scratch is reused).
 const BAND: usize = 16;
 
-/// Raw codes of one frame from a row source of sensor-frame Stokes radiance; with `pack`
-/// (format, bit depth and the payload, sized by the caller) each band of rows is also packed
-/// into its part of the payload as soon as its codes exist, while they are in cache.
+/// Raw codes of one frame from a row source of sensor-frame Stokes radiance.
 pub(crate) fn render_codes(
     sensor: &Sensor,
     st: &FastStatics,
     src: &dyn StokesRows,
     fc: &FrameConsts,
     mut codes: Vec<u16>,
-    pack: Option<(PixelFormat, u8, &mut [u8])>,
 ) -> FastCodes {
     let (w, h) = (sensor.intrinsics.width, sensor.intrinsics.height);
     // every code is written below: a reused buffer of the right size is not cleared
     codes.resize(w * h, 0);
     let folded = fc.folded();
     let mu_hi = fc.mu_high() as f32;
-    // one band: its rows, then (when packing) its bytes; its saturation counts and OR of codes
-    let band_fn = |scratch: &mut [Vec<f32>; 4],
-                   band: usize,
-                   out: &mut [u16],
-                   packed: Option<(PixelFormat, u8, &mut [u8])>| {
-        let [s0, s1, s2, mu] = scratch;
-        let mut sat = [0u32; 4];
-        for (i, row) in out.chunks_mut(w).enumerate() {
-            let r = band * BAND + i;
-            src.fill_row(r, s0, s1, s2);
-            let sr = st.row(r, w);
-            let s = [&s0[..], &s1[..], &s2[..]];
-            row_kernel(fc, folded, mu_hi, s, &sr, r * w, r, mu, row, &mut sat);
-        }
-        let all = packed.map_or(0, |(fmt, depth, b)| pack_chunk(out, depth, fmt, false, b));
-        (sat, all)
-    };
-    // row scratch per rayon job, not per band (every row overwrites it)
-    let init = || [vec![0f32; w], vec![0f32; w], vec![0f32; w], vec![0f32; w]];
-    let bands = codes.par_chunks_mut(w * BAND).with_max_len(1).enumerate();
-    // one band per task (with_max_len(1)): a worker preempted by the writer or the reader holds
-    // up the end of the frame by one band, not by a large share of the frame
-    let packing = pack.is_some();
-    let per_band: Vec<([u32; 4], u16)> = match pack {
-        // bands of w·16 pixels, an even count: a Mono12 pair never straddles two bands
-        Some((fmt, depth, bytes)) => bands
-            .zip(bytes.par_chunks_mut(payload_size(fmt, w * BAND, 1)))
-            .map_init(init, |sc, ((band, out), b)| {
-                band_fn(sc, band, out, Some((fmt, depth, b)))
-            })
-            .collect(),
-        None => bands
-            .map_init(init, |sc, (band, out)| band_fn(sc, band, out, None))
-            .collect(),
-    };
+    let sats: Vec<[u32; 4]> = codes
+        .par_chunks_mut(w * BAND)
+        // one band per task: a worker preempted by the writer or the reader holds up the
+        // frame's end by one band, not by a quarter of the frame
+        .with_max_len(1)
+        .enumerate()
+        // row scratch per rayon job, not per band (every row overwrites it)
+        .map_init(
+            || [vec![0f32; w], vec![0f32; w], vec![0f32; w], vec![0f32; w]],
+            |[s0, s1, s2, mu], (band, out)| {
+                let mut sat = [0u32; 4];
+                for (i, row) in out.chunks_mut(w).enumerate() {
+                    let r = band * BAND + i;
+                    src.fill_row(r, s0, s1, s2);
+                    let sr = st.row(r, w);
+                    let s = [&s0[..], &s1[..], &s2[..]];
+                    row_kernel(fc, folded, mu_hi, s, &sr, r * w, r, mu, row, &mut sat);
+                }
+                sat
+            },
+        )
+        .collect();
     let mut saturated = [0u32; 4];
-    let mut all = 0u16;
-    for (s, a) in &per_band {
+    for s in &sats {
         for i in 0..4 {
             saturated[i] += s[i];
         }
-        all |= a;
     }
-    FastCodes {
-        codes,
-        saturated,
-        packed_or: packing.then_some(all),
-    }
+    FastCodes { codes, saturated }
 }
 
 /// Electron rate (e⁻/s) of every pixel from a row source (for auto-exposure).

@@ -756,19 +756,6 @@ impl Sensor {
         frame_index: u64,
         codes: Vec<u16>,
     ) -> Result<RawFrame> {
-        self.frame_fast_packed(src, frame_index, codes, None)
-    }
-
-    /// [`Self::frame_fast`], and with `pack` the frame's payload in that format too, packed band
-    /// by band while the codes are made (the bytes of [`packing::pack`] with LSB alignment; the
-    /// codes are returned as well). Fails as `pack` does for a format the bit depth cannot fill.
-    pub fn frame_fast_packed(
-        &self,
-        src: &dyn StokesRows,
-        frame_index: u64,
-        codes: Vec<u16>,
-        pack: Option<packing::PackInto<'_>>,
-    ) -> Result<RawFrame> {
         self.check_rows(src)?;
         let (w, h) = (self.intrinsics.width, self.intrinsics.height);
         if !self.fast_capable() {
@@ -807,19 +794,7 @@ impl Sensor {
             shot_key: fast::NoiseKey::new(self.seed, frame_index, noise::STAGE_SHOT),
             read_key: fast::NoiseKey::new(self.seed, frame_index, noise::STAGE_READ),
         };
-        let depth = cfg.bit_depth;
-        let bytes = match pack {
-            Some(p) => {
-                packing::check_pack(p.fmt, depth, false)?;
-                p.out.resize(packing::payload_size(p.fmt, w, h), 0);
-                Some((p.fmt, depth, &mut p.out[..]))
-            }
-            None => None,
-        };
-        let out = fast::render_codes(self, statics, src, &fc, codes, bytes);
-        if out.packed_or.is_some_and(|a| a as u32 >= 1 << depth) {
-            packing::out_of_range(&out.codes, 1 << depth)?;
-        }
+        let out = fast::render_codes(self, statics, src, &fc, codes);
         Ok(RawFrame {
             codes: Image::from_vec(w, h, out.codes),
             bit_depth: cfg.bit_depth,

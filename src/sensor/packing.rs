@@ -157,8 +157,18 @@ fn check_depth(fmt: PixelFormat, bit_depth: u8, msb_aligned: bool) -> Result<()>
     Ok(())
 }
 
-/// The format, depth and alignment checks of [`pack`].
-pub(crate) fn check_pack(fmt: PixelFormat, bit_depth: u8, msb_aligned: bool) -> Result<()> {
+/// Packs `codes` (values below 2^`bit_depth`) into `out` (resized to the payload size).
+/// On an error `out`'s contents are unspecified.
+///
+/// For Mono8 `bit_depth` may be 8..16 and the top 8 bits are kept; for the 12-bit formats it is
+/// 1..12, for Mono16 1..16. `msb_aligned` is allowed only for Mono16.
+pub fn pack(
+    codes: &[u16],
+    bit_depth: u8,
+    fmt: PixelFormat,
+    msb_aligned: bool,
+    out: &mut Vec<u8>,
+) -> Result<()> {
     // Mono8 accepts deeper codes (shifted down); the others store codes as they are.
     if fmt == PixelFormat::Mono8 {
         if !(8..=16).contains(&bit_depth) {
@@ -176,66 +186,37 @@ pub(crate) fn check_pack(fmt: PixelFormat, bit_depth: u8, msb_aligned: bool) -> 
             "MSB alignment exists only for Mono16, not {fmt}"
         )));
     }
-    Ok(())
-}
-
-/// A payload to fill while a frame's codes are made (the fast sensor packs each band of rows as
-/// soon as its codes exist, while they are in cache): the format and the buffer, resized to the
-/// payload; LSB-aligned.
-#[derive(Debug)]
-pub struct PackInto<'a> {
-    /// The payload's format.
-    pub fmt: PixelFormat,
-    /// The payload (reused buffer; resized, every byte written).
-    pub out: &'a mut Vec<u8>,
-}
-
-/// The error of [`pack`] for the first code at or above `limit` in `codes`, if there is one.
-pub(crate) fn out_of_range(codes: &[u16], limit: u32) -> Result<()> {
-    match codes.iter().position(|&x| x as u32 >= limit) {
-        Some(i) => Err(Error::OutOfRange {
-            name: format!("code of pixel {i}"),
-            value: codes[i].to_string(),
-            allowed: format!("0..{}", limit - 1),
-        }),
-        None => Ok(()),
-    }
-}
-
-/// Packs `codes` (values below 2^`bit_depth`) into `out` (resized to the payload size).
-/// On an error `out`'s contents are unspecified.
-///
-/// For Mono8 `bit_depth` may be 8..16 and the top 8 bits are kept; for the 12-bit formats it is
-/// 1..12, for Mono16 1..16. `msb_aligned` is allowed only for Mono16.
-pub fn pack(
-    codes: &[u16],
-    bit_depth: u8,
-    fmt: PixelFormat,
-    msb_aligned: bool,
-    out: &mut Vec<u8>,
-) -> Result<()> {
-    check_pack(fmt, bit_depth, msb_aligned)?;
     let limit = 1u32 << bit_depth;
     const CHUNK: usize = 1 << 16;
     // every byte is written below: reuse the buffer without clearing it
     out.resize(payload_size(fmt, codes.len(), 1), 0);
     // chunks of an even number of pixels, so Mono12 pairs never straddle two chunks; each chunk
     // is checked (its codes OR-ed together) in the same pass that packs it, and the position of
-    // a code out of range is looked for only when there is one
+    // a code out of range is looked for only in a chunk that has one
     let bytes_per_chunk = payload_size(fmt, CHUNK, 1);
     let bad = out
         .par_chunks_mut(bytes_per_chunk)
         .zip(codes.par_chunks(CHUNK))
-        .any(|(o, c)| pack_chunk(c, bit_depth, fmt, msb_aligned, o) as u32 >= limit);
-    if bad {
-        return out_of_range(codes, limit);
+        .enumerate()
+        .filter_map(|(k, (o, c))| {
+            let all = pack_chunk(c, bit_depth, fmt, msb_aligned, o) as u32;
+            (all >= limit)
+                .then(|| k * CHUNK + c.iter().position(|&x| x as u32 >= limit).unwrap_or(0))
+        })
+        .min();
+    if let Some(i) = bad {
+        return Err(Error::OutOfRange {
+            name: format!("code of pixel {i}"),
+            value: codes[i].to_string(),
+            allowed: format!("0..{}", limit - 1),
+        });
     }
     Ok(())
 }
 
 /// Packs `codes` into exactly `payload_size(fmt, codes.len(), 1)` bytes of `out`; returns all
 /// codes OR-ed together (for the range check, in the same pass).
-pub(crate) fn pack_chunk(
+fn pack_chunk(
     codes: &[u16],
     bit_depth: u8,
     fmt: PixelFormat,
