@@ -123,7 +123,11 @@ impl RelativeIllumination {
                     for (c, v) in row.iter_mut().enumerate() {
                         let x = c as f64 - c0;
                         let k = f / (x * x + y * y + f * f).sqrt();
-                        *v = if n == 1.5 { k * k.sqrt() } else { (k * k) * (k * k) } as f32;
+                        *v = if n == 1.5 {
+                            k * k.sqrt()
+                        } else {
+                            (k * k) * (k * k)
+                        } as f32;
                     }
                 }
                 None => {
@@ -210,10 +214,22 @@ mod tests {
         };
         intr.focal_length_mm = 0.2;
         let cases = [
-            (RelativeIllumination::CosPower { n: 1.5 }, Projection::Rectilinear),
-            (RelativeIllumination::CosPower { n: 4.0 }, Projection::Rectilinear),
-            (RelativeIllumination::CosPower { n: 2.0 }, Projection::Rectilinear),
-            (RelativeIllumination::CosPower { n: 1.5 }, Projection::Equidistant),
+            (
+                RelativeIllumination::CosPower { n: 1.5 },
+                Projection::Rectilinear,
+            ),
+            (
+                RelativeIllumination::CosPower { n: 4.0 },
+                Projection::Rectilinear,
+            ),
+            (
+                RelativeIllumination::CosPower { n: 2.0 },
+                Projection::Rectilinear,
+            ),
+            (
+                RelativeIllumination::CosPower { n: 1.5 },
+                Projection::Equidistant,
+            ),
             (
                 RelativeIllumination::Polynomial {
                     k1: -0.3,
@@ -229,7 +245,11 @@ mod tests {
             for r in 0..intr.height {
                 for c in 0..intr.width {
                     let want = ri.factor(&intr, c as f64, r as f64) as f32;
-                    assert_eq!(m[r * intr.width + c].to_bits(), want.to_bits(), "{ri:?} {p:?}");
+                    assert_eq!(
+                        m[r * intr.width + c].to_bits(),
+                        want.to_bits(),
+                        "{ri:?} {p:?}"
+                    );
                 }
             }
             // the corners are well below 1, so the test sees the falloff
