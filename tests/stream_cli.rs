@@ -122,6 +122,39 @@ fn same_options_give_identical_bytes_and_stdout_equals_file() {
     assert_ne!(o2.stdout[4096..], o.stdout[4096..]);
 }
 
+/// Pinning the render threads to CPUs (the default) or not (`--no-pin`), with 1, 2 or 3 workers
+/// (more than this machine's cores, round robin), gives the same bytes; so does `--exact`.
+#[test]
+fn pinned_or_not_the_bytes_are_the_same() {
+    let d = tempfile::tempdir().unwrap();
+    for exact in [false, true] {
+        let mut want: Option<Vec<u8>> = None;
+        for threads in ["1", "2", "3"] {
+            for pin in [true, false] {
+                let p = d.path().join("s.psns");
+                let mut c = stream_cmd(&["--frames", "3", "--out", s(&p)]);
+                c.env("RAYON_NUM_THREADS", threads);
+                if !pin {
+                    c.arg("--no-pin");
+                }
+                if exact {
+                    c.arg("--exact");
+                }
+                let o = c.output().unwrap();
+                assert!(o.status.success(), "{}", stderr(&o));
+                let b = std::fs::read(&p).unwrap();
+                match &want {
+                    None => want = Some(b),
+                    Some(w) => assert!(
+                        w == &b,
+                        "exact {exact}, {threads} threads, pinned {pin}: bytes differ"
+                    ),
+                }
+            }
+        }
+    }
+}
+
 #[test]
 fn file_and_fifo_are_identical_except_the_count() {
     let d = tempfile::tempdir().unwrap();

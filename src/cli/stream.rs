@@ -73,6 +73,10 @@ pub struct StreamArgs {
     /// Stamp the host monotonic clock into frame headers (output no longer byte-identical).
     #[arg(long)]
     stamp_host_time: bool,
+    /// Let the scheduler place the render threads (default: worker k of the render pool runs on
+    /// the k-th CPU this process may use; frames are the same either way).
+    #[arg(long)]
+    no_pin: bool,
 }
 
 /// The refusal to write binary frames to a terminal: `Some(message)` when the output is stdout
@@ -95,6 +99,9 @@ pub fn run(a: StreamArgs) -> anyhow::Result<()> {
     }
     let mut cfg = a.scene.scene()?;
     a.raw.apply(&mut cfg)?;
+    if !a.no_pin {
+        pin_workers();
+    }
     let opts = StreamOptions {
         trajectory: a.trajectory,
         out: a.out,
@@ -520,6 +527,55 @@ fn host_monotonic_ns() -> i64 {
     {
         0
     }
+}
+
+/// The CPUs this process may run on (its affinity mask; Slurm and cgroups narrow it), in order;
+/// empty where that is unknown.
+fn allowed_cpus() -> Vec<usize> {
+    #[cfg(target_os = "linux")]
+    {
+        // SAFETY: a zeroed cpu_set_t is the empty set; sched_getaffinity writes at most its size
+        // into it, and CPU_ISSET reads it within CPU_SETSIZE
+        unsafe {
+            let mut set: libc::cpu_set_t = std::mem::zeroed();
+            if libc::sched_getaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &mut set) != 0 {
+                return Vec::new();
+            }
+            (0..libc::CPU_SETSIZE as usize)
+                .filter(|&c| libc::CPU_ISSET(c, &set))
+                .collect()
+        }
+    }
+    #[cfg(not(target_os = "linux"))]
+    Vec::new()
+}
+
+/// Builds the global rayon pool (its size as rayon chooses: `RAYON_NUM_THREADS` or one per CPU)
+/// with worker k pinned to the k-th allowed CPU, round robin; nothing with fewer than two CPUs
+/// or where the pool already exists. Why: with the writer, a pipe's reader and the render thread
+/// beside two workers on two cores, the scheduler often stacked both workers on one core and left
+/// the other idle (`perf sched timehist`, docs/performance.md); pinned, a worker that a reader
+/// preempts resumes as soon as the reader sleeps. Frames do not depend on it.
+fn pin_workers() {
+    let cpus = allowed_cpus();
+    if cpus.len() < 2 {
+        return;
+    }
+    let _ = rayon::ThreadPoolBuilder::new()
+        .start_handler(move |k| {
+            #[cfg(target_os = "linux")]
+            // SAFETY: a zeroed cpu_set_t is the empty set; CPU_SET adds one CPU below
+            // CPU_SETSIZE (it came from CPU_ISSET's range); sched_setaffinity reads the set for
+            // this thread and fails harmlessly (the thread stays where it may run)
+            unsafe {
+                let mut one: libc::cpu_set_t = std::mem::zeroed();
+                libc::CPU_SET(cpus[k % cpus.len()], &mut one);
+                libc::sched_setaffinity(0, std::mem::size_of::<libc::cpu_set_t>(), &one);
+            }
+            #[cfg(not(target_os = "linux"))]
+            let _ = k;
+        })
+        .build_global();
 }
 
 /// The output: stdout, or a path (regular file, FIFO, device) with the count patched on close.
