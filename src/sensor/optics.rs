@@ -75,8 +75,7 @@ impl RelativeIllumination {
         match *self {
             RelativeIllumination::CosPower { n } => {
                 let c = if intr.projection == crate::camera::Projection::Rectilinear {
-                    let f = intr.focal_px();
-                    f / (x * x + y * y + f * f).sqrt()
+                    rect_cos(intr.focal_px(), x, y)
                 } else {
                     // the field angle of the projection; 0 outside a fisheye's image circle
                     match intr.ray(col, row) {
@@ -84,13 +83,7 @@ impl RelativeIllumination {
                         None => return 0.0,
                     }
                 };
-                if n == 1.5 {
-                    c * c.sqrt()
-                } else if n == 4.0 {
-                    (c * c) * (c * c)
-                } else {
-                    c.powf(n)
-                }
+                cos_power(c, n)
             }
             RelativeIllumination::Polynomial { k1, k2, k3 } => {
                 let hd2 = 0.25 * ((intr.width * intr.width + intr.height * intr.height) as f64);
@@ -106,8 +99,8 @@ impl RelativeIllumination {
         use rayon::prelude::*;
         let w = intr.width;
         let mut out = vec![0f32; w * intr.height];
-        // the rectilinear cos-power cases as a plain loop the compiler vectorises (the same
-        // operations as `factor`, so the same bits); the others pixel by pixel
+        // the rectilinear cos^1.5 and cos^4 as a plain loop the compiler vectorises (the
+        // functions `factor` uses, so the same bits); the others pixel by pixel
         let rect = intr.projection == crate::camera::Projection::Rectilinear;
         let cos_pow = match *self {
             RelativeIllumination::CosPower { n } if rect && (n == 1.5 || n == 4.0) => Some(n),
@@ -121,13 +114,7 @@ impl RelativeIllumination {
                 Some(n) => {
                     let y = r as f64 - r0;
                     for (c, v) in row.iter_mut().enumerate() {
-                        let x = c as f64 - c0;
-                        let k = f / (x * x + y * y + f * f).sqrt();
-                        *v = if n == 1.5 {
-                            k * k.sqrt()
-                        } else {
-                            (k * k) * (k * k)
-                        } as f32;
+                        *v = cos_power(rect_cos(f, c as f64 - c0, y), n) as f32;
                     }
                 }
                 None => {
@@ -137,6 +124,25 @@ impl RelativeIllumination {
                 }
             });
         out
+    }
+}
+
+/// cos ϕ of the rectilinear field angle at (x, y) pixels from the principal point, focal length
+/// `f` in pixels.
+#[inline(always)]
+fn rect_cos(f: f64, x: f64, y: f64) -> f64 {
+    f / (x * x + y * y + f * f).sqrt()
+}
+
+/// cⁿ, without a `powf` for the common n = 1.5 and 4 (so the map's loop vectorises).
+#[inline(always)]
+fn cos_power(c: f64, n: f64) -> f64 {
+    if n == 1.5 {
+        c * c.sqrt()
+    } else if n == 4.0 {
+        (c * c) * (c * c)
+    } else {
+        c.powf(n)
     }
 }
 
