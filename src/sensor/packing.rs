@@ -313,13 +313,10 @@ unsafe fn pack12p_avx512(codes: &[u16], out: &mut [u8]) -> (usize, u16) {
     let blocks = (codes.len() / 32).min(out.len() / 48);
     let lo12 = _mm512_set1_epi32(0x0000_0FFF);
     let hi12 = _mm512_set1_epi32(0x00FF_F000);
-    // per 128-bit lane: bytes 0,1,2, 4,5,6, 8,9,10, 12,13,14, then zeros (-1 = 0x80)
-    let lane: [i8; 16] = [0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13, 14, -1, -1, -1, -1];
-    let mut sh = [0i8; 64];
-    for (k, v) in sh.iter_mut().enumerate() {
-        *v = lane[k % 16];
-    }
-    let shuf = _mm512_loadu_si512(sh.as_ptr().cast());
+    // in every 128-bit lane: bytes 0,1,2, 4,5,6, 8,9,10, 12,13,14, then zeros (-1 = 0x80)
+    let shuf = _mm512_broadcast_i32x4(_mm_setr_epi8(
+        0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13, 14, -1, -1, -1, -1,
+    ));
     let perm = _mm512_setr_epi32(0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13, 14, 15, 15, 15, 15);
     let mut acc = _mm512_setzero_si512();
     for b in 0..blocks {
