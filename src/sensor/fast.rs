@@ -5,9 +5,9 @@
 //! - **Random numbers** come from a counter-based hash of (camera seed, frame, stage, pixel index)
 //!   instead of per-row ChaCha8 streams: any pixel's noise is computed independently, so frames do
 //!   not depend on threads or on row order, and the kernel vectorises.
-//! - **Normal deviates** by inversion: z = √2 erfinv(2u − 1) with Giles' single-precision erfinv
-//!   (M. Giles, "Approximating the erfinv function", GPU Computing Gems Jade, 2011; relative error
-//!   below 4e-7), u on a 2⁻²³ lattice in (0, 1): tails reach |z| = 5.3.
+//! - **Normal deviates** by inversion, z = Φ⁻¹(u) with u on a 2⁻²³ lattice in (0, 1), from a
+//!   polynomial per binade of the tail probability ([`super::normal`]; absolute error below 8e-7,
+//!   Giles' erfinv for the 1.5e-5 of draws beyond |z| = 4.33): tails reach |z| = 5.3.
 //! - **Shot noise** stays Poisson in distribution: below [`EXACT_POISSON_BELOW`] e⁻ exact
 //!   inversion of the Poisson CDF; above it a normal with a Cornish–Fisher skew correction,
 //!   μ + √μ z + (z² − 1)/6, rounded to whole electrons: mean, variance (+1/12 + 1/36) and third
@@ -28,6 +28,9 @@ use super::Sensor;
 use crate::image::StokesRows;
 use rayon::prelude::*;
 
+use super::normal::normals_block;
+pub(crate) use super::normal::BLOCK;
+pub use super::normal::{normal_from_bits, uniform_from_bits};
 use crate::simd::simd_dispatch;
 pub use crate::simd::{simd, with_simd, Simd};
 
@@ -78,6 +81,14 @@ impl NoiseKey {
     pub fn bits(&self, i: u32) -> u32 {
         mix32(mix32(i ^ self.k1) ^ self.k2)
     }
+    /// The first key word (for the vector hash of [`super::normal`]).
+    pub(crate) fn k1(&self) -> u32 {
+        self.k1
+    }
+    /// The second key word.
+    pub(crate) fn k2(&self) -> u32 {
+        self.k2
+    }
 }
 
 /// ln x for finite x > 0 (normal numbers), f32, branch-free: x = 2^e m with m in [√½, √2),
@@ -98,100 +109,6 @@ pub fn ln_f32(x: f32) -> f32 {
         .mul_add(s2, 1.0 / 3.0)
         .mul_add(s2, 1.0);
     (e as f32).mul_add(std::f32::consts::LN_2, 2.0 * s * series)
-}
-
-/// The uniform (0, 1) value of 32 random bits used by [`normal_from_bits`]: (2k + 1)/2²⁴ with k
-/// the top 23 bits, so u and 1 − u are both exact in f32.
-#[inline(always)]
-pub fn uniform_from_bits(bits: u32) -> f32 {
-    (2.0 * (bits >> 9) as f32 + 1.0) * (1.0 / 16_777_216.0)
-}
-
-/// Giles' central branch of erfinv(x)/x for w = −ln(1 − x²) < 5.
-#[inline(always)]
-fn erfinv_central(w: f32) -> f32 {
-    let wc = w - 2.5;
-    let mut p = 2.810_226_4e-8f32;
-    p = p.mul_add(wc, 3.432_739_4e-7);
-    p = p.mul_add(wc, -3.523_387_7e-6);
-    p = p.mul_add(wc, -4.391_506_5e-6);
-    p = p.mul_add(wc, 0.000_218_580_87);
-    p = p.mul_add(wc, -0.001_253_725);
-    p = p.mul_add(wc, -0.004_177_681_6);
-    p = p.mul_add(wc, 0.246_640_73);
-    p.mul_add(wc, 1.501_409_4)
-}
-
-/// Giles' tail branch of erfinv(x)/x for w ≥ 5.
-#[inline(always)]
-fn erfinv_tail(w: f32) -> f32 {
-    let wt = w.sqrt() - 3.0;
-    let mut p = -0.000_200_214_26f32;
-    p = p.mul_add(wt, 0.000_100_950_56);
-    p = p.mul_add(wt, 0.001_349_343_2);
-    p = p.mul_add(wt, -0.003_673_428_4);
-    p = p.mul_add(wt, 0.005_739_507_7);
-    p = p.mul_add(wt, -0.007_622_461);
-    p = p.mul_add(wt, 0.009_438_870_5);
-    p = p.mul_add(wt, 1.001_674);
-    p.mul_add(wt, 2.832_976_8)
-}
-
-/// (x = 2u − 1, w = −ln(1 − x²)) of 32 random bits.
-#[inline(always)]
-fn erfinv_args(bits: u32) -> (f32, f32) {
-    let a = uniform_from_bits(bits);
-    let b = 1.0 - a;
-    (a - b, -ln_f32(4.0 * a * b)) // a − b exact
-}
-
-/// A standard normal deviate from 32 random bits by inversion (see the module docs).
-#[inline(always)]
-pub fn normal_from_bits(bits: u32) -> f32 {
-    let (x, w) = erfinv_args(bits);
-    let p = if w < 5.0 {
-        erfinv_central(w)
-    } else {
-        erfinv_tail(w)
-    };
-    std::f32::consts::SQRT_2 * p * x
-}
-
-/// Pixels per block of the row kernels: each stage runs over a whole block, so its vector
-/// iterations are independent and the long dependency chains (hash, logarithm, polynomial)
-/// overlap.
-pub(crate) const BLOCK: usize = 64;
-
-/// [`normal_from_bits`] of `key.bits(idx0 + i)` for every i of `z` (at most [`BLOCK`] long),
-/// bit-identical, in stages: the tail branch (0.34 % of draws) only where it is needed.
-#[inline(always)]
-fn normals(key: &NoiseKey, idx0: u32, z: &mut [f32]) {
-    let n = z.len().min(BLOCK);
-    let mut x = [0f32; BLOCK];
-    let mut w = [0f32; BLOCK];
-    // `erfinv_args` in two passes (hash to 4ab, then the logarithm): shorter dependency chains
-    // per loop, so more vector iterations are in flight at once; the same operations
-    for i in 0..n {
-        let a = uniform_from_bits(key.bits(idx0.wrapping_add(i as u32)));
-        let b = 1.0 - a;
-        x[i] = a - b; // exact
-        w[i] = 4.0 * a * b;
-    }
-    for v in &mut w[..n] {
-        *v = -ln_f32(*v);
-    }
-    let mut tail = false;
-    for i in 0..n {
-        z[i] = std::f32::consts::SQRT_2 * erfinv_central(w[i]) * x[i];
-        tail |= w[i] >= 5.0;
-    }
-    if tail {
-        for i in 0..n {
-            if w[i] >= 5.0 {
-                z[i] = std::f32::consts::SQRT_2 * erfinv_tail(w[i]) * x[i];
-            }
-        }
-    }
 }
 
 /// Quantum of the per-pixel gain RI · g (range 0..2).
@@ -460,22 +377,22 @@ fn chunk_unfolded(
     idx0: u32,
     redo: &[bool],
     out: &mut [u16],
+    simd: Simd,
 ) -> u32 {
     let n = mu.len();
     let mut m = [0f32; LANES];
     let mut u = [0f32; LANES];
     let mut z = [0f32; LANES];
     let mut zr = [0f32; LANES];
+    normals_block(&fc.shot_key, idx0, &mut z[..n], simd);
+    normals_block(&fc.read_key, idx0, &mut zr[..n], simd);
     for l in 0..n {
         m[l] = if mu[l].is_finite() {
             mu[l].max(0.0)
         } else {
             0.0
         };
-        let b = fc.shot_key.bits(idx0.wrapping_add(l as u32));
-        u[l] = uniform_from_bits(b);
-        z[l] = normal_from_bits(b);
-        zr[l] = normal_from_bits(fc.read_key.bits(idx0.wrapping_add(l as u32)));
+        u[l] = uniform_from_bits(fc.shot_key.bits(idx0.wrapping_add(l as u32)));
     }
     let low = EXACT_POISSON_BELOW as f32;
     let mut e = [0f32; LANES];
@@ -558,6 +475,7 @@ fn row_folded_body(
     idx0: u32,
     mu: &mut [f32],
     out: &mut [u16],
+    simd: Simd,
 ) -> (f32, u16) {
     let n = out.len();
     let t = fc.t as f32;
@@ -572,7 +490,12 @@ fn row_folded_body(
     for b0 in (0..n).step_by(BLOCK) {
         let len = BLOCK.min(n - b0);
         let b1 = b0 + len;
-        normals(&fc.shot_key, idx0.wrapping_add(b0 as u32), &mut z[..len]);
+        normals_block(
+            &fc.shot_key,
+            idx0.wrapping_add(b0 as u32),
+            &mut z[..len],
+            simd,
+        );
         // every slice exactly `len` long, so the loop runs without bounds checks and vectorises
         let blk = StaticRow {
             gain: &st.gain[b0..b1],
@@ -619,6 +542,7 @@ fn row_fixup_body(
     r: usize,
     row: &mut [u16],
     sat: &mut [u32; 4],
+    simd: Simd,
 ) {
     let w = row.len();
     let mut redo = [true; LANES];
@@ -643,6 +567,7 @@ fn row_fixup_body(
             (k0 + c0) as u32,
             &redo[..c1 - c0],
             &mut row[c0..c1],
+            simd,
         );
         for c in c0..c1 {
             if full & (1 << (c - c0)) != 0 && row[c] != fc.max {
@@ -669,10 +594,12 @@ fn row_body(
     row: &mut [u16],
     sat: &mut [u32; 4],
 ) {
-    let (mu_max, code_max) = row_folded_body(fc, s[0], s[1], s[2], st, k0 as u32, mu, row);
+    // the instruction set of this build, for the normals' table reads
+    let simd = crate::simd::simd();
+    let (mu_max, code_max) = row_folded_body(fc, s[0], s[1], s[2], st, k0 as u32, mu, row, simd);
     let fixup = !folded || mu_max > mu_hi;
     if fixup {
-        row_fixup_body(fc, folded, mu_hi, mu, st, k0, r, row, sat);
+        row_fixup_body(fc, folded, mu_hi, mu, st, k0, r, row, sat, simd);
     }
     if fixup || code_max == fc.max {
         for (c, &v) in row.iter().enumerate() {
@@ -702,8 +629,9 @@ simd_dispatch! {
 /// [`normals`] over a slice of any length, block by block.
 #[inline(always)]
 fn normals_body(key: &NoiseKey, idx0: u32, z: &mut [f32]) {
+    let simd = crate::simd::simd();
     for (b, chunk) in z.chunks_mut(BLOCK).enumerate() {
-        normals(key, idx0.wrapping_add((b * BLOCK) as u32), chunk);
+        normals_block(key, idx0.wrapping_add((b * BLOCK) as u32), chunk, simd);
     }
 }
 

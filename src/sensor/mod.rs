@@ -29,6 +29,7 @@ mod exact;
 pub mod fast;
 pub mod mosaic;
 pub mod noise;
+pub mod normal;
 pub mod optics;
 pub mod packing;
 pub mod polarizer;
