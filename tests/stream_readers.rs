@@ -169,15 +169,15 @@ fn c_reader(dir: &Path) -> PathBuf {
 }
 
 /// The C reader built twice: as shipped (with the PCLMULQDQ CRC where the compiler and CPU have
-/// it, and the SSE2 sum) and with the portable C99 loops only (`-DPSNS_PORTABLE_CRC
-/// -DPSNS_PORTABLE_SUM`).
+/// it, and the SSE2/SSSE3 sum and unpacking) and with the portable C99 loops only (`-DPSNS_PORTABLE_CRC
+/// -DPSNS_PORTABLE_SIMD`).
 fn c_readers(dir: &Path) -> [PathBuf; 2] {
     [
         c_reader(dir),
         c_reader_with(
             dir,
             "psns_stream_c_portable",
-            &["-DPSNS_PORTABLE_CRC", "-DPSNS_PORTABLE_SUM"],
+            &["-DPSNS_PORTABLE_CRC", "-DPSNS_PORTABLE_SIMD"],
         ),
     ]
 }
