@@ -128,9 +128,11 @@ pub fn normal_from_bits(bits: u32) -> f32 {
 
 /// [`normal_from_bits`] of `key.bits(idx0 + i)` for every i of `z` (at most [`BLOCK`] long),
 /// bit-identical, in AVX-512 or AVX2 as `simd` allows (whole vectors: lengths that are multiples
-/// of 16 or 8; other lengths draw one at a time).
+/// of 16 or 8; other lengths draw one at a time). `simd` must not exceed what the CPU has
+/// (callers pass [`crate::simd::simd`]).
 #[inline(always)]
 pub(crate) fn normals_block(key: &NoiseKey, idx0: u32, z: &mut [f32], simd: Simd) {
+    debug_assert!(simd <= Simd::detected());
     let n = z.len().min(BLOCK);
     let z = &mut z[..n];
     #[cfg(target_arch = "x86_64")]
