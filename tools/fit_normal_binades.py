@@ -24,7 +24,9 @@ def g(t):
 def horner_f32(coef, y):
     p = np.float32(coef[0])
     for c in coef[1:]:
-        # fma: the f64 product and sum of f32 values is exact enough to round once to f32
+        # a fused multiply-add: the product of two f32 values is exact in f64, the sum is rounded
+        # to f64 and then to f32 (twice, so the printed error may differ from the kernels' by
+        # half an f32 ulp; the Rust tests check the table itself)
         p = np.float32(np.float64(p) * np.float64(y) + np.float64(np.float32(c)))
     return p
 

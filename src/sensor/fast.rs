@@ -384,8 +384,11 @@ fn chunk_unfolded(
     let mut u = [0f32; LANES];
     let mut z = [0f32; LANES];
     let mut zr = [0f32; LANES];
-    normals_block(&fc.shot_key, idx0, &mut z[..n], simd);
-    normals_block(&fc.read_key, idx0, &mut zr[..n], simd);
+    // SAFETY: `simd` comes from `crate::simd::simd()`, never more than the CPU has
+    unsafe {
+        normals_block(&fc.shot_key, idx0, &mut z[..n], simd);
+        normals_block(&fc.read_key, idx0, &mut zr[..n], simd);
+    }
     for l in 0..n {
         m[l] = if mu[l].is_finite() {
             mu[l].max(0.0)
@@ -490,12 +493,15 @@ fn row_folded_body(
     for b0 in (0..n).step_by(BLOCK) {
         let len = BLOCK.min(n - b0);
         let b1 = b0 + len;
-        normals_block(
-            &fc.shot_key,
-            idx0.wrapping_add(b0 as u32),
-            &mut z[..len],
-            simd,
-        );
+        // SAFETY: `simd` comes from `crate::simd::simd()` (`row_body`), never more than the CPU has
+        unsafe {
+            normals_block(
+                &fc.shot_key,
+                idx0.wrapping_add(b0 as u32),
+                &mut z[..len],
+                simd,
+            )
+        };
         // every slice exactly `len` long, so the loop runs without bounds checks and vectorises
         let blk = StaticRow {
             gain: &st.gain[b0..b1],
@@ -626,12 +632,13 @@ simd_dispatch! {
     )
 }
 
-/// [`normals`] over a slice of any length, block by block.
+/// [`normals_block`] over a slice of any length, block by block.
 #[inline(always)]
 fn normals_body(key: &NoiseKey, idx0: u32, z: &mut [f32]) {
     let simd = crate::simd::simd();
     for (b, chunk) in z.chunks_mut(BLOCK).enumerate() {
-        normals_block(key, idx0.wrapping_add((b * BLOCK) as u32), chunk, simd);
+        // SAFETY: `simd()` never returns more than the CPU has
+        unsafe { normals_block(key, idx0.wrapping_add((b * BLOCK) as u32), chunk, simd) };
     }
 }
 

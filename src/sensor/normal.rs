@@ -128,17 +128,21 @@ pub fn normal_from_bits(bits: u32) -> f32 {
 
 /// [`normal_from_bits`] of `key.bits(idx0 + i)` for every i of `z` (at most [`BLOCK`] long),
 /// bit-identical, in AVX-512 or AVX2 as `simd` allows (whole vectors: lengths that are multiples
-/// of 16 or 8; other lengths draw one at a time). `simd` must not exceed what the CPU has
-/// (callers pass [`crate::simd::simd`]).
+/// of 16 or 8; other lengths draw one at a time).
+///
+/// # Safety
+/// `simd` must not exceed what the CPU has ([`Simd::detected`]); callers pass
+/// [`crate::simd::simd`]. (Checking here would cost a feature test per block.)
 #[inline(always)]
-pub(crate) fn normals_block(key: &NoiseKey, idx0: u32, z: &mut [f32], simd: Simd) {
+pub(crate) unsafe fn normals_block(key: &NoiseKey, idx0: u32, z: &mut [f32], simd: Simd) {
     debug_assert!(simd <= Simd::detected());
+    debug_assert!(z.len() <= BLOCK);
     let n = z.len().min(BLOCK);
     let z = &mut z[..n];
     #[cfg(target_arch = "x86_64")]
     if simd >= Simd::Avx2 && n.is_multiple_of(8) {
         let tail = if simd == Simd::Avx512 && n.is_multiple_of(16) {
-            // SAFETY: `simd` says the CPU has AVX-512 F
+            // SAFETY: `simd` says the CPU has AVX-512 F (the caller's contract)
             unsafe { block_avx512(key.k1(), key.k2(), idx0, z) }
         } else {
             // SAFETY: `simd` says the CPU has AVX2 and FMA
@@ -297,18 +301,33 @@ mod tests {
     }
 
     /// The vector blocks give `normal_from_bits`'s bits at every instruction set, for whole
-    /// blocks, vector-multiple and odd lengths, and blocks holding tail draws.
+    /// blocks, vector-multiple and odd lengths, blocks holding a draw from each of the 16
+    /// binades, and blocks holding tail draws.
     #[test]
     fn blocks_are_normal_from_bits_at_every_instruction_set() {
         let key = NoiseKey::new(3, 5, 1);
-        // blocks that hold a tail draw
-        let tails: Vec<u32> = (0..4_000_000u32)
-            .filter(|&i| split(key.bits(i)).0 < TAIL_BELOW)
-            .take(5)
-            .collect();
+        // the first index whose draw lies in binade j (2²³ t in [2^(22−j), 2^(23−j))), j = 0..15,
+        // and the first five tail draws
+        let (mut binade, mut tails) = ([None; 16], Vec::new());
+        for i in 0..8_000_000u32 {
+            let t = split(key.bits(i)).0;
+            if t < TAIL_BELOW {
+                if tails.len() < 5 {
+                    tails.push(i);
+                }
+            } else {
+                let j = 22 - t.ilog2() as usize;
+                binade[j].get_or_insert(i);
+            }
+            if tails.len() == 5 && binade.iter().all(|b| b.is_some()) {
+                break;
+            }
+        }
         assert!(tails.len() == 5, "{tails:?}");
+        assert!(binade.iter().all(|b| b.is_some()), "{binade:?}");
         let starts = tails
             .iter()
+            .chain(binade.iter().flatten())
             .map(|&i| i & !15)
             .chain([0, 17, 1 << 31, u32::MAX - 40]);
         for idx0 in starts {
@@ -318,7 +337,8 @@ mod tests {
                     .collect();
                 for level in Simd::available() {
                     let mut z = vec![0f32; len as usize];
-                    normals_block(&key, idx0, &mut z, level);
+                    // SAFETY: `available` lists only what the CPU has
+                    unsafe { normals_block(&key, idx0, &mut z, level) };
                     let got: Vec<u32> = z.iter().map(|v| v.to_bits()).collect();
                     assert_eq!(got, want, "{level:?}, idx0 {idx0}, len {len}");
                 }
