@@ -609,19 +609,12 @@ pub fn render_stokes_grid(
     (g.to_image(), g.sun_pixels())
 }
 
-/// How one coarse cell is filled.
-#[derive(Clone, Copy, Debug, PartialEq)]
-enum Cell {
-    /// Bilinear between the four coarse nodes.
-    Interp,
-    /// A finer grid of its own (index into `SkyGrid::subs`).
-    Sub(u32),
-}
-
 /// A refined cell: nodes every `step` pixels (the last at the cell's far edge), and per sub-cell
 /// whether it is evaluated exactly at every pixel.
 #[derive(Clone, Debug)]
 struct SubGrid {
+    /// The coarse cell's column index (its row is the band holding it in `SkyGrid::band_subs`).
+    cell: usize,
     /// Node spacing (the last interval of each axis may be shorter).
     step: usize,
     cols: Vec<usize>,
@@ -652,8 +645,10 @@ pub struct SkyGrid<'a> {
     cols: Vec<usize>,
     rows: Vec<usize>,
     nodes: Vec<[f32; 3]>,
-    cells: Vec<Cell>,
+    /// The refined cells, in row-major order of the coarse cells.
     subs: Vec<SubGrid>,
+    /// The refined cells of band j (coarse cell row j) are `subs[band_subs[j]..band_subs[j + 1]]`.
+    band_subs: Vec<usize>,
     /// Solar disc additions to S0: (pixel index, radiance), sorted by index.
     disc: Vec<(usize, f32)>,
     exact_pixels: usize,
@@ -772,7 +767,7 @@ impl<'a> SkyGrid<'a> {
                 .collect()
         };
         // the solar disc (sequential) beside the nodes and their refinement
-        let ((nodes, cells, subs, exact_pixels), disc) = rayon::join(
+        let ((nodes, band_subs, subs, exact_pixels), disc) = rayon::join(
             || {
                 let evaluated: Vec<([f32; 3], bool)> = rows
                     .par_iter()
@@ -785,10 +780,10 @@ impl<'a> SkyGrid<'a> {
                 let curv = curvature(&nodes, gw, gh);
                 let tol = tol as f32;
                 let mut flagged = Vec::new();
-                let mut cells = vec![Cell::Interp; (gw.max(2) - 1) * (gh.max(2) - 1)];
+                let bands = gh.max(2) - 1;
                 if gw >= 2 && gh >= 2 {
                     // the test per cell in parallel, the numbering of the flagged ones in order
-                    let mut more = vec![false; cells.len()];
+                    let mut more = vec![false; (gw - 1) * bands];
                     more.par_chunks_mut(gw - 1)
                         .enumerate()
                         .for_each(|(j, row)| {
@@ -797,10 +792,13 @@ impl<'a> SkyGrid<'a> {
                             }
                         });
                     for (k, _) in more.iter().enumerate().filter(|(_, &m)| m) {
-                        cells[k] = Cell::Sub(flagged.len() as u32);
                         flagged.push((k % (gw - 1), k / (gw - 1)));
                     }
                 }
+                // flagged is in row-major order: each band's cells are one run
+                let band_subs: Vec<usize> = (0..=bands)
+                    .map(|j| flagged.partition_point(|&(_, fj)| fj < j))
+                    .collect();
                 let subs: Vec<SubGrid> = flagged
                     .par_iter()
                     .map(|&(i, j)| {
@@ -824,6 +822,7 @@ impl<'a> SkyGrid<'a> {
                             }
                         }
                         SubGrid {
+                            cell: i,
                             step: sub_step,
                             cols: sc,
                             rows: sr,
@@ -847,7 +846,7 @@ impl<'a> SkyGrid<'a> {
                             .sum::<usize>()
                     })
                     .sum();
-                (nodes, cells, subs, exact_pixels)
+                (nodes, band_subs, subs, exact_pixels)
             },
             || {
                 if opts.sun_disc {
@@ -866,8 +865,8 @@ impl<'a> SkyGrid<'a> {
             cols,
             rows,
             nodes,
-            cells,
             subs,
+            band_subs,
             disc,
             exact_pixels,
         }
@@ -918,11 +917,28 @@ fn lerp_span(
     c1: usize,
     c_end: usize,
 ) {
+    // x as f32 read from a table, so that the loop vectorises (the same values)
+    const XS: [f32; 64] = {
+        let mut t = [0f32; 64];
+        let mut i = 0;
+        while i < 64 {
+            t[i] = i as f32;
+            i += 1;
+        }
+        t
+    };
     let inv = 1.0 / (c1 - c0) as f32;
     for (k, o) in out.into_iter().enumerate() {
         let (l, d) = (left[k], right[k] - left[k]);
-        for (x, v) in o[c0..c_end].iter_mut().enumerate() {
-            *v = l + d * (x as f32 * inv);
+        let o = &mut o[c0..c_end];
+        if o.len() <= XS.len() {
+            for (v, &x) in o.iter_mut().zip(&XS) {
+                *v = l + d * (x * inv);
+            }
+        } else {
+            for (x, v) in o.iter_mut().enumerate() {
+                *v = l + d * (x as f32 * inv);
+            }
         }
     }
 }
@@ -943,10 +959,35 @@ fn interp_cells(
     full: usize,
 ) {
     let (top, bottom) = (
-        &nodes[j * gw..(j + 1) * gw],
-        &nodes[(j + 1) * gw..(j + 2) * gw],
+        nodes[j * gw..(j + 1) * gw].as_flattened(),
+        nodes[(j + 1) * gw..(j + 2) * gw].as_flattened(),
     );
-    for (p, out) in [s0, s1, s2].into_iter().enumerate() {
+    // the row's node values and their differences to the next node, all planes interleaved
+    // (v[3i + p], d[3i + p]), in two loops over whole vectors: a cell then needs two broadcasts
+    // (a per-thread buffer: neither an allocation nor zeroing per row)
+    thread_local! {
+        static NODE_ROW: std::cell::RefCell<Vec<f32>> = const { std::cell::RefCell::new(Vec::new()) };
+    }
+    NODE_ROW.with_borrow_mut(|buf| {
+        let n = top.len();
+        if buf.len() < 2 * n {
+            buf.resize(2 * n, 0.0);
+        }
+        let (v, d) = buf.split_at_mut(n);
+        let (v, d) = (&mut v[..n], &mut d[..n]);
+        for k in 0..n {
+            v[k] = top[k] + (bottom[k] - top[k]) * fy;
+        }
+        for k in 0..n - 3 {
+            d[k] = v[k + 3] - v[k];
+        }
+        interp_planes([s0, s1, s2], v, d, fx, full);
+    });
+}
+
+/// The planes of [`interp_cells`] from the node row `v` and its differences `d`.
+fn interp_planes(s: [&mut [f32]; 3], v: &[f32], d: &[f32], fx: &[f32], full: usize) {
+    for (p, out) in s.into_iter().enumerate() {
         let out = &mut out[..full];
         // the default grid's 16-pixel cells as whole vectors, written out: left to itself the
         // loop vectoriser spreads the cells over the lanes and scatters (slower than scalar)
@@ -955,40 +996,25 @@ fn interp_cells(
             use crate::simd::{simd, Simd};
             match simd() {
                 // SAFETY: `simd` never returns more than the CPU has
-                Simd::Avx512 => unsafe { interp16_avx512(out, top, bottom, p, fy, fx) },
+                Simd::Avx512 => unsafe { interp16_avx512(out, v, d, p, fx) },
                 // SAFETY: as above
-                Simd::Avx2 => unsafe { interp16_avx2(out, top, bottom, p, fy, fx) },
-                Simd::Plain => interp_plane(out, top, bottom, p, fy, fx),
+                Simd::Avx2 => unsafe { interp16_avx2(out, v, d, p, fx) },
+                Simd::Plain => interp_plane(out, v, d, p, fx),
             }
             continue;
         }
-        interp_plane(out, top, bottom, p, fy, fx);
+        interp_plane(out, v, d, p, fx);
     }
 }
 
-/// Node `i` of plane `p` interpolated between the two node rows.
-#[inline(always)]
-fn node_at(top: &[[f32; 3]], bottom: &[[f32; 3]], i: usize, p: usize, fy: f32) -> f32 {
-    top[i][p] + (bottom[i][p] - top[i][p]) * fy
-}
-
-/// One plane of [`interp_cells`], any cell width (`fx.len()`).
-fn interp_plane(
-    out: &mut [f32],
-    top: &[[f32; 3]],
-    bottom: &[[f32; 3]],
-    p: usize,
-    fy: f32,
-    fx: &[f32],
-) {
-    let mut left = node_at(top, bottom, 0, p, fy);
+/// One plane of [`interp_cells`], any cell width (`fx.len()`): cell i is v[3i + p] +
+/// d[3i + p] · fx.
+fn interp_plane(out: &mut [f32], v: &[f32], d: &[f32], p: usize, fx: &[f32]) {
     for (i, chunk) in out.chunks_exact_mut(fx.len()).enumerate() {
-        let right = node_at(top, bottom, i + 1, p, fy);
-        let (l, d) = (left, right - left);
+        let (l, d) = (v[3 * i + p], d[3 * i + p]);
         for (o, &f) in chunk.iter_mut().zip(fx) {
             *o = l + d * f;
         }
-        left = right;
     }
 }
 
@@ -996,24 +1022,19 @@ fn interp_plane(
 /// as the scalar code: the same bits).
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx512f")]
-fn interp16_avx512(
-    out: &mut [f32],
-    top: &[[f32; 3]],
-    bottom: &[[f32; 3]],
-    p: usize,
-    fy: f32,
-    fx: &[f32; 16],
-) {
+fn interp16_avx512(out: &mut [f32], v: &[f32], d: &[f32], p: usize, fx: &[f32; 16]) {
     use std::arch::x86_64::*;
-    // SAFETY: 16 floats read from `fx` and written to each 16-float chunk
+    let cells = out.len() / 16;
+    assert!(3 * cells <= d.len());
+    // SAFETY: 16 floats read from `fx` and written to each of the `cells` 16-float chunks of
+    // `out`; v and d read at 3i + p < 3 cells ≤ d.len() ≤ v.len() (asserted)
     unsafe {
         let f = _mm512_loadu_ps(fx.as_ptr());
-        let mut left = node_at(top, bottom, 0, p, fy);
-        for (i, chunk) in out.chunks_exact_mut(16).enumerate() {
-            let right = node_at(top, bottom, i + 1, p, fy);
-            let (l, d) = (_mm512_set1_ps(left), _mm512_set1_ps(right - left));
-            _mm512_storeu_ps(chunk.as_mut_ptr(), _mm512_add_ps(l, _mm512_mul_ps(d, f)));
-            left = right;
+        let (v, d, o) = (v.as_ptr().add(p), d.as_ptr().add(p), out.as_mut_ptr());
+        for i in 0..cells {
+            let l = _mm512_set1_ps(*v.add(3 * i));
+            let dd = _mm512_set1_ps(*d.add(3 * i));
+            _mm512_storeu_ps(o.add(16 * i), _mm512_add_ps(l, _mm512_mul_ps(dd, f)));
         }
     }
 }
@@ -1021,29 +1042,23 @@ fn interp16_avx512(
 /// [`interp16_avx512`] with two AVX vectors per cell.
 #[cfg(target_arch = "x86_64")]
 #[target_feature(enable = "avx2")]
-fn interp16_avx2(
-    out: &mut [f32],
-    top: &[[f32; 3]],
-    bottom: &[[f32; 3]],
-    p: usize,
-    fy: f32,
-    fx: &[f32; 16],
-) {
+fn interp16_avx2(out: &mut [f32], v: &[f32], d: &[f32], p: usize, fx: &[f32; 16]) {
     use std::arch::x86_64::*;
-    // SAFETY: 16 floats read from `fx` and written to each 16-float chunk
+    let cells = out.len() / 16;
+    assert!(3 * cells <= d.len());
+    // SAFETY: as in `interp16_avx512`
     unsafe {
         let (fa, fb) = (
             _mm256_loadu_ps(fx.as_ptr()),
             _mm256_loadu_ps(fx.as_ptr().add(8)),
         );
-        let mut left = node_at(top, bottom, 0, p, fy);
-        for (i, chunk) in out.chunks_exact_mut(16).enumerate() {
-            let right = node_at(top, bottom, i + 1, p, fy);
-            let (l, d) = (_mm256_set1_ps(left), _mm256_set1_ps(right - left));
-            let o = chunk.as_mut_ptr();
-            _mm256_storeu_ps(o, _mm256_add_ps(l, _mm256_mul_ps(d, fa)));
-            _mm256_storeu_ps(o.add(8), _mm256_add_ps(l, _mm256_mul_ps(d, fb)));
-            left = right;
+        let (v, d, o) = (v.as_ptr().add(p), d.as_ptr().add(p), out.as_mut_ptr());
+        for i in 0..cells {
+            let l = _mm256_set1_ps(*v.add(3 * i));
+            let dd = _mm256_set1_ps(*d.add(3 * i));
+            let o = o.add(16 * i);
+            _mm256_storeu_ps(o, _mm256_add_ps(l, _mm256_mul_ps(dd, fa)));
+            _mm256_storeu_ps(o.add(8), _mm256_add_ps(l, _mm256_mul_ps(dd, fb)));
         }
     }
 }
@@ -1098,15 +1113,13 @@ impl StokesRows for SkyGrid<'_> {
                 self.cols[gw - 1],
                 w,
             );
-            let band = &self.cells[j * (gw - 1)..(j + 1) * (gw - 1)];
-            for (i, cell) in band.iter().enumerate() {
-                let Cell::Sub(k) = *cell else { continue };
+            for sg in &self.subs[self.band_subs[j]..self.band_subs[j + 1]] {
+                let i = sg.cell;
                 let c_end = if i + 2 == gw {
                     self.cols[i + 1] + 1
                 } else {
                     self.cols[i + 1]
                 };
-                let sg = &self.subs[k as usize];
                 let (sw, sh) = (sg.cols.len(), sg.rows.len());
                 let jj = ((r - r0) / sg.step).min(sh - 2);
                 let (sr0, sr1) = (sg.rows[jj], sg.rows[jj + 1]);
@@ -1495,7 +1508,8 @@ mod tests {
         let cam = Camera::new(intr, &Attitude::enu(90.0, 20.0, 0.0), 100.0).unwrap();
         let opts = StokesOptions { sun_disc: true };
         let (w, h) = (intr.width, intr.height);
-        for step in [16usize, 12] {
+        // 90: cells wider than lerp_span's table (its last cell 69 pixels)
+        for step in [16usize, 12, 90] {
             let g = SkyGrid::new(&sky, &cam, opts, step, f64::INFINITY);
             let rows = |l: Simd| -> Vec<u32> {
                 with_simd(l, || {
@@ -1513,7 +1527,7 @@ mod tests {
                 assert!(rows(l) == plain, "step {step}: {l:?} differs from plain");
             }
             // the reference, as fill_row was first written: nodes by lerp3, full-width cells at
-            // x/step, the last cell by lerp_span
+            // x/step, the last cell at x · (1/width)
             let gw = g.cols.len();
             for r in 0..h {
                 let j = SkyGrid::interval(&g.rows, step, r);
@@ -1529,7 +1543,12 @@ mod tests {
                     }
                 }
                 let (c0, c1) = (g.cols[gw - 2], g.cols[gw - 1]);
-                lerp_span([&mut a, &mut b, &mut c], v(gw - 2), v(gw - 1), c0, c1, w);
+                for (p, o) in [&mut a, &mut b, &mut c].into_iter().enumerate() {
+                    let (l, d) = (v(gw - 2)[p], v(gw - 1)[p] - v(gw - 2)[p]);
+                    for x in c0..w {
+                        o[x] = l + d * ((x - c0) as f32 * (1.0 / (c1 - c0) as f32));
+                    }
+                }
                 for (k, x) in a.iter().chain(&b).chain(&c).enumerate() {
                     let (p, col) = (k / w, k % w);
                     let got = plain[(r * 3 + p) * w + col];

@@ -136,6 +136,40 @@ pub struct FastStatics {
     b: f32,
 }
 
+/// A zeroed buffer whose first element sits on a 64-byte boundary (a `Vec<f32>` is only
+/// promised 4-byte alignment): whole-vector loads and stores of a row then never straddle two
+/// cache lines. Used for the row scratch, which the interpolation writes and the kernel reads
+/// (aligning it took the interpolation's samples down by a quarter, `docs/performance.md`);
+/// aligning the fixed-pattern maps as well showed no difference.
+struct Aligned<T> {
+    buf: Vec<T>,
+    off: usize,
+    len: usize,
+}
+
+impl<T: Copy + Default> Aligned<T> {
+    fn new(len: usize) -> Self {
+        let pad = 64 / std::mem::size_of::<T>().max(1);
+        let buf = vec![T::default(); len + pad];
+        // T's own alignment divides 64, so fewer than `pad` elements reach the boundary
+        let off = buf.as_ptr().align_offset(64).min(pad);
+        Aligned { buf, off, len }
+    }
+}
+
+impl<T> std::ops::Deref for Aligned<T> {
+    type Target = [T];
+    fn deref(&self) -> &[T] {
+        &self.buf[self.off..self.off + self.len]
+    }
+}
+
+impl<T> std::ops::DerefMut for Aligned<T> {
+    fn deref_mut(&mut self) -> &mut [T] {
+        &mut self.buf[self.off..self.off + self.len]
+    }
+}
+
 #[inline(always)]
 fn fixed<T>(v: f64, unit: f32, lo: f64, hi: f64, conv: impl Fn(f64) -> T) -> T {
     conv((v / unit as f64).round().clamp(lo, hi))
@@ -678,8 +712,9 @@ pub(crate) fn render_codes(
         .enumerate()
         // row scratch per rayon job, not per band (every row overwrites it)
         .map_init(
-            || [vec![0f32; w], vec![0f32; w], vec![0f32; w], vec![0f32; w]],
-            |[s0, s1, s2, mu], (band, out)| {
+            || std::array::from_fn::<_, 4, _>(|_| Aligned::<f32>::new(w)),
+            |rows, (band, out)| {
+                let [s0, s1, s2, mu] = rows.each_mut().map(|r| &mut r[..]);
                 let mut sat = [0u32; 4];
                 for (i, row) in out.chunks_mut(w).enumerate() {
                     let r = band * BAND + i;
@@ -730,6 +765,21 @@ pub(crate) fn rates(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn aligned_rows_start_on_64_bytes() {
+        for len in [0usize, 1, 17, 2448] {
+            for _ in 0..8 {
+                let mut a = Aligned::<f32>::new(len);
+                assert_eq!(a.len(), len);
+                assert_eq!(a.as_ptr() as usize % 64, 0, "len {len}");
+                assert!(a.iter().all(|&x| x == 0.0));
+                a.iter_mut().for_each(|x| *x = 1.0);
+                let b = Aligned::<u16>::new(len + 1);
+                assert_eq!(b.as_ptr() as usize % 64, 0);
+            }
+        }
+    }
 
     #[test]
     fn ln_matches_std() {
