@@ -37,6 +37,8 @@ pub struct RawPipeline {
     /// The last sky prepared, with its sun: a stream whose sun stands still (only the attitude
     /// changes) prepares it once.
     sky: std::sync::Mutex<Option<(SunPosition, SkyParams, std::sync::Arc<Sky>)>>,
+    /// Fast-path frames carry the CRC-32 of their codes ([`Self::set_codes_crc32`]).
+    codes_crc32: bool,
 }
 
 impl RawPipeline {
@@ -72,7 +74,15 @@ impl RawPipeline {
             sensor_cfg,
             sensor,
             sky: std::sync::Mutex::new(None),
+            codes_crc32: false,
         })
+    }
+
+    /// Asks the fast path for [`RawFrame::codes_crc32`] (the CRC-32 of the codes as
+    /// little-endian bytes, taken band by band while they are in cache; a stream's Mono16
+    /// payload CRC). Frames of the exact path and of the PSNS presets leave it `None`.
+    pub fn set_codes_crc32(&mut self, on: bool) {
+        self.codes_crc32 = on;
     }
 
     /// The scene configuration.
@@ -226,7 +236,9 @@ impl RawPipeline {
             let f = if psns {
                 self.sensor.frame_psns_rows(&grid, frame_index, codes)?
             } else {
-                self.sensor.frame_fast(&grid, frame_index, codes)?
+                let crc = self.codes_crc32;
+                self.sensor
+                    .frame_fast_with(&grid, frame_index, codes, crc)?
             };
             return Ok((f, info));
         }
@@ -234,7 +246,8 @@ impl RawPipeline {
         let f = if psns {
             self.sensor.frame_codes_into(&st, frame_index, codes)?
         } else {
-            self.sensor.frame_fast(&st, frame_index, codes)?
+            let crc = self.codes_crc32;
+            self.sensor.frame_fast_with(&st, frame_index, codes, crc)?
         };
         Ok((f, info))
     }

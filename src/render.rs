@@ -1545,8 +1545,8 @@ mod tests {
                 let (c0, c1) = (g.cols[gw - 2], g.cols[gw - 1]);
                 for (p, o) in [&mut a, &mut b, &mut c].into_iter().enumerate() {
                     let (l, d) = (v(gw - 2)[p], v(gw - 1)[p] - v(gw - 2)[p]);
-                    for x in c0..w {
-                        o[x] = l + d * ((x - c0) as f32 * (1.0 / (c1 - c0) as f32));
+                    for (x, v) in o[c0..w].iter_mut().enumerate() {
+                        *v = l + d * (x as f32 * (1.0 / (c1 - c0) as f32));
                     }
                 }
                 for (k, x) in a.iter().chain(&b).chain(&c).enumerate() {

@@ -142,6 +142,29 @@ fn frames_do_not_depend_on_the_thread_count() {
     assert!(one.iter().zip(&other).filter(|(a, b)| a != b).count() > N * N / 2);
 }
 
+/// The codes' CRC-32, taken band by band in the sensor pass and combined, is the CRC of the
+/// whole frame's little-endian bytes, on sizes whose last band is short, at any thread count;
+/// without the request there is none.
+#[test]
+fn band_crc_is_the_frame_crc() {
+    let cfg = SensorConfig::default();
+    for (w, h) in [(64usize, 16usize), (52, 36), (36, 4), (128, 132)] {
+        let s = Sensor::new(&cfg, &Intrinsics::with_size(w, h), 9).unwrap();
+        let st = sensor::flat_field(w, h, 0.04, 0.3, 20.0).unwrap();
+        assert_eq!(s.frame_fast(&st, 7, Vec::new()).unwrap().codes_crc32, None);
+        for threads in [1, 3] {
+            let f = rayon::ThreadPoolBuilder::new()
+                .num_threads(threads)
+                .build()
+                .unwrap()
+                .install(|| s.frame_fast_with(&st, 7, Vec::new(), true).unwrap());
+            let bytes: Vec<u8> = f.codes.data.iter().flat_map(|c| c.to_le_bytes()).collect();
+            let want = cfg!(target_endian = "little").then(|| crc32fast::hash(&bytes));
+            assert_eq!(f.codes_crc32, want, "{w} x {h}, {threads} threads");
+        }
+    }
+}
+
 /// Fast vs exact means with temporal noise off for one camera over sun zeniths x turbidities x
 /// views (yaw offset from the sun, pitch below it): below a tenth of the shot noise at every
 /// pixel outside the solar disc, and below 1 DN where the shot noise is under 10 DN; fast and

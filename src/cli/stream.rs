@@ -193,6 +193,8 @@ pub struct StreamSummary {
 struct Rendered {
     meta: FrameMeta,
     payload: Payload,
+    /// The payload's CRC-32 when the render already has it (taken while the bytes were in cache).
+    crc: Option<u32>,
 }
 
 /// A frame's payload: packed bytes, or (little-endian Mono16) the codes themselves.
@@ -314,17 +316,18 @@ impl FrameMaker {
         let (mut frame, info) = self.pipe.frame_at(sun, &pose.attitude, index, codes)?;
         // little-endian Mono16 is the code buffer itself: no packing pass
         let zero_copy = self.fmt == PixelFormat::Mono16 && cfg!(target_endian = "little");
-        let payload = if zero_copy {
-            Payload::Codes(std::mem::take(&mut frame.codes.data))
+        let (payload, crc) = if zero_copy {
+            let crc = frame.codes_crc32;
+            (Payload::Codes(std::mem::take(&mut frame.codes.data)), crc)
         } else {
-            packing::pack(
+            let crc = packing::pack_crc32(
                 &frame.codes.data,
                 frame.bit_depth,
                 self.fmt,
                 false,
                 &mut bytes,
             )?;
-            Payload::Bytes(bytes)
+            (Payload::Bytes(bytes), Some(crc))
         };
         let m = pose.attitude.enu_to_camera(sun.azimuth_deg);
         let sun_c = m * sun.vector();
@@ -377,7 +380,7 @@ impl FrameMaker {
             albedo: self.albedo,
         };
         self.codes = frame.codes.data;
-        Ok(Rendered { meta, payload })
+        Ok(Rendered { meta, payload, crc })
     }
 }
 
@@ -613,8 +616,8 @@ impl Output {
     }
     fn write(&mut self, r: &Rendered) -> Result<()> {
         match self {
-            Output::Stdout(w) => w.write_payload(&r.meta, r.payload.as_bytes()),
-            Output::Path(w) => w.write_payload(&r.meta, r.payload.as_bytes()),
+            Output::Stdout(w) => w.write_payload_crc(&r.meta, r.payload.as_bytes(), r.crc),
+            Output::Path(w) => w.write_payload_crc(&r.meta, r.payload.as_bytes(), r.crc),
         }
     }
     fn finish(self) -> Result<()> {
@@ -723,6 +726,9 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
         "attitude_frame": "enu",
     });
     let header = stream_header(cfg, &pipe, extra)?;
+    let mut pipe = pipe;
+    // little-endian Mono16 payloads are the codes: the fast path takes their CRC band by band
+    pipe.set_codes_crc32(header.pixel_format == PixelFormat::Mono16);
     let mut maker = FrameMaker {
         sun: sun_src,
         place: cfg.sun.place,

@@ -686,25 +686,32 @@ simd_dispatch! {
 pub(crate) struct FastCodes {
     pub codes: Vec<u16>,
     pub saturated: [u32; 4],
+    /// CRC-32 of the codes as little-endian bytes, when asked for.
+    pub crc32: Option<u32>,
 }
 
 /// Rows per parallel task (several rows so the per-task scratch is reused).
 const BAND: usize = 16;
 
-/// Raw codes of one frame from a row source of sensor-frame Stokes radiance.
+/// Raw codes of one frame from a row source of sensor-frame Stokes radiance; with `crc32`, also
+/// the CRC-32 of the codes as little-endian bytes, taken band by band while each band is still
+/// in cache (a third of the time of one pass over the finished 10 MB frame) and combined.
 pub(crate) fn render_codes(
     sensor: &Sensor,
     st: &FastStatics,
     src: &dyn StokesRows,
     fc: &FrameConsts,
     mut codes: Vec<u16>,
+    crc32: bool,
 ) -> FastCodes {
+    // the bytes of a u16 slice are its little-endian bytes only on a little-endian machine
+    let crc32 = crc32 && cfg!(target_endian = "little");
     let (w, h) = (sensor.intrinsics.width, sensor.intrinsics.height);
     // every code is written below: a reused buffer of the right size is not cleared
     codes.resize(w * h, 0);
     let folded = fc.folded();
     let mu_hi = fc.mu_high() as f32;
-    let sats: Vec<[u32; 4]> = codes
+    let bands: Vec<([u32; 4], u32)> = codes
         .par_chunks_mut(w * BAND)
         // one band per task: a worker preempted by the writer or the reader holds up the
         // frame's end by one band, not by a quarter of the frame
@@ -723,17 +730,36 @@ pub(crate) fn render_codes(
                     let s = [&s0[..], &s1[..], &s2[..]];
                     row_kernel(fc, folded, mu_hi, s, &sr, r * w, r, mu, row, &mut sat);
                 }
-                sat
+                let crc = if crc32 {
+                    crc32fast::hash(bytemuck::cast_slice(out))
+                } else {
+                    0
+                };
+                (sat, crc)
             },
         )
         .collect();
     let mut saturated = [0u32; 4];
-    for s in &sats {
+    for (s, _) in &bands {
         for i in 0..4 {
             saturated[i] += s[i];
         }
     }
-    FastCodes { codes, saturated }
+    let crc32 = crc32.then(|| {
+        let mut h = crc32fast::Hasher::new();
+        for (band, (_, crc)) in codes.chunks(w * BAND).zip(&bands) {
+            h.combine(&crc32fast::Hasher::new_with_initial_len(
+                *crc,
+                2 * band.len() as u64,
+            ));
+        }
+        h.finalize()
+    });
+    FastCodes {
+        codes,
+        saturated,
+        crc32,
+    }
 }
 
 /// Electron rate (e⁻/s) of every pixel from a row source (for auto-exposure).

@@ -411,6 +411,10 @@ pub struct RawFrame {
     pub exposure_clipped: bool,
     /// Unrounded, unclipped output values (output DN) when the `quantize` stage is off.
     pub analog: Option<Image<f32>>,
+    /// CRC-32 (IEEE, as [`crc32fast`]) of the codes as little-endian u16 bytes, when the frame
+    /// was asked for it ([`Sensor::frame_fast_with`]): the stream's Mono16 payload CRC,
+    /// computed while the codes were in cache.
+    pub codes_crc32: Option<u32>,
 }
 
 impl RawFrame {
@@ -757,6 +761,18 @@ impl Sensor {
         frame_index: u64,
         codes: Vec<u16>,
     ) -> Result<RawFrame> {
+        self.frame_fast_with(src, frame_index, codes, false)
+    }
+
+    /// [`Self::frame_fast`], with [`RawFrame::codes_crc32`] filled in when `crc32` is set (on a
+    /// little-endian machine).
+    pub fn frame_fast_with(
+        &self,
+        src: &dyn StokesRows,
+        frame_index: u64,
+        codes: Vec<u16>,
+        crc32: bool,
+    ) -> Result<RawFrame> {
         self.check_rows(src)?;
         let (w, h) = (self.intrinsics.width, self.intrinsics.height);
         if !self.fast_capable() {
@@ -795,7 +811,7 @@ impl Sensor {
             shot_key: fast::NoiseKey::new(self.seed, frame_index, noise::STAGE_SHOT),
             read_key: fast::NoiseKey::new(self.seed, frame_index, noise::STAGE_READ),
         };
-        let out = fast::render_codes(self, statics, src, &fc, codes);
+        let out = fast::render_codes(self, statics, src, &fc, codes, crc32);
         Ok(RawFrame {
             codes: Image::from_vec(w, h, out.codes),
             bit_depth: cfg.bit_depth,
@@ -808,6 +824,7 @@ impl Sensor {
             auto_exposed: auto,
             exposure_clipped: clipped,
             analog: None,
+            codes_crc32: out.crc32,
         })
     }
 
@@ -1024,6 +1041,7 @@ impl Sensor {
             auto_exposed: auto,
             exposure_clipped: clipped,
             analog: analog.map(|a| Image::from_vec(w, h, a)),
+            codes_crc32: None,
         })
     }
 

@@ -169,6 +169,30 @@ pub fn pack(
     msb_aligned: bool,
     out: &mut Vec<u8>,
 ) -> Result<()> {
+    pack_impl(codes, bit_depth, fmt, msb_aligned, out, false).map(|_| ())
+}
+
+/// [`pack`], returning also the CRC-32 (IEEE, as [`crc32fast`]) of the packed bytes, taken
+/// chunk by chunk right after each chunk is packed (while it is in cache) and combined: the
+/// stream's payload CRC without another pass over the payload.
+pub fn pack_crc32(
+    codes: &[u16],
+    bit_depth: u8,
+    fmt: PixelFormat,
+    msb_aligned: bool,
+    out: &mut Vec<u8>,
+) -> Result<u32> {
+    pack_impl(codes, bit_depth, fmt, msb_aligned, out, true)
+}
+
+fn pack_impl(
+    codes: &[u16],
+    bit_depth: u8,
+    fmt: PixelFormat,
+    msb_aligned: bool,
+    out: &mut Vec<u8>,
+    crc32: bool,
+) -> Result<u32> {
     // Mono8 accepts deeper codes (shifted down); the others store codes as they are.
     if fmt == PixelFormat::Mono8 {
         if !(8..=16).contains(&bit_depth) {
@@ -194,16 +218,18 @@ pub fn pack(
     // is checked (its codes OR-ed together) in the same pass that packs it, and the position of
     // a code out of range is looked for only in a chunk that has one
     let bytes_per_chunk = payload_size(fmt, CHUNK, 1);
-    let bad = out
+    let chunks: Vec<(Option<usize>, u32)> = out
         .par_chunks_mut(bytes_per_chunk)
         .zip(codes.par_chunks(CHUNK))
         .enumerate()
-        .filter_map(|(k, (o, c))| {
+        .map(|(k, (o, c))| {
             let all = pack_chunk(c, bit_depth, fmt, msb_aligned, o) as u32;
-            (all >= limit)
-                .then(|| k * CHUNK + c.iter().position(|&x| x as u32 >= limit).unwrap_or(0))
+            let bad = (all >= limit)
+                .then(|| k * CHUNK + c.iter().position(|&x| x as u32 >= limit).unwrap_or(0));
+            (bad, if crc32 { crc32fast::hash(o) } else { 0 })
         })
-        .min();
+        .collect();
+    let bad = chunks.iter().filter_map(|c| c.0).min();
     if let Some(i) = bad {
         return Err(Error::OutOfRange {
             name: format!("code of pixel {i}"),
@@ -211,7 +237,16 @@ pub fn pack(
             allowed: format!("0..{}", limit - 1),
         });
     }
-    Ok(())
+    let mut h = crc32fast::Hasher::new();
+    if crc32 {
+        for (o, c) in out.chunks(bytes_per_chunk).zip(&chunks) {
+            h.combine(&crc32fast::Hasher::new_with_initial_len(
+                c.1,
+                o.len() as u64,
+            ));
+        }
+    }
+    Ok(h.finalize())
 }
 
 /// Packs `codes` into exactly `payload_size(fmt, codes.len(), 1)` bytes of `out`; returns all
@@ -486,6 +521,44 @@ mod tests {
                 }
                 let want_or = codes.iter().fold(0, |a, &c| a | c);
                 assert_eq!(runs[0].1, want_or, "{n} codes");
+            }
+        }
+    }
+
+    /// The chunk-by-chunk CRC of [`pack_crc32`] is the CRC of the whole payload, in every
+    /// format, on lengths around the chunk size (the last chunk short, odd counts), with the same
+    /// bytes as [`pack`].
+    #[test]
+    fn pack_crc32_is_the_payload_crc() {
+        let mut h = 0x2545_F491_4F6C_DD1Du64;
+        for n in [
+            0usize,
+            1,
+            2,
+            1 << 16,
+            (1 << 16) + 2,
+            3 * (1 << 16) - 6,
+            200_001,
+        ] {
+            let codes: Vec<u16> = (0..n)
+                .map(|_| {
+                    h ^= h << 13;
+                    h ^= h >> 7;
+                    h ^= h << 17;
+                    (h >> 40) as u16 & 0x0FFF
+                })
+                .collect();
+            for fmt in [
+                PixelFormat::Mono8,
+                PixelFormat::Mono12p,
+                PixelFormat::Mono12Packed,
+                PixelFormat::Mono16,
+            ] {
+                let (mut a, mut b) = (Vec::new(), Vec::new());
+                pack(&codes, 12, fmt, false, &mut a).unwrap();
+                let crc = pack_crc32(&codes, 12, fmt, false, &mut b).unwrap();
+                assert_eq!(a, b, "{fmt} {n}");
+                assert_eq!(crc, crc32fast::hash(&a), "{fmt} {n}");
             }
         }
     }

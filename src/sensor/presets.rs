@@ -454,6 +454,7 @@ pub(crate) fn psns_frame(
         auto_exposed: false,
         exposure_clipped: false,
         analog: None,
+        codes_crc32: None,
     })
 }
 

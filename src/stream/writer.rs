@@ -100,6 +100,19 @@ impl<W: Write> StreamWriter<W> {
     /// Writes one record from an already packed payload. Indexes must increase; a jump sets
     /// [`FLAG_DROPPED`](super::FLAG_DROPPED).
     pub fn write_payload(&mut self, meta: &FrameMeta, payload: &[u8]) -> Result<()> {
+        self.write_payload_crc(meta, payload, None)
+    }
+
+    /// [`Self::write_payload`] with the payload's CRC-32 already known (`Some`: computed by
+    /// whoever made the payload, e.g. [`crate::sensor::packing::pack_crc32`] or
+    /// [`crate::sensor::RawFrame::codes_crc32`], which take it while the bytes are in cache;
+    /// checked against the payload in debug builds), or `None` to compute it here.
+    pub fn write_payload_crc(
+        &mut self,
+        meta: &FrameMeta,
+        payload: &[u8],
+        crc: Option<u32>,
+    ) -> Result<()> {
         let p = payload_size(
             self.header.pixel_format,
             self.header.width as usize,
@@ -123,7 +136,8 @@ impl<W: Write> StreamWriter<W> {
                 meta.flags |= FLAG_DROPPED;
             }
         }
-        let hdr = meta.encode(crc32(payload));
+        debug_assert!(crc.is_none_or(|c| c == crc32(payload)), "payload CRC");
+        let hdr = meta.encode(crc.unwrap_or_else(|| crc32(payload)));
         // header, payload and zero pad gathered by one vectored write: the payload is not copied
         let pad = &self.pad[..self.header.stride() as usize - FRAME_HEADER_SIZE - p];
         write_all_vectored(&mut self.w, &[&hdr[..], payload, pad])
@@ -201,6 +215,16 @@ impl FileStreamWriter {
     /// See [`StreamWriter::write_payload`].
     pub fn write_payload(&mut self, meta: &FrameMeta, payload: &[u8]) -> Result<()> {
         self.inner.write_payload(meta, payload)
+    }
+
+    /// See [`StreamWriter::write_payload_crc`].
+    pub fn write_payload_crc(
+        &mut self,
+        meta: &FrameMeta,
+        payload: &[u8],
+        crc: Option<u32>,
+    ) -> Result<()> {
+        self.inner.write_payload_crc(meta, payload, crc)
     }
 
     /// Frames written so far.
