@@ -10,7 +10,7 @@ use crate::config::{RawConfig, SceneConfig, SceneKind};
 use crate::error::Result;
 use crate::image::StokesImage;
 use crate::render::{self, StokesOptions};
-use crate::sensor::{self, RawFrame, Sensor, SensorConfig};
+use crate::sensor::{self, FastSink, RawFrame, Sensor, SensorConfig};
 use crate::sky::{Sky, SkyParams};
 use crate::sun::SunPosition;
 
@@ -37,8 +37,6 @@ pub struct RawPipeline {
     /// The last sky prepared, with its sun: a stream whose sun stands still (only the attitude
     /// changes) prepares it once.
     sky: std::sync::Mutex<Option<(SunPosition, SkyParams, std::sync::Arc<Sky>)>>,
-    /// Fast-path frames carry the CRC-32 of their codes ([`Self::set_codes_crc32`]).
-    codes_crc32: bool,
 }
 
 impl RawPipeline {
@@ -74,15 +72,7 @@ impl RawPipeline {
             sensor_cfg,
             sensor,
             sky: std::sync::Mutex::new(None),
-            codes_crc32: false,
         })
-    }
-
-    /// Asks the fast path for [`RawFrame::codes_crc32`] (the CRC-32 of the codes as
-    /// little-endian bytes, taken band by band while they are in cache; a stream's Mono16
-    /// payload CRC). Frames of the exact path and of the PSNS presets leave it `None`.
-    pub fn set_codes_crc32(&mut self, on: bool) {
-        self.codes_crc32 = on;
     }
 
     /// The scene configuration.
@@ -197,6 +187,36 @@ impl RawPipeline {
         self.frame_at_in(&self.cfg.sky, sun, attitude, frame_index, codes)
     }
 
+    /// [`Self::frame_at`] and the frame's stream payload in `fmt` with its CRC-32: for
+    /// little-endian Mono16 the payload is the codes themselves (`bytes` is left alone; the fast
+    /// path takes their CRC band by band while they are in cache), else `bytes` holds the
+    /// packed codes ([`sensor::packing::pack_crc32`], whose CRC is taken chunk by chunk).
+    pub fn frame_payload_at(
+        &self,
+        sun: SunPosition,
+        attitude: &Attitude,
+        frame_index: u64,
+        codes: Vec<u16>,
+        fmt: sensor::packing::PixelFormat,
+        bytes: &mut Vec<u8>,
+    ) -> Result<(RawFrame, SceneInfo, u32)> {
+        use sensor::packing::{self, PixelFormat};
+        let codes_are_payload = fmt == PixelFormat::Mono16 && cfg!(target_endian = "little");
+        let sink = if codes_are_payload {
+            FastSink::CodesCrc32
+        } else {
+            FastSink::None
+        };
+        let (f, info) =
+            self.frame_at_sink(&self.cfg.sky, sun, attitude, frame_index, codes, sink)?;
+        let crc = match f.codes_crc32 {
+            Some(c) => c,
+            None if codes_are_payload => crc32fast::hash(bytemuck::cast_slice(&f.codes.data)),
+            None => packing::pack_crc32(&f.codes.data, f.bit_depth, fmt, false, bytes)?,
+        };
+        Ok((f, info, crc))
+    }
+
     /// [`Self::frame_at`] under the sky `sky` instead of the configured one.
     pub fn frame_at_in(
         &self,
@@ -205,6 +225,20 @@ impl RawPipeline {
         attitude: &Attitude,
         frame_index: u64,
         codes: Vec<u16>,
+    ) -> Result<(RawFrame, SceneInfo)> {
+        self.frame_at_sink(sky, sun, attitude, frame_index, codes, FastSink::None)
+    }
+
+    /// [`Self::frame_at_in`], with `sink` for the fast path's frames (the other paths ignore it
+    /// and leave [`RawFrame::codes_crc32`] `None`).
+    fn frame_at_sink(
+        &self,
+        sky: &SkyParams,
+        sun: SunPosition,
+        attitude: &Attitude,
+        frame_index: u64,
+        codes: Vec<u16>,
+        sink: FastSink,
     ) -> Result<(RawFrame, SceneInfo)> {
         let raw = &self.cfg.raw;
         let psns = self.sensor_cfg.psns.is_some() && !raw.exact;
@@ -236,9 +270,8 @@ impl RawPipeline {
             let f = if psns {
                 self.sensor.frame_psns_rows(&grid, frame_index, codes)?
             } else {
-                let crc = self.codes_crc32;
                 self.sensor
-                    .frame_fast_with(&grid, frame_index, codes, crc)?
+                    .frame_fast_with(&grid, frame_index, codes, sink)?
             };
             return Ok((f, info));
         }
@@ -246,8 +279,7 @@ impl RawPipeline {
         let f = if psns {
             self.sensor.frame_codes_into(&st, frame_index, codes)?
         } else {
-            let crc = self.codes_crc32;
-            self.sensor.frame_fast_with(&st, frame_index, codes, crc)?
+            self.sensor.frame_fast_with(&st, frame_index, codes, sink)?
         };
         Ok((f, info))
     }

@@ -193,8 +193,8 @@ pub struct StreamSummary {
 struct Rendered {
     meta: FrameMeta,
     payload: Payload,
-    /// The payload's CRC-32 when the render already has it (taken while the bytes were in cache).
-    crc: Option<u32>,
+    /// The payload's CRC-32, made with the payload (while the bytes were in cache).
+    crc: u32,
 }
 
 /// A frame's payload: packed bytes, or (little-endian Mono16) the codes themselves.
@@ -313,21 +313,17 @@ impl FrameMaker {
             }
         }
         let codes = std::mem::take(&mut self.codes);
-        let (mut frame, info) = self.pipe.frame_at(sun, &pose.attitude, index, codes)?;
+        // the payload and its CRC come with the frame (the fast path takes the Mono16 CRC band
+        // by band, packing takes it chunk by chunk)
+        let (mut frame, info, crc) =
+            self.pipe
+                .frame_payload_at(sun, &pose.attitude, index, codes, self.fmt, &mut bytes)?;
         // little-endian Mono16 is the code buffer itself: no packing pass
         let zero_copy = self.fmt == PixelFormat::Mono16 && cfg!(target_endian = "little");
-        let (payload, crc) = if zero_copy {
-            let crc = frame.codes_crc32;
-            (Payload::Codes(std::mem::take(&mut frame.codes.data)), crc)
+        let payload = if zero_copy {
+            Payload::Codes(std::mem::take(&mut frame.codes.data))
         } else {
-            let crc = packing::pack_crc32(
-                &frame.codes.data,
-                frame.bit_depth,
-                self.fmt,
-                false,
-                &mut bytes,
-            )?;
-            (Payload::Bytes(bytes), Some(crc))
+            Payload::Bytes(bytes)
         };
         let m = pose.attitude.enu_to_camera(sun.azimuth_deg);
         let sun_c = m * sun.vector();
@@ -616,8 +612,8 @@ impl Output {
     }
     fn write(&mut self, r: &Rendered) -> Result<()> {
         match self {
-            Output::Stdout(w) => w.write_payload_crc(&r.meta, r.payload.as_bytes(), r.crc),
-            Output::Path(w) => w.write_payload_crc(&r.meta, r.payload.as_bytes(), r.crc),
+            Output::Stdout(w) => w.write_payload_crc(&r.meta, r.payload.as_bytes(), Some(r.crc)),
+            Output::Path(w) => w.write_payload_crc(&r.meta, r.payload.as_bytes(), Some(r.crc)),
         }
     }
     fn finish(self) -> Result<()> {
@@ -726,9 +722,6 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
         "attitude_frame": "enu",
     });
     let header = stream_header(cfg, &pipe, extra)?;
-    let mut pipe = pipe;
-    // little-endian Mono16 payloads are the codes: the fast path takes their CRC band by band
-    pipe.set_codes_crc32(header.pixel_format == PixelFormat::Mono16);
     let mut maker = FrameMaker {
         sun: sun_src,
         place: cfg.sun.place,

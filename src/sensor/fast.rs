@@ -686,27 +686,35 @@ simd_dispatch! {
 pub(crate) struct FastCodes {
     pub codes: Vec<u16>,
     pub saturated: [u32; 4],
-    /// CRC-32 of the codes as little-endian bytes, when asked for.
+    /// CRC-32 of the codes as little-endian bytes, when the sink asked for it.
     pub crc32: Option<u32>,
+}
+
+/// What [`render_codes`] also makes of each band while its codes are in cache.
+pub(crate) enum BandSink {
+    None,
+    /// The CRC-32 of the codes as little-endian bytes (a Mono16 payload).
+    CodesCrc32,
 }
 
 /// Rows per parallel task (several rows so the per-task scratch is reused).
 const BAND: usize = 16;
 
-/// Raw codes of one frame from a row source of sensor-frame Stokes radiance; with `crc32`, also
-/// the CRC-32 of the codes as little-endian bytes, taken band by band while each band is still
-/// in cache (a third of the time of one pass over the finished 10 MB frame) and combined.
+/// Raw codes of one frame from a row source of sensor-frame Stokes radiance, and what `sink`
+/// asks for: the codes' CRC-32, taken band by band while each band is still in cache (a third of
+/// the time of one pass over the finished 10 MB frame) and combined. (Packing each band here as
+/// well was tried and measured no faster than packing the finished frame, `docs/performance.md`.)
 pub(crate) fn render_codes(
     sensor: &Sensor,
     st: &FastStatics,
     src: &dyn StokesRows,
     fc: &FrameConsts,
     mut codes: Vec<u16>,
-    crc32: bool,
+    sink: BandSink,
 ) -> FastCodes {
-    // the bytes of a u16 slice are its little-endian bytes only on a little-endian machine
-    let crc32 = crc32 && cfg!(target_endian = "little");
     let (w, h) = (sensor.intrinsics.width, sensor.intrinsics.height);
+    // the bytes of a u16 slice are its little-endian bytes only on a little-endian machine
+    let crc32 = matches!(sink, BandSink::CodesCrc32) && cfg!(target_endian = "little");
     // every code is written below: a reused buffer of the right size is not cleared
     codes.resize(w * h, 0);
     let folded = fc.folded();

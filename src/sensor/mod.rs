@@ -411,10 +411,20 @@ pub struct RawFrame {
     pub exposure_clipped: bool,
     /// Unrounded, unclipped output values (output DN) when the `quantize` stage is off.
     pub analog: Option<Image<f32>>,
-    /// CRC-32 (IEEE, as [`crc32fast`]) of the codes as little-endian u16 bytes, when the frame
-    /// was asked for it ([`Sensor::frame_fast_with`]): the stream's Mono16 payload CRC,
-    /// computed while the codes were in cache.
+    /// CRC-32 (IEEE, as [`crc32fast`]) of the codes as little-endian u16 bytes (a stream's
+    /// Mono16 payload), when [`FastSink::CodesCrc32`] asked for it: taken band by band while
+    /// the codes were in cache. `None` otherwise.
     pub codes_crc32: Option<u32>,
+}
+
+/// What the fast path also makes of a frame, band by band while the codes are in cache
+/// ([`Sensor::frame_fast_with`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FastSink {
+    /// Only the codes.
+    None,
+    /// [`RawFrame::codes_crc32`] (on a big-endian machine it stays `None`).
+    CodesCrc32,
 }
 
 impl RawFrame {
@@ -761,17 +771,16 @@ impl Sensor {
         frame_index: u64,
         codes: Vec<u16>,
     ) -> Result<RawFrame> {
-        self.frame_fast_with(src, frame_index, codes, false)
+        self.frame_fast_with(src, frame_index, codes, FastSink::None)
     }
 
-    /// [`Self::frame_fast`], with [`RawFrame::codes_crc32`] filled in when `crc32` is set (on a
-    /// little-endian machine).
+    /// [`Self::frame_fast`], also making what `sink` asks for (the same codes either way).
     pub fn frame_fast_with(
         &self,
         src: &dyn StokesRows,
         frame_index: u64,
         codes: Vec<u16>,
-        crc32: bool,
+        sink: FastSink,
     ) -> Result<RawFrame> {
         self.check_rows(src)?;
         let (w, h) = (self.intrinsics.width, self.intrinsics.height);
@@ -811,7 +820,11 @@ impl Sensor {
             shot_key: fast::NoiseKey::new(self.seed, frame_index, noise::STAGE_SHOT),
             read_key: fast::NoiseKey::new(self.seed, frame_index, noise::STAGE_READ),
         };
-        let out = fast::render_codes(self, statics, src, &fc, codes, crc32);
+        let sink = match sink {
+            FastSink::None => fast::BandSink::None,
+            FastSink::CodesCrc32 => fast::BandSink::CodesCrc32,
+        };
+        let out = fast::render_codes(self, statics, src, &fc, codes, sink);
         Ok(RawFrame {
             codes: Image::from_vec(w, h, out.codes),
             bit_depth: cfg.bit_depth,

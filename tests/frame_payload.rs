@@ -1,0 +1,56 @@
+//! `RawPipeline::frame_payload_at`: the stream payload and its CRC-32 that come with a frame
+//! (the fast path's Mono16 CRC taken band by band, packed formats' CRC chunk by chunk) are the
+//! frame's codes packed as `packing::pack` packs them and the CRC of those bytes, on the fast
+//! and the exact path.
+
+use psns::camera::{Attitude, Intrinsics};
+use psns::config::SceneConfig;
+use psns::pipeline::RawPipeline;
+use psns::sensor::packing::{self, PixelFormat};
+use psns::sun::SunPosition;
+
+#[test]
+fn payload_and_crc_match_the_codes() {
+    for exact in [false, true] {
+        let mut cfg = SceneConfig::default();
+        // 36 rows: two full 16-row bands and a short one
+        cfg.camera.intrinsics = Intrinsics {
+            pixel_pitch_um: 3.45 * 16.0,
+            ..Intrinsics::with_size(152, 36)
+        };
+        cfg.raw.exact = exact;
+        let pipe = RawPipeline::new(&cfg).unwrap();
+        let sun = SunPosition::new(40.0, 120.0);
+        let att = Attitude::enu(30.0, 50.0, 0.0);
+        let (want, _) = pipe.frame_at(sun, &att, 3, Vec::new()).unwrap();
+        for fmt in [
+            PixelFormat::Mono8,
+            PixelFormat::Mono12p,
+            PixelFormat::Mono12Packed,
+            PixelFormat::Mono16,
+        ] {
+            let mut bytes = Vec::new();
+            let (f, _, crc) = pipe
+                .frame_payload_at(sun, &att, 3, Vec::new(), fmt, &mut bytes)
+                .unwrap();
+            assert_eq!(f.codes.data, want.codes.data, "exact {exact} {fmt}");
+            let mut packed = Vec::new();
+            packing::pack(&f.codes.data, f.bit_depth, fmt, false, &mut packed).unwrap();
+            let payload: &[u8] = if fmt == PixelFormat::Mono16 && cfg!(target_endian = "little") {
+                // the codes are the payload; `bytes` is left alone
+                assert!(bytes.is_empty());
+                bytemuck::cast_slice(&f.codes.data)
+            } else {
+                &bytes
+            };
+            assert_eq!(payload, &packed[..], "exact {exact} {fmt}");
+            assert_eq!(crc, crc32fast::hash(&packed), "exact {exact} {fmt}");
+            // the fast path's Mono16 CRC came from its bands, the others' after the frame
+            let banded = !exact && fmt == PixelFormat::Mono16;
+            assert_eq!(
+                f.codes_crc32.is_some(),
+                banded && cfg!(target_endian = "little")
+            );
+        }
+    }
+}
