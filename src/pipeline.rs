@@ -187,10 +187,12 @@ impl RawPipeline {
         self.frame_at_in(&self.cfg.sky, sun, attitude, frame_index, codes)
     }
 
-    /// [`Self::frame_at`] and the frame's stream payload in `fmt` with its CRC-32: for
-    /// little-endian Mono16 the payload is the codes themselves (`bytes` is left alone; the fast
-    /// path takes their CRC band by band while they are in cache), else `bytes` holds the
-    /// packed codes ([`sensor::packing::pack_crc32`], whose CRC is taken chunk by chunk).
+    /// [`Self::frame_at`] and the frame's stream payload in `fmt` with its CRC-32 where it comes
+    /// cheaply: when [`sensor::packing::codes_are_payload`] the payload is the codes themselves
+    /// (`bytes` is left alone) and the fast path takes their CRC band by band while they are in
+    /// cache (the other paths return `None`: the writer computes it, beside the next render);
+    /// else `bytes` holds the packed codes and their CRC, taken chunk by chunk
+    /// ([`sensor::packing::pack_crc32`]).
     pub fn frame_payload_at(
         &self,
         sun: SunPosition,
@@ -199,9 +201,9 @@ impl RawPipeline {
         codes: Vec<u16>,
         fmt: sensor::packing::PixelFormat,
         bytes: &mut Vec<u8>,
-    ) -> Result<(RawFrame, SceneInfo, u32)> {
-        use sensor::packing::{self, PixelFormat};
-        let codes_are_payload = fmt == PixelFormat::Mono16 && cfg!(target_endian = "little");
+    ) -> Result<(RawFrame, SceneInfo, Option<u32>)> {
+        use sensor::packing;
+        let codes_are_payload = packing::codes_are_payload(fmt);
         let sink = if codes_are_payload {
             FastSink::CodesCrc32
         } else {
@@ -209,10 +211,16 @@ impl RawPipeline {
         };
         let (f, info) =
             self.frame_at_sink(&self.cfg.sky, sun, attitude, frame_index, codes, sink)?;
-        let crc = match f.codes_crc32 {
-            Some(c) => c,
-            None if codes_are_payload => crc32fast::hash(bytemuck::cast_slice(&f.codes.data)),
-            None => packing::pack_crc32(&f.codes.data, f.bit_depth, fmt, false, bytes)?,
+        let crc = if codes_are_payload {
+            f.codes_crc32
+        } else {
+            Some(packing::pack_crc32(
+                &f.codes.data,
+                f.bit_depth,
+                fmt,
+                false,
+                bytes,
+            )?)
         };
         Ok((f, info, crc))
     }

@@ -1025,7 +1025,7 @@ fn interp_plane(out: &mut [f32], v: &[f32], d: &[f32], p: usize, fx: &[f32]) {
 fn interp16_avx512(out: &mut [f32], v: &[f32], d: &[f32], p: usize, fx: &[f32; 16]) {
     use std::arch::x86_64::*;
     let cells = out.len() / 16;
-    assert!(3 * cells <= d.len());
+    assert!(p < 3 && 3 * cells <= d.len() && d.len() <= v.len());
     // SAFETY: 16 floats read from `fx` and written to each of the `cells` 16-float chunks of
     // `out`; v and d read at 3i + p < 3 cells ≤ d.len() ≤ v.len() (asserted)
     unsafe {
@@ -1045,7 +1045,7 @@ fn interp16_avx512(out: &mut [f32], v: &[f32], d: &[f32], p: usize, fx: &[f32; 1
 fn interp16_avx2(out: &mut [f32], v: &[f32], d: &[f32], p: usize, fx: &[f32; 16]) {
     use std::arch::x86_64::*;
     let cells = out.len() / 16;
-    assert!(3 * cells <= d.len());
+    assert!(p < 3 && 3 * cells <= d.len() && d.len() <= v.len());
     // SAFETY: as in `interp16_avx512`
     unsafe {
         let (fa, fb) = (

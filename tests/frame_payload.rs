@@ -1,18 +1,24 @@
 //! `RawPipeline::frame_payload_at`: the stream payload and its CRC-32 that come with a frame
 //! (the fast path's Mono16 CRC taken band by band, packed formats' CRC chunk by chunk) are the
 //! frame's codes packed as `packing::pack` packs them and the CRC of those bytes, on the fast
-//! and the exact path.
+//! path, the exact path and a PSNS preset (whose Mono16 CRC is left to the writer).
 
 use psns::camera::{Attitude, Intrinsics};
 use psns::config::SceneConfig;
 use psns::pipeline::RawPipeline;
 use psns::sensor::packing::{self, PixelFormat};
+use psns::sensor::Preset;
 use psns::sun::SunPosition;
 
 #[test]
 fn payload_and_crc_match_the_codes() {
-    for exact in [false, true] {
+    for (exact, preset) in [
+        (false, Preset::Camera),
+        (true, Preset::Camera),
+        (false, Preset::Gniipi),
+    ] {
         let mut cfg = SceneConfig::default();
+        cfg.raw.preset = preset;
         // 36 rows: two full 16-row bands and a short one
         cfg.camera.intrinsics = Intrinsics {
             pixel_pitch_um: 3.45 * 16.0,
@@ -33,23 +39,33 @@ fn payload_and_crc_match_the_codes() {
             let (f, _, crc) = pipe
                 .frame_payload_at(sun, &att, 3, Vec::new(), fmt, &mut bytes)
                 .unwrap();
-            assert_eq!(f.codes.data, want.codes.data, "exact {exact} {fmt}");
+            assert_eq!(
+                f.codes.data, want.codes.data,
+                "exact {exact} {preset:?} {fmt}"
+            );
             let mut packed = Vec::new();
             packing::pack(&f.codes.data, f.bit_depth, fmt, false, &mut packed).unwrap();
-            let payload: &[u8] = if fmt == PixelFormat::Mono16 && cfg!(target_endian = "little") {
+            let payload: &[u8] = if packing::codes_are_payload(fmt) {
                 // the codes are the payload; `bytes` is left alone
                 assert!(bytes.is_empty());
                 bytemuck::cast_slice(&f.codes.data)
             } else {
                 &bytes
             };
-            assert_eq!(payload, &packed[..], "exact {exact} {fmt}");
-            assert_eq!(crc, crc32fast::hash(&packed), "exact {exact} {fmt}");
-            // the fast path's Mono16 CRC came from its bands, the others' after the frame
-            let banded = !exact && fmt == PixelFormat::Mono16;
+            assert_eq!(payload, &packed[..], "exact {exact} {preset:?} {fmt}");
+            // the camera's fast path takes the Mono16 CRC from its bands; other paths leave it to
+            // the writer; packed formats have theirs from packing
+            let banded = !exact && preset == Preset::Camera;
+            let want = if packing::codes_are_payload(fmt) && !banded {
+                None
+            } else {
+                Some(crc32fast::hash(&packed))
+            };
+            assert_eq!(crc, want, "exact {exact} {preset:?} {fmt}");
             assert_eq!(
                 f.codes_crc32.is_some(),
-                banded && cfg!(target_endian = "little")
+                banded && packing::codes_are_payload(fmt),
+                "exact {exact} {preset:?} {fmt}"
             );
         }
     }

@@ -193,8 +193,9 @@ pub struct StreamSummary {
 struct Rendered {
     meta: FrameMeta,
     payload: Payload,
-    /// The payload's CRC-32, made with the payload (while the bytes were in cache).
-    crc: u32,
+    /// The payload's CRC-32 when it was made with the payload (while the bytes were in cache);
+    /// `None`: the writer computes it.
+    crc: Option<u32>,
 }
 
 /// A frame's payload: packed bytes, or (little-endian Mono16) the codes themselves.
@@ -319,8 +320,7 @@ impl FrameMaker {
             self.pipe
                 .frame_payload_at(sun, &pose.attitude, index, codes, self.fmt, &mut bytes)?;
         // little-endian Mono16 is the code buffer itself: no packing pass
-        let zero_copy = self.fmt == PixelFormat::Mono16 && cfg!(target_endian = "little");
-        let payload = if zero_copy {
+        let payload = if packing::codes_are_payload(self.fmt) {
             Payload::Codes(std::mem::take(&mut frame.codes.data))
         } else {
             Payload::Bytes(bytes)
@@ -612,8 +612,8 @@ impl Output {
     }
     fn write(&mut self, r: &Rendered) -> Result<()> {
         match self {
-            Output::Stdout(w) => w.write_payload_crc(&r.meta, r.payload.as_bytes(), Some(r.crc)),
-            Output::Path(w) => w.write_payload_crc(&r.meta, r.payload.as_bytes(), Some(r.crc)),
+            Output::Stdout(w) => w.write_payload_crc(&r.meta, r.payload.as_bytes(), r.crc),
+            Output::Path(w) => w.write_payload_crc(&r.meta, r.payload.as_bytes(), r.crc),
         }
     }
     fn finish(self) -> Result<()> {

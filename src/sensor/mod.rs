@@ -413,7 +413,8 @@ pub struct RawFrame {
     pub analog: Option<Image<f32>>,
     /// CRC-32 (IEEE, as [`crc32fast`]) of the codes as little-endian u16 bytes (a stream's
     /// Mono16 payload), when [`FastSink::CodesCrc32`] asked for it: taken band by band while
-    /// the codes were in cache. `None` otherwise.
+    /// the codes were in cache. `None` otherwise. It describes `codes` as the frame was made
+    /// (it is stale once a caller changes them).
     pub codes_crc32: Option<u32>,
 }
 

@@ -132,6 +132,12 @@ pub fn payload_size(fmt: PixelFormat, width: usize, height: usize) -> usize {
     payload_size_checked(fmt, width, height).unwrap_or(usize::MAX)
 }
 
+/// Whether a `fmt` payload (LSB-aligned) is the codes' own bytes, so that a writer can send the
+/// code buffer without packing it: Mono16 on a little-endian machine.
+pub fn codes_are_payload(fmt: PixelFormat) -> bool {
+    fmt == PixelFormat::Mono16 && cfg!(target_endian = "little")
+}
+
 /// Valid bits of a payload produced from codes of `bit_depth` bits: 8 for Mono8, else `bit_depth`.
 pub fn bits_valid(fmt: PixelFormat, bit_depth: u8) -> u8 {
     match fmt {
