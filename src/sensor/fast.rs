@@ -24,7 +24,7 @@
 //! full well, gain, black level, ADC) is the exact path's model with the exact path's fixed-pattern
 //! maps, stored as 16-bit fixed point ([`FastStatics`]).
 
-use super::Sensor;
+use super::{FastSink, Sensor};
 use crate::image::StokesRows;
 use rayon::prelude::*;
 
@@ -690,13 +690,6 @@ pub(crate) struct FastCodes {
     pub crc32: Option<u32>,
 }
 
-/// What [`render_codes`] also makes of each band while its codes are in cache.
-pub(crate) enum BandSink {
-    None,
-    /// The CRC-32 of the codes as little-endian bytes (a Mono16 payload).
-    CodesCrc32,
-}
-
 /// Rows per parallel task (several rows so the per-task scratch is reused).
 const BAND: usize = 16;
 
@@ -710,11 +703,11 @@ pub(crate) fn render_codes(
     src: &dyn StokesRows,
     fc: &FrameConsts,
     mut codes: Vec<u16>,
-    sink: BandSink,
+    sink: FastSink,
 ) -> FastCodes {
     let (w, h) = (sensor.intrinsics.width, sensor.intrinsics.height);
     // the bytes of a u16 slice are its little-endian bytes only on a little-endian machine
-    let crc32 = matches!(sink, BandSink::CodesCrc32) && cfg!(target_endian = "little");
+    let crc32 = sink == FastSink::CodesCrc32 && cfg!(target_endian = "little");
     // every code is written below: a reused buffer of the right size is not cleared
     codes.resize(w * h, 0);
     let folded = fc.folded();

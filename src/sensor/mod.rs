@@ -821,10 +821,6 @@ impl Sensor {
             shot_key: fast::NoiseKey::new(self.seed, frame_index, noise::STAGE_SHOT),
             read_key: fast::NoiseKey::new(self.seed, frame_index, noise::STAGE_READ),
         };
-        let sink = match sink {
-            FastSink::None => fast::BandSink::None,
-            FastSink::CodesCrc32 => fast::BandSink::CodesCrc32,
-        };
         let out = fast::render_codes(self, statics, src, &fc, codes, sink);
         Ok(RawFrame {
             codes: Image::from_vec(w, h, out.codes),
