@@ -747,14 +747,8 @@ pub(crate) fn render_codes(
         }
     }
     let crc32 = crc32.then(|| {
-        let mut h = crc32fast::Hasher::new();
-        for (band, (_, crc)) in codes.chunks(w * BAND).zip(&bands) {
-            h.combine(&crc32fast::Hasher::new_with_initial_len(
-                *crc,
-                2 * band.len() as u64,
-            ));
-        }
-        h.finalize()
+        let pieces = codes.chunks(w * BAND).zip(&bands);
+        super::packing::crc32_of_pieces(pieces.map(|(band, (_, crc))| (*crc, 2 * band.len())))
     });
     FastCodes {
         codes,

@@ -243,16 +243,25 @@ fn pack_impl(
             allowed: format!("0..{}", limit - 1),
         });
     }
+    Ok(if crc32 {
+        crc32_of_pieces(
+            out.chunks(bytes_per_chunk)
+                .zip(&chunks)
+                .map(|(o, c)| (c.1, o.len())),
+        )
+    } else {
+        0
+    })
+}
+
+/// The CRC-32 (as [`crc32fast`]) of consecutive pieces of bytes, from each piece's own CRC-32
+/// and length in bytes, in order (pieces checksummed in parallel while they were in cache).
+pub(crate) fn crc32_of_pieces(pieces: impl IntoIterator<Item = (u32, usize)>) -> u32 {
     let mut h = crc32fast::Hasher::new();
-    if crc32 {
-        for (o, c) in out.chunks(bytes_per_chunk).zip(&chunks) {
-            h.combine(&crc32fast::Hasher::new_with_initial_len(
-                c.1,
-                o.len() as u64,
-            ));
-        }
+    for (crc, len) in pieces {
+        h.combine(&crc32fast::Hasher::new_with_initial_len(crc, len as u64));
     }
-    Ok(h.finalize())
+    h.finalize()
 }
 
 /// Packs `codes` into exactly `payload_size(fmt, codes.len(), 1)` bytes of `out`; returns all
