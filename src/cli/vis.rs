@@ -23,7 +23,8 @@ pub fn viridis(t: f64) -> [u8; 3] {
     } else {
         0.0
     } * 8.0;
-    let i = (t.floor() as usize).min(7);
+    // t >= 0 here, so the cast is floor (without its libm call)
+    let i = (t as usize).min(7);
     let f = t - i as f64;
     std::array::from_fn(|k| {
         round_clamp(VIRIDIS[i][k] * (1.0 - f) + VIRIDIS[i + 1][k] * f, 255.0) as u8
@@ -37,8 +38,15 @@ pub fn viridis(t: f64) -> [u8; 3] {
 /// assert_eq!(psns::vis::cyclic_hue(180.0), [255, 0, 0]); // no seam at 0/180
 /// ```
 pub fn cyclic_hue(angle_deg: f64) -> [u8; 3] {
-    let h = (angle_deg.rem_euclid(180.0) / 180.0) * 6.0;
-    let x = 1.0 - ((h % 2.0) - 1.0).abs();
+    // rem_euclid and % without their fmod calls: an AoP is in [0, 180) already, and for h in
+    // [0, 6) the subtraction of the even integer below h is exact (Sterbenz), as fmod is
+    let a = if (0.0..180.0).contains(&angle_deg) {
+        angle_deg
+    } else {
+        angle_deg.rem_euclid(180.0)
+    };
+    let h = (a / 180.0) * 6.0;
+    let x = 1.0 - ((h - ((h as u32) & !1) as f64) - 1.0).abs();
     let (r, g, b) = match h as u32 {
         0 => (1.0, x, 0.0),
         1 => (x, 1.0, 0.0),
@@ -83,15 +91,15 @@ fn map_rgb(
     mask: Option<&Image<u8>>,
     f: impl Fn(f32) -> [u8; 3],
 ) -> Image<[u8; 3]> {
-    let data = img
-        .data
-        .iter()
-        .enumerate()
-        .map(|(i, &v)| match mask {
-            Some(m) if m.data[i] == 0 => [0, 0, 0],
-            _ => f(v),
-        })
-        .collect();
+    let data = match mask {
+        Some(m) => img
+            .data
+            .iter()
+            .zip(&m.data)
+            .map(|(&v, &m)| if m == 0 { [0, 0, 0] } else { f(v) })
+            .collect(),
+        None => img.data.iter().map(|&v| f(v)).collect(),
+    };
     Image::from_vec(img.width, img.height, data)
 }
 
@@ -188,4 +196,79 @@ pub fn gray_rgb(img: &Image<u8>) -> Image<[u8; 3]> {
         img.height,
         img.data.iter().map(|&v| [v, v, v]).collect(),
     )
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The maps as first written (floor and fmod calls): the faster forms must give the same bytes.
+    fn viridis_ref(t: f64) -> [u8; 3] {
+        let t = if t.is_finite() {
+            t.clamp(0.0, 1.0)
+        } else {
+            0.0
+        } * 8.0;
+        let i = (t.floor() as usize).min(7);
+        let f = t - i as f64;
+        std::array::from_fn(|k| {
+            round_clamp(VIRIDIS[i][k] * (1.0 - f) + VIRIDIS[i + 1][k] * f, 255.0) as u8
+        })
+    }
+
+    fn cyclic_hue_ref(angle_deg: f64) -> [u8; 3] {
+        let h = (angle_deg.rem_euclid(180.0) / 180.0) * 6.0;
+        let x = 1.0 - ((h % 2.0) - 1.0).abs();
+        let (r, g, b) = match h as u32 {
+            0 => (1.0, x, 0.0),
+            1 => (x, 1.0, 0.0),
+            2 => (0.0, 1.0, x),
+            3 => (0.0, x, 1.0),
+            4 => (x, 0.0, 1.0),
+            _ => (1.0, 0.0, x),
+        };
+        [(r * 255.0) as u8, (g * 255.0) as u8, (b * 255.0) as u8]
+    }
+
+    /// Every f32 in a dense sweep (and the edges) maps as before.
+    #[test]
+    fn maps_match_their_first_form() {
+        let mut vals: Vec<f32> = vec![
+            0.0,
+            -0.0,
+            1.0,
+            0.125,
+            0.5,
+            1e-30,
+            -1e-30,
+            179.99998,
+            180.0,
+            360.0,
+            -180.0,
+            -0.001,
+            1e9,
+            -1e9,
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+        ];
+        // every f32 between 0 and 1 with its low 8 bits cleared, and a fine sweep of angles
+        let (lo, hi) = (0f32.to_bits(), 1f32.to_bits());
+        vals.extend((lo..=hi).step_by(256).map(f32::from_bits));
+        vals.extend((-2_000_000..2_000_000).map(|k| k as f32 * 1e-4 * 137.0));
+        for k in 0..=6000 {
+            // the breakpoints of the hue (multiples of 30 degrees) and their neighbours
+            let a = k as f32 * 0.03;
+            vals.extend([
+                a,
+                f32::from_bits(a.to_bits() + 1),
+                f32::from_bits(a.to_bits().max(1) - 1),
+            ]);
+        }
+        for &v in &vals {
+            let v = v as f64;
+            assert_eq!(viridis(v), viridis_ref(v), "viridis({v})");
+            assert_eq!(cyclic_hue(v), cyclic_hue_ref(v), "cyclic_hue({v})");
+        }
+    }
 }
