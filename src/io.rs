@@ -182,6 +182,10 @@ fn png_encoder<'a>(
     enc.set_color(color);
     enc.set_depth(depth);
     enc.set_compression(png::Compression::Fast);
+    // Paeth on every row instead of Fast's adaptive choice (all five filters tried per row):
+    // 22 % fewer instructions in render --raw's 13 PNGs for files within 6 % of the size
+    // (docs/performance.md)
+    enc.set_filter(png::Filter::Paeth);
     enc
 }
 
@@ -217,7 +221,10 @@ pub fn write_png_gray8(path: &Path, img: &Image<u8>) -> Result<()> {
 
 /// Writes a 16-bit greyscale PNG (values as given, big-endian in the file as PNG requires).
 pub fn write_png_gray16(path: &Path, img: &Image<u16>) -> Result<()> {
-    let bytes: Vec<u8> = img.data.iter().flat_map(|v| v.to_be_bytes()).collect();
+    let mut bytes = vec![0u8; img.data.len() * 2];
+    for (b, v) in bytes.chunks_exact_mut(2).zip(&img.data) {
+        b.copy_from_slice(&v.to_be_bytes());
+    }
     png_write(
         path,
         img.width,
@@ -230,14 +237,13 @@ pub fn write_png_gray16(path: &Path, img: &Image<u16>) -> Result<()> {
 
 /// Writes an 8-bit RGB PNG from `[r, g, b]` pixels.
 pub fn write_png_rgb8(path: &Path, img: &Image<[u8; 3]>) -> Result<()> {
-    let bytes: Vec<u8> = img.data.iter().flatten().copied().collect();
     png_write(
         path,
         img.width,
         img.height,
         png::ColorType::Rgb,
         png::BitDepth::Eight,
-        &bytes,
+        bytemuck::cast_slice(&img.data),
     )
 }
 
@@ -328,6 +334,23 @@ mod tests {
         write_png_gray16(&p, &g).unwrap();
         let r = read_gray(&p).unwrap();
         assert_eq!((r.image, r.bits), (g.clone(), 16));
+        let rgb = Image::from_vec(
+            3,
+            2,
+            vec![
+                [1u8, 2, 3],
+                [255, 0, 7],
+                [9, 9, 9],
+                [0, 0, 0],
+                [4, 5, 6],
+                [200, 100, 50],
+            ],
+        );
+        let p = dir.path().join("rgb.png");
+        write_png_rgb8(&p, &rgb).unwrap();
+        let back = image::open(&p).unwrap().into_rgb8();
+        let px: Vec<[u8; 3]> = back.pixels().map(|p| p.0).collect();
+        assert_eq!((back.width(), back.height(), px), (3, 2, rgb.data.clone()));
         let p = dir.path().join("a.tiff");
         write_tiff_u16(&p, &g).unwrap();
         assert_eq!(read_gray(&p).unwrap().image, g);
