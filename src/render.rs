@@ -13,7 +13,7 @@
 //! fast path's [`SkyGrid`] use.
 
 use crate::camera::{Camera, Lens, Projection};
-use crate::image::{round_clamp, Image, StokesImage, StokesRows};
+use crate::image::{Image, StokesImage, StokesRows};
 use crate::sky::hosek::{HosekWilkie, SUN_RADIUS_RAD};
 use crate::sky::{Lane, Sky, SkyLanes, LANES};
 use glam::DVec3;
@@ -532,17 +532,34 @@ pub fn quantize_polarizer_images(
         .map(|i| i.data.par_iter().copied().reduce(|| 0.0f32, f32::max))
         .fold(0.0f32, f32::max) as f64;
     let kappa = if max > 0.0 { full_scale / max } else { 0.0 };
-    // round(v κ) clipped to [0, full scale]
+    // round(v κ) clipped to [0, full scale] and to u16
     let q = std::array::from_fn(|k| {
         let i = &imgs[k];
-        let data = i
-            .data
-            .par_iter()
-            .map(|&v| round_clamp(v as f64 * kappa, full_scale).min(65_535) as u16) // `as u16` saturated
-            .collect();
+        let mut data = vec![0u16; i.data.len()];
+        data.par_chunks_mut(i.width.max(1))
+            .zip(i.data.par_chunks(i.width.max(1)))
+            .for_each(|(o, v)| quantize_row(v, kappa, full_scale.min(65_535.0), o));
         Image::from_vec(i.width, i.height, data)
     });
     (kappa, q)
+}
+
+crate::simd::simd_dispatch! {
+    /// [`quantize_row_body`] built for the best instruction set the CPU has.
+    fn quantize_row = quantize_row_body(src: &[f32], kappa: f64, hi: f64, out: &mut [u16])
+}
+
+/// [`crate::image::round_clamp`]`(v κ, hi)` of a row with `hi` ≤ 65 535, its operations through i32 (the same
+/// values in that range) so that the loop vectorises: 8 images of 5 M pixels in `psns render`.
+#[inline(always)]
+fn quantize_row_body(src: &[f32], kappa: f64, hi: f64, out: &mut [u16]) {
+    for (o, &v) in out.iter_mut().zip(src) {
+        let x = (v as f64 * kappa).max(0.0).min(hi); // max ignores NaN: NaN becomes 0
+                                                     // SAFETY: x is in [0, 65 535], so the truncation fits i32 (and, unlike `as`, needs no
+                                                     // saturation code, which kept the loop from vectorising)
+        let t = unsafe { x.to_int_unchecked::<i32>() };
+        *o = (t + (x - t as f64 >= 0.5) as i32) as u16;
+    }
 }
 
 /// Pixels whose ray points at or below the horizon (inside the image circle of a fisheye). In a
