@@ -538,7 +538,7 @@ pub fn quantize_polarizer_images(
         let mut data = vec![0u16; i.data.len()];
         data.par_chunks_mut(i.width.max(1))
             .zip(i.data.par_chunks(i.width.max(1)))
-            .for_each(|(o, v)| quantize_row(v, kappa, full_scale.min(65_535.0), o));
+            .for_each(|(o, v)| quantize_row(v, kappa, full_scale, o));
         Image::from_vec(i.width, i.height, data)
     });
     (kappa, q)
@@ -549,14 +549,23 @@ crate::simd::simd_dispatch! {
     fn quantize_row = quantize_row_body(src: &[f32], kappa: f64, hi: f64, out: &mut [u16])
 }
 
-/// [`crate::image::round_clamp`]`(v κ, hi)` of a row with `hi` ≤ 65 535, its operations through i32 (the same
-/// values in that range) so that the loop vectorises: 8 images of 5 M pixels in `psns render`.
+/// [`crate::image::round_clamp`]`(v κ, hi)` of a row, clipped to u16 (`hi` is taken into
+/// [0, 65 535] first), its operations through i32 (the same values in that range) so that the
+/// loop vectorises: 8 images of 5 M pixels in `psns render`.
 #[inline(always)]
 fn quantize_row_body(src: &[f32], kappa: f64, hi: f64, out: &mut [u16]) {
+    // round_clamp's bounds: a negative hi clips everything to 0, a NaN one does not clip (here:
+    // to u16 only)
+    let hi = if hi.is_nan() {
+        65_535.0
+    } else {
+        hi.clamp(0.0, 65_535.0)
+    };
     for (o, &v) in out.iter_mut().zip(src) {
-        let x = (v as f64 * kappa).max(0.0).min(hi); // max ignores NaN: NaN becomes 0
-                                                     // SAFETY: x is in [0, 65 535], so the truncation fits i32 (and, unlike `as`, needs no
-                                                     // saturation code, which kept the loop from vectorising)
+        // max ignores NaN: NaN becomes 0
+        let x = (v as f64 * kappa).max(0.0).min(hi);
+        // SAFETY: x is in [0, 65 535], so the truncation fits i32 (and, unlike `as`, needs no
+        // saturation code, which kept the loop from vectorising)
         let t = unsafe { x.to_int_unchecked::<i32>() };
         *o = (t + (x - t as f64 >= 0.5) as i32) as u16;
     }
@@ -1261,6 +1270,42 @@ mod tests {
             for (k, &v) in a.iter().enumerate() {
                 let want = (v as f64 * kappa).round().clamp(0.0, fs) as u16;
                 assert_eq!(q[0].data[k], want, "v {v} full scale {fs}");
+            }
+        }
+    }
+
+    /// The row kernel at every instruction set (on this thread, where `with_simd` applies), for
+    /// awkward values and full scales, a negative one included: round_clamp, clipped to u16.
+    #[test]
+    fn quantize_row_is_round_clamp_at_every_instruction_set() {
+        let mut vals: Vec<f32> = vec![
+            0.0,
+            -0.0,
+            0.5,
+            1.5,
+            2.5,
+            0.499_999_97,
+            -0.5,
+            254.5,
+            255.49,
+            65_534.5,
+            65_535.5,
+            1e12,
+            -1e12,
+            f32::NAN,
+            f32::INFINITY,
+            f32::NEG_INFINITY,
+            f32::MIN_POSITIVE,
+        ];
+        vals.extend((0..3000).map(|k| k as f32 * 0.37 - 20.0));
+        for level in crate::simd::Simd::available() {
+            for (kappa, hi) in [(1.0, 255.0), (0.7, 65_535.0), (3.0, 1e6), (1.0, -1.0)] {
+                let mut out = vec![7u16; vals.len()];
+                crate::simd::with_simd(level, || quantize_row(&vals, kappa, hi, &mut out));
+                for (k, &v) in vals.iter().enumerate() {
+                    let want = crate::image::round_clamp(v as f64 * kappa, hi).min(65_535) as u16;
+                    assert_eq!(out[k], want, "{level:?}: v {v} kappa {kappa} hi {hi}");
+                }
             }
         }
     }

@@ -136,7 +136,8 @@ fn map_body(src: &[f32], mask: &[u8], out: &mut [[u8; 3]], map: Map) {
             Map::Viridis => viridis8(s, o),
             Map::Hue => {
                 if s.iter().all(|v| (0.0..180.0).contains(v)) {
-                    hue8(s, o)
+                    // SAFETY: every value is in [0, 180) (checked just above)
+                    unsafe { hue8(s, o) }
                 } else {
                     for (o, &v) in o.iter_mut().zip(s) {
                         *o = cyclic_hue(v as f64);
@@ -190,8 +191,11 @@ fn viridis8(s: &[f32; 8], o: &mut [[u8; 3]; 8]) {
 }
 
 /// [`cyclic_hue`] of eight angles in [0, 180), the sector's match as selects.
+///
+/// # Safety
+/// Every value of `s` must lie in [0, 180): the truncations are unchecked.
 #[inline(always)]
-fn hue8(s: &[f32; 8], o: &mut [[u8; 3]; 8]) {
+unsafe fn hue8(s: &[f32; 8], o: &mut [[u8; 3]; 8]) {
     for j in 0..8 {
         let h = (s[j] as f64 / 180.0) * 6.0;
         // SAFETY (here and below): h is in [0, 6) and the channels in [0, 255], so the
@@ -430,6 +434,10 @@ mod tests {
         assert_eq!(quantile(&empty, 0.5), 0.0);
         let one = Image::from_vec(1, 1, vec![-0.0f32]);
         assert_eq!(quantile(&one, 0.9).to_bits(), (-0.0f64).to_bits());
+        // -0 ranks below +0 (total_cmp), in different buckets
+        let zeros = Image::from_vec(6, 1, vec![0.0f32, -0.0, 0.0, -0.0, 0.0, -0.0]);
+        assert_eq!(quantile(&zeros, 0.4).to_bits(), (-0.0f64).to_bits());
+        assert_eq!(quantile(&zeros, 0.6).to_bits(), 0f64.to_bits());
     }
 
     /// Every f32 in a dense sweep (and the edges) maps as before.
@@ -458,6 +466,8 @@ mod tests {
         let (lo, hi) = (0f32.to_bits(), 1f32.to_bits());
         vals.extend((lo..=hi).step_by(512).map(f32::from_bits));
         vals.extend((-500_000..500_000).map(|k| k as f32 * 4e-4 * 137.0));
+        // the eight-at-a-time hue takes only blocks that are all in [0, 180): a dense run of them
+        vals.extend((0..200_000).map(|k| k as f32 * 9e-4));
         for k in 0..=6000 {
             // the breakpoints of the hue (multiples of 30 degrees) and their neighbours
             let a = k as f32 * 0.03;
