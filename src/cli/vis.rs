@@ -101,35 +101,38 @@ enum Map {
 /// scalar maps were a tenth of `render --raw`'s instructions (docs/performance.md).
 fn map_image(img: &Image<f32>, mask: Option<&Image<u8>>, map: Map) -> Image<[u8; 3]> {
     let mut out = vec![[0u8; 3]; img.data.len()];
-    let ones;
-    let m = match mask {
-        Some(m) => &m.data[..],
-        None => {
-            ones = vec![1u8; img.data.len()];
-            &ones[..]
+    map_pixels(&img.data, &mut out, map);
+    if let Some(m) = mask {
+        // (a mask shorter than the image panics, as before)
+        for (o, &m) in out.iter_mut().zip(&m.data[..img.data.len()]) {
+            if m == 0 {
+                *o = [0, 0, 0];
+            }
         }
-    };
-    #[cfg(target_arch = "x86_64")]
-    if psns::simd::simd() >= psns::simd::Simd::Avx2 {
-        #[target_feature(enable = "avx2")]
-        unsafe fn avx2(src: &[f32], m: &[u8], out: &mut [[u8; 3]], map: Map) {
-            map_body(src, m, out, map)
-        }
-        // SAFETY: `simd` never returns more than the CPU has
-        unsafe { avx2(&img.data, m, &mut out, map) };
-        return Image::from_vec(img.width, img.height, out);
     }
-    map_body(&img.data, m, &mut out, map);
     Image::from_vec(img.width, img.height, out)
 }
 
+/// `map` of every value of `src` into `out`, built for AVX2 where `psns::simd` allows.
+fn map_pixels(src: &[f32], out: &mut [[u8; 3]], map: Map) {
+    #[cfg(target_arch = "x86_64")]
+    if psns::simd::simd() >= psns::simd::Simd::Avx2 {
+        #[target_feature(enable = "avx2")]
+        unsafe fn avx2(src: &[f32], out: &mut [[u8; 3]], map: Map) {
+            map_body(src, out, map)
+        }
+        // SAFETY: `simd` never returns more than the CPU has
+        return unsafe { avx2(src, out, map) };
+    }
+    map_body(src, out, map)
+}
+
 #[inline(always)]
-fn map_body(src: &[f32], mask: &[u8], out: &mut [[u8; 3]], map: Map) {
-    let (src, mask) = (&src[..out.len()], &mask[..out.len()]);
+fn map_body(src: &[f32], out: &mut [[u8; 3]], map: Map) {
+    let src = &src[..out.len()];
     let mut sc = src.chunks_exact(8);
-    let mut mc = mask.chunks_exact(8);
     let mut oc = out.chunks_exact_mut(8);
-    for ((s, m), o) in (&mut sc).zip(&mut mc).zip(&mut oc) {
+    for (s, o) in (&mut sc).zip(&mut oc) {
         let s: &[f32; 8] = s.try_into().unwrap();
         let o: &mut [[u8; 3]; 8] = o.try_into().unwrap();
         match map {
@@ -145,18 +148,11 @@ fn map_body(src: &[f32], mask: &[u8], out: &mut [[u8; 3]], map: Map) {
                 }
             }
         }
-        for (o, &m) in o.iter_mut().zip(m) {
-            if m == 0 {
-                *o = [0, 0, 0];
-            }
-        }
     }
-    let rest = sc.remainder().iter().zip(mc.remainder());
-    for (o, (&v, &m)) in oc.into_remainder().iter_mut().zip(rest) {
-        *o = match (m, map) {
-            (0, _) => [0, 0, 0],
-            (_, Map::Viridis) => viridis(v as f64),
-            (_, Map::Hue) => cyclic_hue(v as f64),
+    for (o, &v) in oc.into_remainder().iter_mut().zip(sc.remainder()) {
+        *o = match map {
+            Map::Viridis => viridis(v as f64),
+            Map::Hue => cyclic_hue(v as f64),
         };
     }
 }
