@@ -396,7 +396,7 @@ pub fn render_stokes(sky: &Sky, cam: &Camera, opts: StokesOptions) -> (StokesIma
     let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
     let mut out = StokesImage::zeros(w, h);
     let cols: Vec<usize> = (0..w).collect();
-    out.par_rows(|r, s0, s1, s2| stokes_at(sky, cam, r, &cols, [s0, s1, s2]));
+    out.par_rows(|r, s0, s1, s2| stokes_at(sky, cam, r, &cols, [s0, s1, s2], true));
     let n_sun = if opts.sun_disc {
         add_sun_disc(sky, cam, &mut out)
     } else {
@@ -406,8 +406,16 @@ pub fn render_stokes(sky: &Sky, cam: &Camera, opts: StokesOptions) -> (StokesIma
 }
 
 /// The exact sky's S0, S1, S2 (f32) of the pixels (c, r), c in `cols`, into `s[p][c]`, by the
-/// row evaluator ([`pixel_sky_cols`]).
-fn stokes_at(sky: &Sky, cam: &Camera, r: usize, cols: &[usize], s: [&mut [f32]; 3]) {
+/// row evaluator ([`pixel_sky_cols`]). `whole_row`: `cols` is 0..s[p].len(), so the planes are
+/// written in order (a loop without an index per pixel; the same values).
+fn stokes_at(
+    sky: &Sky,
+    cam: &Camera,
+    r: usize,
+    cols: &[usize],
+    s: [&mut [f32]; 3],
+    whole_row: bool,
+) {
     thread_local! {
         /// The row's pixels: one buffer per thread, grown as needed, not a new one per row
         /// (`pixel_sky_cols` writes every element it is given).
@@ -420,11 +428,32 @@ fn stokes_at(sky: &Sky, cam: &Camera, r: usize, cols: &[usize], s: [&mut [f32]; 
         }
         let px = &mut buf[..cols.len()];
         pixel_sky_cols(sky, cam, r, cols, px);
-        for (&c, p) in cols.iter().zip(px.iter()) {
-            let [a, b, d] = p.stokes();
-            (s0[c], s1[c], s2[c]) = (a as f32, b as f32, d as f32);
+        if whole_row {
+            debug_assert!(cols.iter().enumerate().all(|(i, &c)| i == c) && px.len() == s0.len());
+            stokes_row(px, [s0, s1, s2]);
+        } else {
+            for (&c, p) in cols.iter().zip(px.iter()) {
+                let [a, b, d] = p.stokes();
+                (s0[c], s1[c], s2[c]) = (a as f32, b as f32, d as f32);
+            }
         }
     });
+}
+
+/// [`PixelSky::stokes`] of every pixel of a row into the planes, in order.
+#[inline(always)]
+fn stokes_row_body(px: &[PixelSky], s: [&mut [f32]; 3]) {
+    let [s0, s1, s2] = s;
+    for (((p, a), b), d) in px.iter().zip(s0).zip(s1).zip(s2) {
+        let [x, y, z] = p.stokes();
+        (*a, *b, *d) = (x as f32, y as f32, z as f32);
+    }
+}
+
+crate::simd::simd_dispatch! {
+    /// [`stokes_row_body`] built for the best instruction set the CPU has (the same values:
+    /// two products and three conversions per pixel, none fused).
+    fn stokes_row = stokes_row_body(px: &[PixelSky], s: [&mut [f32]; 3])
 }
 
 /// Adds the solar disc to S0 where it is in view; returns the number of pixels touched.
@@ -1170,6 +1199,7 @@ impl StokesRows for SkyGrid<'_> {
             r,
             &exact,
             [&mut *s0, &mut *s1, &mut *s2],
+            false,
         );
         // the solar disc, exactly as render_stokes adds it
         let lo = self.disc.partition_point(|&(k, _)| k < r * w);
@@ -1421,6 +1451,17 @@ mod tests {
                     let cam = Camera::new(intr, &att, *az).unwrap();
                     let (w, h) = (intr.width, intr.height);
                     let cols: Vec<usize> = (0..w).step_by(7).chain([w - 1]).collect();
+                    // render_stokes (on rayon's workers, at the detected level) gives each
+                    // pixel's Stokes vector
+                    let (st, _) = render_stokes(&sky, &cam, StokesOptions { sun_disc: false });
+                    for r in 0..h {
+                        for c in 0..w {
+                            let (k, want) = (r * w + c, pixel_sky(&sky, &cam, c as f64, r as f64));
+                            let got = [st.s0.data[k], st.s1.data[k], st.s2.data[k]];
+                            let want = want.stokes().map(|v| (v as f32).to_bits());
+                            assert_eq!(got.map(f32::to_bits), want, "render_stokes {c},{r}");
+                        }
+                    }
                     for level in crate::simd::Simd::available() {
                         crate::simd::with_simd(level, || {
                             let mut row = vec![PixelSky::default(); w];
@@ -1448,6 +1489,14 @@ mod tests {
                                 for (p, &a) in row.iter().zip(&two_aop) {
                                     let (got, want) = (p.aop_deg_from(a), p.aop_deg());
                                     assert_eq!(got.to_bits(), want.to_bits(), "AOP row {r}");
+                                }
+                                // the exact render's planes, a whole row in order
+                                let [mut a, mut b, mut d] = [0; 3].map(|_| vec![0f32; w]);
+                                stokes_row(&row, [&mut a, &mut b, &mut d]);
+                                for (c, p) in row.iter().enumerate() {
+                                    let want = p.stokes().map(|v| (v as f32).to_bits());
+                                    let got = [a[c], b[c], d[c]].map(f32::to_bits);
+                                    assert_eq!(got, want, "Stokes {c},{r}");
                                 }
                             }
                             // a part row starting mid-chunk
