@@ -585,7 +585,7 @@ enum Output {
 
 /// Asks the kernel for a 1 MiB buffer on a pipe or FIFO (the default 64 KiB wakes the reader
 /// 160 times per 10 MB frame); anything else, or a refusal, leaves it as it is.
-fn grow_pipe(fd: std::os::fd::RawFd) {
+pub(crate) fn grow_pipe(fd: std::os::fd::RawFd) {
     #[cfg(target_os = "linux")]
     // SAFETY: fcntl on a descriptor this process holds open; F_SETPIPE_SZ fails harmlessly
     // (EBADF/EINVAL/EPERM) on non-pipes and over the limit

@@ -1,5 +1,5 @@
-//! `psns bench stream`: frames/s of the stream per stage (sky, sensor, packing) and end to end,
-//! fast path against `--exact`, and the fast path's error for several sky grids.
+//! `psns bench stream`: frames/s of the stream per stage (sky, sensor, packing, write) and end
+//! to end, fast path against `--exact`, and the fast path's error for several sky grids.
 
 use crate::cli::create_dir;
 use psns::camera::{Attitude, Camera};
@@ -8,6 +8,7 @@ use psns::pipeline::RawPipeline;
 use psns::render::{self, SkyGrid, StokesOptions};
 use psns::sensor::packing;
 use psns::sky::Sky;
+use psns::stream::{FrameMeta, StreamWriter};
 use psns::{Error, Result};
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -33,7 +34,11 @@ pub struct StageTimes {
     pub sensor_ms: f64,
     /// Packing into the stream's pixel format, ms.
     pub pack_ms: f64,
-    /// Sum of the stage medians, ms.
+    /// Writing the frame's record (header and payload, CRC known) into a 1 MiB pipe that
+    /// `cat > /dev/null` drains, as `psns stream --out - | cat > /dev/null`, ms. In `psns
+    /// stream` a writer thread does this while the next frame renders.
+    pub write_ms: f64,
+    /// Sum of the render's stage medians (sky, sensor, packing), ms; `fps` is its inverse.
     pub total_ms: f64,
     /// Fast path: mean sky nodes, refined cells and pixels evaluated exactly per frame.
     pub nodes: f64,
@@ -45,17 +50,18 @@ pub struct StageTimes {
 
 /// Header of `stream_stages.csv` (and of the lines printed while measuring).
 const STAGES_HEADER: &str =
-    "mode,sky_ms,sensor_ms,pack_ms,total_ms,fps,nodes,refined_cells,exact_pixels";
+    "mode,sky_ms,sensor_ms,pack_ms,write_ms,total_ms,fps,nodes,refined_cells,exact_pixels";
 
 impl StageTimes {
     /// One line of `stream_stages.csv`.
     fn csv_row(&self) -> String {
         format!(
-            "\"{}\",{:.3},{:.3},{:.3},{:.3},{:.2},{:.0},{:.0},{:.0}",
+            "\"{}\",{:.3},{:.3},{:.3},{:.3},{:.3},{:.2},{:.0},{:.0},{:.0}",
             self.mode,
             self.sky_ms,
             self.sensor_ms,
             self.pack_ms,
+            self.write_ms,
             self.total_ms,
             1e3 / self.total_ms,
             self.nodes,
@@ -88,10 +94,11 @@ pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Res
     let tol = pipe.grid_tolerance();
     let fmt = c.raw.pixel_format;
     let bits = pipe.sensor_config().bit_depth;
-    let (mut sky_t, mut sen_t, mut pack_t) = (vec![], vec![], vec![]);
+    let (mut sky_t, mut sen_t, mut pack_t, mut write_t) = (vec![], vec![], vec![], vec![]);
     let mut refine = [0f64; 3];
     let mut codes = Vec::new();
     let mut payload = Vec::new();
+    let mut drain = Drain::start(&c, &pipe)?;
     // one warm-up frame builds the fast path's per-pixel coefficients
     for k in 0..frames + 1 {
         let att = attitude(k);
@@ -128,17 +135,27 @@ pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Res
         let t3 = Instant::now();
         packing::pack(&frame.codes.data, bits, fmt, false, &mut payload)?;
         pack_t.push(t3.elapsed().as_secs_f64());
+        // the stream's payload: the codes themselves where they are its bytes (no packing)
+        let bytes: &[u8] = if packing::codes_are_payload(fmt) {
+            bytemuck::cast_slice(&frame.codes.data)
+        } else {
+            &payload
+        };
+        write_t.push(drain.write(k as u64, bytes)?);
         codes = frame.codes.data;
         if k == 0 {
             sky_t.clear();
             sen_t.clear();
             pack_t.clear();
+            write_t.clear();
         }
     }
-    let (a, b, p) = (
+    drain.finish()?;
+    let (a, b, p, wr) = (
         1e3 * median(sky_t),
         1e3 * median(sen_t),
         1e3 * median(pack_t),
+        1e3 * median(write_t),
     );
     Ok(StageTimes {
         mode: match step {
@@ -148,11 +165,64 @@ pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Res
         sky_ms: a,
         sensor_ms: b,
         pack_ms: p,
+        write_ms: wr,
         total_ms: a + b + p,
         nodes: refine[0],
         refined_cells: refine[1],
         exact_pixels: refine[2],
     })
+}
+
+/// The write stage's consumer: `cat > /dev/null` reading a pipe with psns stream's 1 MiB
+/// buffer, fed by the stream's writer.
+struct Drain {
+    child: std::process::Child,
+    w: Option<StreamWriter<std::process::ChildStdin>>,
+}
+
+impl Drain {
+    fn start(cfg: &SceneConfig, pipe: &RawPipeline) -> Result<Self> {
+        let mut child = Command::new("cat")
+            .stdin(Stdio::piped())
+            .stdout(Stdio::null())
+            .spawn()
+            .map_err(|e| Error::io("starting `cat` (the write stage's reader)", e))?;
+        let stdin = child.stdin.take().expect("stdin is piped");
+        {
+            use std::os::fd::AsRawFd;
+            crate::cli::stream::grow_pipe(stdin.as_raw_fd());
+        }
+        let header = crate::cli::stream::stream_header(cfg, pipe, serde_json::json!({}))?;
+        let w = Some(StreamWriter::new(stdin, &header)?);
+        Ok(Drain { child, w })
+    }
+    /// Writes frame `index`'s record (its CRC taken before the clock starts); returns seconds.
+    fn write(&mut self, index: u64, payload: &[u8]) -> Result<f64> {
+        let w = self.w.as_mut().expect("not finished");
+        let crc = crc32fast::hash(payload);
+        let meta = FrameMeta {
+            index,
+            ..FrameMeta::default()
+        };
+        let t = Instant::now();
+        w.write_payload_crc(&meta, payload, Some(crc))?;
+        Ok(t.elapsed().as_secs_f64())
+    }
+    /// Closes the pipe and waits for `cat`.
+    fn finish(mut self) -> Result<()> {
+        drop(self.w.take().expect("not finished").finish()?);
+        let st = self
+            .child
+            .wait()
+            .map_err(|e| Error::io("waiting for `cat`", e))?;
+        if st.success() {
+            Ok(())
+        } else {
+            Err(Error::Invalid(format!(
+                "`cat` (the write stage's reader) failed: {st}"
+            )))
+        }
+    }
 }
 
 /// One end-to-end run: `psns stream` as a child process, process start included.
@@ -670,6 +740,34 @@ pub fn chart_svg(stages: &[StageTimes], acc: &[Accuracy]) -> Result<String> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Every stage is timed, the write stage through `cat` included (a small frame, fast and
+    /// exact, Mono16 and a packed format), and a CSV row has the header's fields.
+    #[test]
+    fn stage_times_cover_every_stage() {
+        for fmt in [packing::PixelFormat::Mono16, packing::PixelFormat::Mono12p] {
+            let mut cfg = SceneConfig::default();
+            cfg.camera.intrinsics = super::super::scenes::intrinsics(96, 64);
+            cfg.raw.pixel_format = fmt;
+            for step in [Some(16), None] {
+                let t = stage_times(&cfg, step, 3).unwrap();
+                for (name, v) in [
+                    ("sky", t.sky_ms),
+                    ("sensor", t.sensor_ms),
+                    ("pack", t.pack_ms),
+                    ("write", t.write_ms),
+                ] {
+                    assert!(v.is_finite() && v > 0.0, "{fmt:?} {step:?} {name}: {v}");
+                }
+                assert_eq!(t.total_ms, t.sky_ms + t.sensor_ms + t.pack_ms);
+                // the quoted mode, then the numbers
+                let row = t.csv_row();
+                let numbers = row.split_once("\",").expect("quoted mode").1;
+                let fields = STAGES_HEADER.split(',').count();
+                assert_eq!(numbers.split(',').count() + 1, fields, "{row}");
+            }
+        }
+    }
 
     #[test]
     fn fifo_runs_are_named_by_stream_and_reader() {
