@@ -225,6 +225,14 @@ impl Drain {
     }
 }
 
+impl Drop for Drain {
+    /// On an early return: close the pipe, so `cat` ends, and reap it.
+    fn drop(&mut self) {
+        drop(self.w.take());
+        let _ = self.child.wait();
+    }
+}
+
 /// One end-to-end run: `psns stream` as a child process, process start included.
 #[derive(Clone, Debug, serde::Serialize)]
 pub struct EndToEnd {
