@@ -429,7 +429,11 @@ fn stokes_at(
         let px = &mut buf[..cols.len()];
         pixel_sky_cols(sky, cam, r, cols, px);
         if whole_row {
-            debug_assert!(cols.iter().enumerate().all(|(i, &c)| i == c) && px.len() == s0.len());
+            // cols is 0..w: checked whole in debug builds, by its ends and length in release
+            // (the callers' cols ascend)
+            let w = s0.len();
+            assert!(cols.len() == w && cols.first() == Some(&0) && cols.last() == Some(&(w - 1)));
+            debug_assert!(cols.iter().enumerate().all(|(i, &c)| i == c));
             stokes_row(px, [s0, s1, s2]);
         } else {
             for (&c, p) in cols.iter().zip(px.iter()) {

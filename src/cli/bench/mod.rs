@@ -51,7 +51,7 @@ pub enum BenchCmd {
         #[arg(long, default_value_t = 5, value_parser = crate::cli::args::runs)]
         runs: usize,
     },
-    /// Stream frames/s per stage (sky, sensor, packing) and end to end, fast path against
+    /// Stream frames/s per stage (sky, sensor, packing, write) and end to end, fast path against
     /// --exact, and issue 9's targets (writes stream_stages.csv, stream_e2e.csv,
     /// stream_targets.csv, stream_accuracy.csv and the chart).
     Stream {
@@ -66,7 +66,7 @@ pub enum BenchCmd {
         /// Frames per end-to-end run of `psns stream` (a third of them with --exact).
         #[arg(long, default_value_t = 300, value_parser = crate::cli::args::runs)]
         e2e_frames: usize,
-        /// End-to-end runs per command (median reported).
+        /// End-to-end runs per command (median reported, with the slowest and fastest run).
         #[arg(long, default_value_t = 3, value_parser = crate::cli::args::runs)]
         runs: usize,
         /// Sky grid steps of the fast path to time.

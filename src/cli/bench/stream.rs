@@ -34,10 +34,15 @@ pub struct StageTimes {
     pub sensor_ms: f64,
     /// Packing into the stream's pixel format, ms.
     pub pack_ms: f64,
-    /// Writing the frame's record (header and payload, CRC known) into a 1 MiB pipe that
-    /// `cat > /dev/null` drains, as `psns stream --out - | cat > /dev/null`, ms. In `psns
-    /// stream` a writer thread does this while the next frame renders.
+    /// Writing the frame's record (header and payload) into a 1 MiB pipe that `cat > /dev/null`
+    /// drains, as `psns stream --out - | cat > /dev/null` does, ms. The payload's CRC is taken
+    /// where the stream takes it: before the clock where the render takes it (the fast path,
+    /// and every packed format), within the write for `--exact` Mono16, where the stream's
+    /// writer takes it. Timed alone, with the payload warm in cache; in `psns stream` a writer
+    /// thread does this while the next frame renders, on the same two cores.
     pub write_ms: f64,
+    /// Frames timed per stage (the warm-up frame left out).
+    pub frames: usize,
     /// Sum of the render's stage medians (sky, sensor, packing), ms; `fps` is its inverse.
     pub total_ms: f64,
     /// Fast path: mean sky nodes, refined cells and pixels evaluated exactly per frame.
@@ -141,7 +146,10 @@ pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Res
         } else {
             &payload
         };
-        write_t.push(drain.write(k as u64, bytes)?);
+        // psns stream's writer takes the CRC itself only for the exact path's Mono16 codes
+        // (`RawPipeline::frame_payload_at`)
+        let crc_in_write = step.is_none() && packing::codes_are_payload(fmt);
+        write_t.push(drain.write(k as u64, bytes, crc_in_write)?);
         codes = frame.codes.data;
         if k == 0 {
             sky_t.clear();
@@ -151,6 +159,8 @@ pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Res
         }
     }
     drain.finish()?;
+    let timed = write_t.len();
+    debug_assert!([&sky_t, &sen_t, &pack_t].iter().all(|v| v.len() == timed));
     let (a, b, p, wr) = (
         1e3 * median(sky_t),
         1e3 * median(sen_t),
@@ -166,6 +176,7 @@ pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Res
         sensor_ms: b,
         pack_ms: p,
         write_ms: wr,
+        frames: timed,
         total_ms: a + b + p,
         nodes: refine[0],
         refined_cells: refine[1],
@@ -182,30 +193,33 @@ struct Drain {
 
 impl Drain {
     fn start(cfg: &SceneConfig, pipe: &RawPipeline) -> Result<Self> {
-        let mut child = Command::new("cat")
+        let child = Command::new("cat")
             .stdin(Stdio::piped())
             .stdout(Stdio::null())
             .spawn()
             .map_err(|e| Error::io("starting `cat` (the write stage's reader)", e))?;
-        let stdin = child.stdin.take().expect("stdin is piped");
+        // from here on Drop reaps `cat`, also when the header fails
+        let mut d = Drain { child, w: None };
+        let stdin = d.child.stdin.take().expect("stdin is piped");
         {
             use std::os::fd::AsRawFd;
             crate::cli::stream::grow_pipe(stdin.as_raw_fd());
         }
         let header = crate::cli::stream::stream_header(cfg, pipe, serde_json::json!({}))?;
-        let w = Some(StreamWriter::new(stdin, &header)?);
-        Ok(Drain { child, w })
+        d.w = Some(StreamWriter::new(stdin, &header)?);
+        Ok(d)
     }
-    /// Writes frame `index`'s record (its CRC taken before the clock starts); returns seconds.
-    fn write(&mut self, index: u64, payload: &[u8]) -> Result<f64> {
+    /// Writes frame `index`'s record; its CRC is taken within the timed write when
+    /// `crc_in_write`, else before the clock starts. Returns seconds.
+    fn write(&mut self, index: u64, payload: &[u8], crc_in_write: bool) -> Result<f64> {
         let w = self.w.as_mut().expect("not finished");
-        let crc = crc32fast::hash(payload);
+        let crc = (!crc_in_write).then(|| crc32fast::hash(payload));
         let meta = FrameMeta {
             index,
             ..FrameMeta::default()
         };
         let t = Instant::now();
-        w.write_payload_crc(&meta, payload, Some(crc))?;
+        w.write_payload_crc(&meta, payload, crc)?;
         Ok(t.elapsed().as_secs_f64())
     }
     /// Closes the pipe and waits for `cat`.
@@ -249,7 +263,7 @@ pub struct EndToEnd {
     pub fps_range: (f64, f64),
 }
 
-/// Runs `sh -c command` `runs` times and reports the median.
+/// Runs `sh -c command` `runs` times and reports the median and the spread.
 fn time_shell(command: &str, frames: usize, runs: usize) -> Result<EndToEnd> {
     let mut t = Vec::new();
     for _ in 0..runs {
@@ -781,12 +795,22 @@ mod tests {
                 ] {
                     assert!(v.is_finite() && v > 0.0, "{fmt:?} {step:?} {name}: {v}");
                 }
-                assert_eq!(t.total_ms, t.sky_ms + t.sensor_ms + t.pack_ms);
-                // the quoted mode, then the numbers
+                // three frames timed per stage: the warm-up frame left out
+                assert_eq!(t.frames, 3);
+                // the row read back by the header's names (the quoted mode, then numbers)
                 let row = t.csv_row();
-                let numbers = row.split_once("\",").expect("quoted mode").1;
-                let fields = STAGES_HEADER.split(',').count();
-                assert_eq!(numbers.split(',').count() + 1, fields, "{row}");
+                let (mode, numbers) = row.split_once("\",").expect("quoted mode");
+                assert_eq!(&mode[1..], t.mode);
+                let names: Vec<&str> = STAGES_HEADER.split(',').skip(1).collect();
+                let values: Vec<f64> = numbers.split(',').map(|v| v.parse().unwrap()).collect();
+                assert_eq!(names.len(), values.len(), "{row}");
+                let get = |n: &str| values[names.iter().position(|&m| m == n).unwrap()];
+                let close = |a: f64, b: f64| (a - b).abs() <= 1e-3 * b.abs().max(1.0);
+                assert!(close(get("write_ms"), t.write_ms), "{row}");
+                assert!(close(get("pack_ms"), t.pack_ms), "{row}");
+                let total = t.sky_ms + t.sensor_ms + t.pack_ms;
+                assert!(close(get("total_ms"), total), "{row}");
+                assert!(close(get("fps"), 1e3 / total), "{row}");
             }
         }
     }
@@ -797,8 +821,9 @@ mod tests {
     fn end_to_end_runs_report_their_spread() {
         let r = time_shell("sleep 0.01", 10, 3).unwrap();
         let (lo, hi) = r.fps_range;
+        // three runs never take the very same nanoseconds
         assert!(
-            lo <= r.fps && r.fps <= hi && lo > 0.0,
+            lo < hi && lo <= r.fps && r.fps <= hi && lo > 0.0,
             "{lo} {} {hi}",
             r.fps
         );
