@@ -396,7 +396,7 @@ pub fn render_stokes(sky: &Sky, cam: &Camera, opts: StokesOptions) -> (StokesIma
     let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
     let mut out = StokesImage::zeros(w, h);
     let cols: Vec<usize> = (0..w).collect();
-    out.par_rows(|r, s0, s1, s2| stokes_at(sky, cam, r, &cols, [s0, s1, s2], true));
+    out.par_rows(|r, s0, s1, s2| stokes_at(sky, cam, r, &cols, [s0, s1, s2]));
     let n_sun = if opts.sun_disc {
         add_sun_disc(sky, cam, &mut out)
     } else {
@@ -406,16 +406,9 @@ pub fn render_stokes(sky: &Sky, cam: &Camera, opts: StokesOptions) -> (StokesIma
 }
 
 /// The exact sky's S0, S1, S2 (f32) of the pixels (c, r), c in `cols`, into `s[p][c]`, by the
-/// row evaluator ([`pixel_sky_cols`]). `whole_row`: `cols` is 0..s[p].len(), so the planes are
-/// written in order (a loop without an index per pixel; the same values).
-fn stokes_at(
-    sky: &Sky,
-    cam: &Camera,
-    r: usize,
-    cols: &[usize],
-    s: [&mut [f32]; 3],
-    whole_row: bool,
-) {
+/// row evaluator ([`pixel_sky_cols`]). `cols` ascend; when they are the whole row the planes
+/// are written in order (a loop without an index per pixel; the same values).
+fn stokes_at(sky: &Sky, cam: &Camera, r: usize, cols: &[usize], s: [&mut [f32]; 3]) {
     thread_local! {
         /// The row's pixels: one buffer per thread, grown as needed, not a new one per row
         /// (`pixel_sky_cols` writes every element it is given).
@@ -428,11 +421,11 @@ fn stokes_at(
         }
         let px = &mut buf[..cols.len()];
         pixel_sky_cols(sky, cam, r, cols, px);
-        if whole_row {
-            // cols is 0..w: checked whole in debug builds, by its ends and length in release
-            // (the callers' cols ascend)
-            let w = s0.len();
-            assert!(cols.len() == w && cols.first() == Some(&0) && cols.last() == Some(&(w - 1)));
+        let w = s0.len();
+        if cols.len() == w {
+            // w ascending columns below w are 0..w: checked whole in debug builds, by the ends
+            // in release
+            assert!(cols.first() == Some(&0) && cols.last() == Some(&(w - 1)));
             debug_assert!(cols.iter().enumerate().all(|(i, &c)| i == c));
             stokes_row(px, [s0, s1, s2]);
         } else {
@@ -1203,7 +1196,6 @@ impl StokesRows for SkyGrid<'_> {
             r,
             &exact,
             [&mut *s0, &mut *s1, &mut *s2],
-            false,
         );
         // the solar disc, exactly as render_stokes adds it
         let lo = self.disc.partition_point(|&(k, _)| k < r * w);
