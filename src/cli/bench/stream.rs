@@ -6,7 +6,7 @@ use psns::camera::{Attitude, Camera};
 use psns::config::SceneConfig;
 use psns::pipeline::RawPipeline;
 use psns::render::{self, SkyGrid, StokesOptions};
-use psns::sensor::packing;
+use psns::sensor::{packing, FastSink};
 use psns::sky::Sky;
 use psns::stream::{FrameMeta, StreamWriter};
 use psns::{Error, Result};
@@ -32,13 +32,14 @@ pub struct StageTimes {
     pub sky_ms: f64,
     /// Sensor, ms (fast: reading the sky rows from the grid included).
     pub sensor_ms: f64,
-    /// Packing into the stream's pixel format, ms.
+    /// Packing into the stream's pixel format with the payload's CRC, ms (as `psns stream`
+    /// packs; a little-endian Mono16 stream sends the codes unpacked and skips it).
     pub pack_ms: f64,
     /// Writing the frame's record (header and payload) into a 1 MiB pipe that `cat > /dev/null`
     /// drains, as `psns stream --out - | cat > /dev/null` does, ms. The payload's CRC is taken
-    /// where the stream takes it: before the clock where the render takes it (the fast path,
-    /// and every packed format), within the write for `--exact` Mono16, where the stream's
-    /// writer takes it. Timed alone, with the payload warm in cache; in `psns stream` a writer
+    /// where the stream takes it: in the sensor stage (the fast path's Mono16 codes, band by
+    /// band) or the packing stage (packed formats), else within the write (`--exact` Mono16).
+    /// Timed alone, with the payload warm in cache; in `psns stream` a writer
     /// thread does this while the next frame renders, on the same two cores.
     pub write_ms: f64,
     /// Frames timed per stage (the warm-up frame left out).
@@ -119,9 +120,18 @@ pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Res
                     refine[1] += cells as f64 / frames as f64;
                     refine[2] += px as f64 / frames as f64;
                 }
-                let f = pipe
-                    .sensor()
-                    .frame_fast(&grid, k as u64, std::mem::take(&mut codes))?;
+                // as psns stream: a Mono16 payload's CRC taken band by band in the sensor pass
+                let sink = if packing::codes_are_payload(fmt) {
+                    FastSink::CodesCrc32
+                } else {
+                    FastSink::None
+                };
+                let f = pipe.sensor().frame_fast_with(
+                    &grid,
+                    k as u64,
+                    std::mem::take(&mut codes),
+                    sink,
+                )?;
                 let t2 = Instant::now();
                 sky_t.push((t1 - t0).as_secs_f64());
                 sen_t.push((t2 - t1).as_secs_f64());
@@ -138,18 +148,17 @@ pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Res
             }
         };
         let t3 = Instant::now();
-        packing::pack(&frame.codes.data, bits, fmt, false, &mut payload)?;
+        let packed_crc = packing::pack_crc32(&frame.codes.data, bits, fmt, false, &mut payload)?;
         pack_t.push(t3.elapsed().as_secs_f64());
-        // the stream's payload: the codes themselves where they are its bytes (no packing)
-        let bytes: &[u8] = if packing::codes_are_payload(fmt) {
-            bytemuck::cast_slice(&frame.codes.data)
+        // the stream's payload and CRC, as `RawPipeline::frame_payload_at` gives them: the codes
+        // themselves where they are its bytes (no packing), with the CRC the frame carries
+        // (`None` on the exact path: the writer takes it), else the packed bytes and theirs
+        let (bytes, crc): (&[u8], _) = if packing::codes_are_payload(fmt) {
+            (bytemuck::cast_slice(&frame.codes.data), frame.codes_crc32)
         } else {
-            &payload
+            (&payload, Some(packed_crc))
         };
-        // psns stream's writer takes the CRC itself only for the exact path's Mono16 codes
-        // (`RawPipeline::frame_payload_at`)
-        let crc_in_write = step.is_none() && packing::codes_are_payload(fmt);
-        write_t.push(drain.write(k as u64, bytes, crc_in_write)?);
+        write_t.push(drain.write(k as u64, bytes, crc)?);
         codes = frame.codes.data;
         if k == 0 {
             sky_t.clear();
@@ -209,11 +218,10 @@ impl Drain {
         d.w = Some(StreamWriter::new(stdin, &header)?);
         Ok(d)
     }
-    /// Writes frame `index`'s record; its CRC is taken within the timed write when
-    /// `crc_in_write`, else before the clock starts. Returns seconds.
-    fn write(&mut self, index: u64, payload: &[u8], crc_in_write: bool) -> Result<f64> {
+    /// Writes frame `index`'s record, with its payload's CRC when it came with the payload
+    /// (`None`: the writer takes it, within the timed write). Returns seconds.
+    fn write(&mut self, index: u64, payload: &[u8], crc: Option<u32>) -> Result<f64> {
         let w = self.w.as_mut().expect("not finished");
-        let crc = (!crc_in_write).then(|| crc32fast::hash(payload));
         let meta = FrameMeta {
             index,
             ..FrameMeta::default()
