@@ -1043,20 +1043,24 @@ fn interp_planes(s: [&mut [f32]; 3], v: &[f32], d: &[f32], fx: &[f32], full: usi
         let out = &mut out[..full];
         // the default grid's 16-pixel cells as whole vectors, written out: left to itself the
         // loop vectoriser spreads the cells over the lanes and scatters (slower than scalar)
-        #[cfg(target_arch = "x86_64")]
-        if let Ok(fx) = <&[f32; 16]>::try_from(fx) {
-            use crate::simd::{simd, Simd};
-            match simd() {
-                // SAFETY: `simd` never returns more than the CPU has
-                Simd::Avx512 => unsafe { interp16_avx512(out, v, d, p, fx) },
-                // SAFETY: as above
-                Simd::Avx2 => unsafe { interp16_avx2(out, v, d, p, fx) },
-                Simd::Plain => interp_plane(out, v, d, p, fx),
-            }
-            continue;
+        match <&[f32; 16]>::try_from(fx) {
+            Ok(fx) => interp16(out, v, d, p, fx),
+            Err(_) => interp_plane(out, v, d, p, fx),
         }
-        interp_plane(out, v, d, p, fx);
     }
+}
+
+crate::simd_dispatch! {
+    /// [`interp_plane`] for 16-pixel cells.
+    fn interp16 = {
+        avx512: interp16_avx512,
+        avx2: interp16_avx2,
+        plain: interp16_plain,
+    }(out: &mut [f32], v: &[f32], d: &[f32], p: usize, fx: &[f32; 16])
+}
+
+fn interp16_plain(out: &mut [f32], v: &[f32], d: &[f32], p: usize, fx: &[f32; 16]) {
+    interp_plane(out, v, d, p, fx);
 }
 
 /// One plane of [`interp_cells`], any cell width (`fx.len()`): cell i is v[3i + p] +

@@ -1,13 +1,26 @@
 //! Run-time choice of the instruction set for the row kernels (`simd_dispatch!`): AVX-512,
 //! AVX2 + FMA or plain x86-64, the same bits in every one (`docs/performance.md`).
 
-/// Defines `$vis fn $name(args) -> ret` that calls the `#[inline(always)]` kernel `$body` built
-/// for the instruction set [`simd`] chooses: AVX-512 (F, BW, DQ, VL with AVX2 and FMA), AVX2 with
-/// FMA, or plain x86-64. The loops vectorise in each build; all give the same bits: the kernels'
-/// `mul_add` is exactly rounded with or without the instruction, plain `*` and `+` are never
-/// fused, and division, square root, min, max and conversions are exact IEEE operations in every
-/// instruction set (the `simd_paths_agree` tests check it). Used by every row kernel of the fast
-/// path and the PSNS presets.
+/// Defines `$vis fn $name(args) -> ret` that runs a kernel built for the instruction set
+/// [`simd`] chooses: AVX-512 (F, BW, DQ, VL with AVX2 and FMA), AVX2 with FMA, or plain x86-64.
+/// The one way psns picks an instruction set; two forms:
+///
+/// * `fn name = body(args)`: the `#[inline(always)]` portable kernel `body`, built once per
+///   instruction set. The loops vectorise in each build; all give the same bits: the kernels'
+///   `mul_add` is exactly rounded with or without the instruction, plain `*` and `+` are never
+///   fused, and division, square root, min, max and conversions are exact IEEE operations in
+///   every instruction set (the `simd_paths_agree` tests check it). Every row kernel of the fast
+///   path and the PSNS presets.
+/// * `fn name = { avx512: f, avx2: g, plain: h }(args)`: a kernel written per instruction set
+///   (intrinsics): `f` and `g` are `#[target_feature]` functions for AVX-512 and AVX2 (either may
+///   be left out; the next lower level runs instead), `h` the portable one. Each must give the
+///   same result as `h` (tested per kernel at every level, [`with_simd`]).
+/// * `unsafe fn name = { ... }(level: Simd; args)`: the same with the level passed in (chosen
+///   once by [`simd`] for a whole row, where a kernel called per few pixels cannot afford the
+///   look-up); the caller guarantees `level` is at most what the CPU has.
+///
+/// `PSNS_SIMD` and [`with_simd`] cap the level, so tests and benchmarks run every build.
+#[macro_export]
 macro_rules! simd_dispatch {
     ($(#[$m:meta])* $vis:vis fn $name:ident = $body:ident($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)?) => {
         $(#[$m])*
@@ -36,8 +49,67 @@ macro_rules! simd_dispatch {
             $body($($arg),*)
         }
     };
+    ($(#[$m:meta])* $vis:vis unsafe fn $name:ident = {
+        $(avx512: $a512:path,)? $(avx2: $a2:path,)? plain: $plain:path $(,)?
+    }($level:ident: Simd; $($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)?) => {
+        $(#[$m])*
+        #[allow(clippy::too_many_arguments)]
+        $vis unsafe fn $name($level: $crate::simd::Simd, $($arg: $ty),*) $(-> $ret)? {
+            debug_assert!($level <= $crate::simd::Simd::detected());
+            // one call with the arguments, for each level's function
+            macro_rules! call {
+                ($f:path) => {
+                    $f($($arg),*)
+                };
+            }
+            #[cfg(target_arch = "x86_64")]
+            {
+                $(if $level >= $crate::simd::Simd::Avx512 {
+                    // SAFETY: the caller's contract: `level` is at most what the CPU has
+                    #[allow(unused_unsafe)]
+                    return unsafe { call!($a512) };
+                })?
+                $(if $level >= $crate::simd::Simd::Avx2 {
+                    // SAFETY: as above
+                    #[allow(unused_unsafe)]
+                    return unsafe { call!($a2) };
+                })?
+            }
+            let _ = $level;
+            call!($plain)
+        }
+    };
+    ($(#[$m:meta])* $vis:vis fn $name:ident = {
+        $(avx512: $a512:path,)? $(avx2: $a2:path,)? plain: $plain:path $(,)?
+    }($($arg:ident: $ty:ty),* $(,)?) $(-> $ret:ty)?) => {
+        $(#[$m])*
+        #[allow(clippy::too_many_arguments)]
+        $vis fn $name($($arg: $ty),*) $(-> $ret)? {
+            // one call with the arguments, for each level's function
+            macro_rules! call {
+                ($f:path) => {
+                    $f($($arg),*)
+                };
+            }
+            #[cfg(target_arch = "x86_64")]
+            {
+                let _level = $crate::simd::simd();
+                $(if _level >= $crate::simd::Simd::Avx512 {
+                    // SAFETY: `simd` never returns more than the CPU has
+                    #[allow(unused_unsafe)]
+                    return unsafe { call!($a512) };
+                })?
+                $(if _level >= $crate::simd::Simd::Avx2 {
+                    // SAFETY: as above
+                    #[allow(unused_unsafe)]
+                    return unsafe { call!($a2) };
+                })?
+            }
+            call!($plain)
+        }
+    };
 }
-pub(crate) use simd_dispatch;
+pub use crate::simd_dispatch;
 
 /// Instruction sets the row kernels are built for (`simd_dispatch!`), in increasing order.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, PartialOrd, Ord)]

@@ -493,36 +493,23 @@ fn header_json(cfg: &SceneConfig, pipe: &RawPipeline, extra: serde_json::Value) 
         .unwrap_or_default()
 }
 
-/// Host CLOCK_MONOTONIC in ns (Linux); 0 elsewhere.
+/// Host CLOCK_MONOTONIC in ns (Unix); 0 elsewhere.
 fn host_monotonic_ns() -> i64 {
-    #[cfg(target_os = "linux")]
+    #[cfg(unix)]
     {
-        #[repr(C)]
-        struct Timespec {
-            tv_sec: i64,
-            tv_nsec: i64,
-        }
-        extern "C" {
-            fn clock_gettime(clk: i32, tp: *mut Timespec) -> i32;
-        }
-        const CLOCK_MONOTONIC: i32 = 1;
-        let mut ts = Timespec {
+        let mut ts = libc::timespec {
             tv_sec: 0,
             tv_nsec: 0,
         };
-        // SAFETY: libc's clock_gettime writes one timespec (two 64-bit fields on 64-bit Linux)
-        // through a valid pointer to a live local.
-        if cfg!(target_pointer_width = "64")
-            && unsafe { clock_gettime(CLOCK_MONOTONIC, &mut ts) } == 0
-        {
-            return ts
-                .tv_sec
+        // SAFETY: clock_gettime writes one timespec through a valid pointer to a live local
+        if unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) } == 0 {
+            return (ts.tv_sec as i64)
                 .saturating_mul(1_000_000_000)
-                .saturating_add(ts.tv_nsec);
+                .saturating_add(ts.tv_nsec as i64);
         }
         0
     }
-    #[cfg(not(target_os = "linux"))]
+    #[cfg(not(unix))]
     {
         0
     }

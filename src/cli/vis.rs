@@ -113,17 +113,17 @@ fn map_image(img: &Image<f32>, mask: Option<&Image<u8>>, map: Map) -> Image<[u8;
     Image::from_vec(img.width, img.height, out)
 }
 
-/// `map` of every value of `src` into `out`, built for AVX2 where `psns::simd` allows.
-fn map_pixels(src: &[f32], out: &mut [[u8; 3]], map: Map) {
-    #[cfg(target_arch = "x86_64")]
-    if psns::simd::simd() >= psns::simd::Simd::Avx2 {
-        #[target_feature(enable = "avx2")]
-        unsafe fn avx2(src: &[f32], out: &mut [[u8; 3]], map: Map) {
-            map_body(src, out, map)
-        }
-        // SAFETY: `simd` never returns more than the CPU has
-        return unsafe { avx2(src, out, map) };
-    }
+psns::simd_dispatch! {
+    /// `map` of every value of `src` into `out`, built for AVX2 where `psns::simd` allows.
+    fn map_pixels = {
+        avx2: map_avx2,
+        plain: map_body,
+    }(src: &[f32], out: &mut [[u8; 3]], map: Map)
+}
+
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2")]
+fn map_avx2(src: &[f32], out: &mut [[u8; 3]], map: Map) {
     map_body(src, out, map)
 }
 

@@ -4,9 +4,8 @@
 //! ~12 for `rand_chacha`'s 4-block AVX2 kernel) and by `rand_chacha`'s own core otherwise, and a
 //! draw that stays inline.
 
-use rand::rand_core::block::BlockRngCore;
 use rand::{RngCore, SeedableRng};
-use rand_chacha::ChaCha8Core;
+use rand_chacha::ChaCha8Rng;
 
 /// Words in the buffer: 16 ChaCha blocks.
 const WORDS: usize = 256;
@@ -17,61 +16,52 @@ pub(crate) struct Stream {
     buf: [u32; WORDS],
     /// Next unread word (`WORDS` = empty), as `rand_core`'s `BlockRng`.
     idx: usize,
-    gen: Gen,
-}
-
-#[derive(Clone)]
-enum Gen {
     /// The key words and the next block's counter.
-    #[cfg(target_arch = "x86_64")]
-    Avx512 {
-        key: [u32; 8],
-        block: u64,
-    },
-    Core(ChaCha8Core),
+    key: [u32; 8],
+    block: u64,
 }
 
 impl Stream {
-    /// The stream of key `key` (`rand_chacha::ChaCha8Rng::from_seed(key)`), its buffer filled
-    /// with AVX-512 when [`crate::simd::simd`] allows it.
+    /// The stream of key `key` (`rand_chacha::ChaCha8Rng::from_seed(key)`).
     pub(crate) fn new(key: [u8; 32]) -> Self {
-        #[cfg(target_arch = "x86_64")]
-        if crate::simd::simd() == crate::simd::Simd::Avx512 {
-            let mut k = [0u32; 8];
-            for (w, b) in k.iter_mut().zip(key.chunks_exact(4)) {
-                *w = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
-            }
-            return Stream {
-                buf: [0; WORDS],
-                idx: WORDS,
-                gen: Gen::Avx512 { key: k, block: 0 },
-            };
+        let mut k = [0u32; 8];
+        for (w, b) in k.iter_mut().zip(key.chunks_exact(4)) {
+            *w = u32::from_le_bytes([b[0], b[1], b[2], b[3]]);
         }
         Stream {
             buf: [0; WORDS],
             idx: WORDS,
-            gen: Gen::Core(ChaCha8Core::from_seed(key)),
+            key: k,
+            block: 0,
         }
     }
 
     #[inline(never)]
     fn refill(&mut self) {
-        match &mut self.gen {
-            #[cfg(target_arch = "x86_64")]
-            Gen::Avx512 { key, block } => {
-                // SAFETY: `Gen::Avx512` is only made when the CPU has AVX-512 F
-                unsafe { blocks16_avx512(key, *block, &mut self.buf) };
-                *block = block.wrapping_add(16);
-            }
-            Gen::Core(core) => {
-                let mut r = Default::default();
-                for chunk in self.buf.chunks_exact_mut(64) {
-                    core.generate(&mut r);
-                    chunk.copy_from_slice(r.as_ref());
-                }
-            }
-        }
+        blocks16(&self.key, self.block, &mut self.buf);
+        self.block = self.block.wrapping_add(16);
         self.idx = 0;
+    }
+}
+
+crate::simd_dispatch! {
+    /// Blocks `block..block + 16` of `key` (zero nonce), block-major into `out`.
+    fn blocks16 = {
+        avx512: blocks16_avx512,
+        plain: blocks16_core,
+    }(key: &[u32; 8], block: u64, out: &mut [u32; WORDS])
+}
+
+/// [`blocks16`] by `rand_chacha`'s own core.
+fn blocks16_core(key: &[u32; 8], block: u64, out: &mut [u32; WORDS]) {
+    let mut seed = [0u8; 32];
+    for (b, w) in seed.chunks_exact_mut(4).zip(key) {
+        b.copy_from_slice(&w.to_le_bytes());
+    }
+    let mut rng = ChaCha8Rng::from_seed(seed);
+    rng.set_word_pos(16 * u128::from(block));
+    for w in out.iter_mut() {
+        *w = rng.next_u32();
     }
 }
 
@@ -206,7 +196,6 @@ fn blocks16_avx512(key: &[u32; 8], block: u64, out: &mut [u32; WORDS]) {
 mod tests {
     use super::*;
     use crate::simd::{with_simd, Simd};
-    use rand_chacha::ChaCha8Rng;
 
     /// Every build's stream is `ChaCha8Rng`'s, through u64 and u32 draws, byte fills and many
     /// refills, and a block counter that carries into its high word.
@@ -232,18 +221,14 @@ mod tests {
                         }
                     }
                 }
-                // a block counter that carries into its high word (rand_chacha's core is
-                // the plain build itself)
+                // a block counter that carries into its high word
                 let key = [5u8; 32];
                 let (mut a, mut b) = (Stream::new(key), ChaCha8Rng::from_seed(key));
                 let start = (1u64 << 32) - 8; // blocks 2^32 - 8 .. 2^32 + 40
                 b.set_word_pos(16 * start as u128);
-                #[cfg(target_arch = "x86_64")]
-                if let Gen::Avx512 { block, .. } = &mut a.gen {
-                    *block = start;
-                    for _ in 0..48 * 8 {
-                        assert_eq!(a.next_u64(), b.next_u64(), "counter carry");
-                    }
+                a.block = start;
+                for _ in 0..48 * 8 {
+                    assert_eq!(a.next_u64(), b.next_u64(), "counter carry");
                 }
             });
         }

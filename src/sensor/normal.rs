@@ -12,8 +12,58 @@
 //! no logarithm and no division for 99.998 % of draws, 30 % less time per normal. Every
 //! instruction set gives the same bits (Horner steps are fused multiply-adds everywhere).
 
-use super::fast::NoiseKey;
 use crate::simd::Simd;
+
+/// Keys of one counter-based stream (camera seed, frame, stage).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct NoiseKey {
+    k1: u32,
+    k2: u32,
+}
+
+#[inline(always)]
+fn splitmix64(mut x: u64) -> u64 {
+    x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    x ^ (x >> 31)
+}
+
+/// A bijective 32-bit mixer (xor-shift-multiply, constants of C. Wellons' "lowbias32").
+#[inline(always)]
+fn mix32(mut x: u32) -> u32 {
+    x ^= x >> 16;
+    x = x.wrapping_mul(0x7feb_352d);
+    x ^= x >> 15;
+    x = x.wrapping_mul(0x846c_a68b);
+    x ^ (x >> 16)
+}
+
+impl NoiseKey {
+    /// The stream of `stage` (see [`crate::sensor::noise`]'s stage ids) in frame `frame` of camera `seed`.
+    pub fn new(seed: u64, frame: u64, stage: u32) -> Self {
+        let h =
+            splitmix64(seed ^ splitmix64(frame ^ splitmix64(0x7073_6e73_0000_0000 | stage as u64)));
+        NoiseKey {
+            k1: h as u32,
+            k2: (h >> 32) as u32,
+        }
+    }
+    /// 32 random bits for counter `i` (the pixel index): two keyed rounds of a bijective mixer,
+    /// so each frame and stage is a different permutation, not a shifted copy.
+    #[inline(always)]
+    pub fn bits(&self, i: u32) -> u32 {
+        mix32(mix32(i ^ self.k1) ^ self.k2)
+    }
+    /// The first key word (for the vector hash of [`super::normal`]).
+    pub(crate) fn k1(&self) -> u32 {
+        self.k1
+    }
+    /// The second key word.
+    pub(crate) fn k2(&self) -> u32 {
+        self.k2
+    }
+}
 
 /// Coefficients of g per binade, highest degree first: `NORMAL_POLY[d][p]` for the binade whose
 /// f32 exponent field e (of 2²³ t) has e mod 16 = p, e = 149 − j.
@@ -100,7 +150,7 @@ fn giles(bits: u32) -> f32 {
     let a = uniform_from_bits(bits);
     let b = 1.0 - a;
     let x = a - b; // exact
-    let w = -super::fast::ln_f32(4.0 * a * b);
+    let w = -crate::vmath::ln_f32(4.0 * a * b);
     let p = if w < 5.0 {
         erfinv_central(w)
     } else {
@@ -132,36 +182,64 @@ pub fn normal_from_bits(bits: u32) -> f32 {
 ///
 /// # Safety
 /// `simd` must not exceed what the CPU has ([`Simd::detected`]); callers pass
-/// [`crate::simd::simd`]. (Checking here would cost a feature test per block.)
+/// [`crate::simd::simd`], read once per row. (Reading it here would cost a look-up per block.)
 #[inline(always)]
 pub(crate) unsafe fn normals_block(key: &NoiseKey, idx0: u32, z: &mut [f32], simd: Simd) {
-    debug_assert!(simd <= Simd::detected());
     debug_assert!(z.len() <= BLOCK);
     let n = z.len().min(BLOCK);
     let z = &mut z[..n];
-    #[cfg(target_arch = "x86_64")]
-    if simd >= Simd::Avx2 && n.is_multiple_of(8) {
-        let tail = if simd == Simd::Avx512 && n.is_multiple_of(16) {
-            // SAFETY: `simd` says the CPU has AVX-512 F (the caller's contract)
-            unsafe { block_avx512(key.k1(), key.k2(), idx0, z) }
-        } else {
-            // SAFETY: `simd` says the CPU has AVX2 and FMA
-            unsafe { block_avx2(key.k1(), key.k2(), idx0, z) }
-        };
-        if tail {
-            fix_tail(key, idx0, z);
-        }
-        return;
+    // SAFETY: the caller's contract
+    if unsafe { poly_block(simd, key, idx0, z) } {
+        fix_tail(key, idx0, z);
     }
-    let _ = simd;
+}
+
+crate::simd_dispatch! {
+    /// The polynomial part of [`normals_block`] (draws with t < 2⁻¹⁶ get a placeholder); returns
+    /// whether any draw needs the tail.
+    #[inline(always)]
+    unsafe fn poly_block = {
+        avx512: poly_avx512,
+        avx2: poly_avx2,
+        plain: poly_plain,
+    }(simd: Simd; key: &NoiseKey, idx0: u32, z: &mut [f32]) -> bool
+}
+
+/// [`poly_block`] one draw at a time.
+#[inline(always)]
+fn poly_plain(key: &NoiseKey, idx0: u32, z: &mut [f32]) -> bool {
     let mut tail = false;
     for (i, zi) in z.iter_mut().enumerate() {
         let (t, s) = split(key.bits(idx0.wrapping_add(i as u32)));
         tail |= t < TAIL_BELOW;
         *zi = f32::from_bits(poly(t.max(TAIL_BELOW)).to_bits() ^ s);
     }
-    if tail {
-        fix_tail(key, idx0, z);
+    tail
+}
+
+/// [`poly_block`] in AVX-512 for lengths that are a multiple of 16, else as [`poly_avx2`].
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx512f,avx2,fma")]
+#[inline]
+fn poly_avx512(key: &NoiseKey, idx0: u32, z: &mut [f32]) -> bool {
+    if z.len().is_multiple_of(16) {
+        // SAFETY: this function's features include block_avx512's; the length is asserted there
+        unsafe { block_avx512(key.k1(), key.k2(), idx0, z) }
+    } else {
+        poly_avx2(key, idx0, z)
+    }
+}
+
+/// [`poly_block`] in AVX2 for lengths that are a multiple of 8, else one draw at a time.
+#[cfg(target_arch = "x86_64")]
+#[target_feature(enable = "avx2,fma")]
+#[inline]
+fn poly_avx2(key: &NoiseKey, idx0: u32, z: &mut [f32]) -> bool {
+    if z.len().is_multiple_of(8) {
+        // SAFETY: this function's features are block_avx2's; the length is asserted there
+        unsafe { block_avx2(key.k1(), key.k2(), idx0, z) }
+    } else {
+        poly_plain(key, idx0, z)
     }
 }
 

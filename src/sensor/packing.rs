@@ -340,16 +340,18 @@ fn pack_chunk(
     all
 }
 
-/// Mono12p of the first 32·k codes (k as many whole blocks as fit) into `out`, by AVX-512 when
-/// [`simd`](crate::simd::simd) allows it: returns the codes packed (0 otherwise) and their OR.
-/// The bytes are those of the scalar loop (integer operations only; tested).
-fn pack12p_blocks(codes: &[u16], out: &mut [u8]) -> (usize, u16) {
-    #[cfg(target_arch = "x86_64")]
-    if crate::simd::simd() == crate::simd::Simd::Avx512 {
-        // SAFETY: Simd::Avx512 is chosen only on CPUs with AVX-512 F, BW, DQ and VL
-        return unsafe { pack12p_avx512(codes, out) };
-    }
-    let _ = (codes, out);
+crate::simd_dispatch! {
+    /// Mono12p of the first 32·k codes (k as many whole blocks as fit) into `out`, by AVX-512
+    /// when [`simd`](crate::simd::simd) allows it: returns the codes packed (0 otherwise) and
+    /// their OR. The bytes are those of the scalar loop (integer operations only; tested).
+    fn pack12p_blocks = {
+        avx512: pack12p_avx512,
+        plain: pack12p_none,
+    }(codes: &[u16], out: &mut [u8]) -> (usize, u16)
+}
+
+/// No blocks: the scalar loop packs every code.
+fn pack12p_none(_: &[u16], _: &mut [u8]) -> (usize, u16) {
     (0, 0)
 }
 
@@ -707,32 +709,5 @@ mod tests {
             PixelFormat::Mono12Packed
         );
         assert!("mono10".parse::<PixelFormat>().is_err());
-    }
-}
-
-/// `cargo test --release --lib sensor::packing::speed -- --ignored --nocapture`: median time to
-/// pack a full-size frame (2448 x 2048, 12-bit codes) in each format, on the rayon pool.
-#[cfg(test)]
-mod speed {
-    use super::*;
-
-    #[test]
-    #[ignore]
-    fn speed() {
-        let codes: Vec<u16> = (0..2448 * 2048u32)
-            .map(|k| ((k * 2654435761) >> 20) as u16)
-            .collect();
-        let mut out = Vec::new();
-        for f in PixelFormat::ALL {
-            let mut t: Vec<f64> = (0..41)
-                .map(|_| {
-                    let t0 = std::time::Instant::now();
-                    pack(&codes, 12, f, false, &mut out).unwrap();
-                    t0.elapsed().as_secs_f64() * 1e3
-                })
-                .collect();
-            t.sort_by(f64::total_cmp);
-            println!("pack {f}: median {:.3} ms (min {:.3})", t[20], t[0]);
-        }
     }
 }
