@@ -10,7 +10,7 @@ use crate::config::{RawConfig, SceneConfig, SceneKind};
 use crate::error::Result;
 use crate::image::StokesImage;
 use crate::render::{self, StokesOptions};
-use crate::sensor::{self, FastSink, RawFrame, Sensor, SensorConfig};
+use crate::sensor::{self, FastSink, FrameOptions, Radiance, RawFrame, Sensor, SensorConfig};
 use crate::sky::{Sky, SkyParams};
 use crate::sun::SunPosition;
 
@@ -252,7 +252,12 @@ impl RawPipeline {
         let psns = self.sensor_cfg.psns.is_some() && !raw.exact;
         if !self.fast() && !psns {
             let (st, info) = self.stokes_in(sky, sun, attitude)?;
-            return Ok((self.sensor.frame_codes_into(&st, frame_index, codes)?, info));
+            let opts = FrameOptions::exact().into_codes(codes);
+            return Ok((
+                self.sensor
+                    .frame(Radiance::Planes(&st), frame_index, opts)?,
+                info,
+            ));
         }
         let up = (0.0..=90.0).contains(&sun.zenith_deg);
         if raw.scene == SceneKind::Sky && raw.soft_clouds.is_none() && raw.sky_grid >= 2 && up {
@@ -275,20 +280,22 @@ impl RawPipeline {
                 ground_pixels: render::ground_pixel_count(&cam),
                 enu_to_camera: Some(cam.enu_to_camera),
             };
-            let f = if psns {
-                self.sensor.frame_psns_rows(&grid, frame_index, codes)?
-            } else {
-                self.sensor
-                    .frame_fast_with(&grid, frame_index, codes, sink)?
-            };
+            // a PSNS preset takes its own model whichever path is asked
+            let opts = FrameOptions::fast().into_codes(codes).with_sink(sink);
+            let f = self
+                .sensor
+                .frame(Radiance::Rows(&grid), frame_index, opts)?;
             return Ok((f, info));
         }
         let (st, info) = self.stokes_in(sky, sun, attitude)?;
-        let f = if psns {
-            self.sensor.frame_codes_into(&st, frame_index, codes)?
+        let opts = if psns {
+            FrameOptions::exact().into_codes(codes)
         } else {
-            self.sensor.frame_fast_with(&st, frame_index, codes, sink)?
+            FrameOptions::fast().into_codes(codes).with_sink(sink)
         };
+        let f = self
+            .sensor
+            .frame(Radiance::Planes(&st), frame_index, opts)?;
         Ok((f, info))
     }
 
@@ -303,7 +310,9 @@ impl RawPipeline {
     /// [`Self::fast`]); with the ground truth when `truth` (else `truth` is 0 × 0).
     pub fn frame_of(&self, st: &StokesImage, frame_index: u64, truth: bool) -> Result<RawFrame> {
         if self.fast() {
-            let mut f = self.sensor.frame_fast(st, frame_index, Vec::new())?;
+            let mut f =
+                self.sensor
+                    .frame(Radiance::Planes(st), frame_index, FrameOptions::fast())?;
             if truth {
                 f.truth = self.sensor.truth_for(st, f.exposure_us);
             }
@@ -317,13 +326,17 @@ impl RawPipeline {
 
     /// The raw frame of a Stokes scene by the exact path.
     pub fn frame(&self, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
-        self.sensor.frame(stokes, frame_index)
+        let opts = FrameOptions::exact().with_truth();
+        self.sensor
+            .frame(Radiance::Planes(stokes), frame_index, opts)
     }
 
     /// The raw frame of a Stokes scene by the exact path without the ground truth (`truth` is
-    /// 0 × 0): see [`Sensor::frame_codes`].
+    /// 0 × 0).
     pub fn frame_codes(&self, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
-        self.sensor.frame_codes(stokes, frame_index)
+        let opts = FrameOptions::exact();
+        self.sensor
+            .frame(Radiance::Planes(stokes), frame_index, opts)
     }
 
     /// The configured scene's frame `cfg.raw.frame_index` (sun and attitude from the config),

@@ -2,11 +2,14 @@
 //! no noise, quantisation, fixed patterns or polarizer non-idealities (a float mosaic):
 //! bilinear and better recover the true AoLP within 0.01°.
 
+mod common;
+
+use common::simulate_float;
 use psns::camera::{Attitude, Camera, Intrinsics};
 use psns::demosaic::{demosaic, Method};
 use psns::image::StokesImage;
 use psns::render::{render_stokes, StokesOptions};
-use psns::sensor::{simulate_float, SensorConfig};
+use psns::sensor::SensorConfig;
 use psns::sky::{Sky, SkyParams, SunPosition};
 
 /// A 512 × 512 window of the default 2448 × 2048 camera (real pixel pitch and focal length), so the

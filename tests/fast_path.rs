@@ -5,7 +5,7 @@
 use psns::camera::{Attitude, Camera, Intrinsics};
 use psns::image::StokesImage;
 use psns::render::{self, SkyGrid, StokesOptions};
-use psns::sensor::{self, Exposure, Sensor, SensorConfig, Stages};
+use psns::sensor::{self, Exposure, FrameOptions, Radiance, Sensor, SensorConfig, Stages};
 use psns::sky::{Sky, SkyParams};
 use psns::sun::SunPosition;
 
@@ -69,8 +69,16 @@ fn shot_noise_is_poisson_in_whole_electrons() {
     for mean in [2.0f64, 5.0, 20.0, 100.0, 500.0] {
         let st = flat_for_mean(&s, mean, 1000.0);
         for (name, f) in [
-            ("fast", s.frame_fast(&st, 3, Vec::new()).unwrap()),
-            ("exact", s.frame_codes(&st, 3).unwrap()),
+            (
+                "fast",
+                s.frame(Radiance::Planes(&st), 3, FrameOptions::fast())
+                    .unwrap(),
+            ),
+            (
+                "exact",
+                s.frame(Radiance::Planes(&st), 3, FrameOptions::exact())
+                    .unwrap(),
+            ),
         ] {
             // whole electrons: every code is the rounded image of an integer
             let off = f
@@ -108,7 +116,9 @@ fn read_noise_folded_keeps_the_first_three_cumulants() {
     let sr = s.config().read_noise_e;
     for mean in [0.5f64, 20.0, 300.0] {
         let st = flat_for_mean(&s, mean, 1000.0);
-        let f = s.frame_fast(&st, 4, Vec::new()).unwrap();
+        let f = s
+            .frame(Radiance::Planes(&st), 4, FrameOptions::fast())
+            .unwrap();
         // a black level of 16 e⁻ (6.5 σ of the read noise) so that no code clips at 0
         let (m, v, g) = moments(&f.codes.data, k, f.black_level_dn, false);
         let var = mean + sr * sr;
@@ -132,13 +142,22 @@ fn frames_do_not_depend_on_the_thread_count() {
             .num_threads(threads)
             .build()
             .unwrap()
-            .install(|| s.frame_fast(&st, 7, Vec::new()).unwrap().codes.data)
+            .install(|| {
+                s.frame(Radiance::Planes(&st), 7, FrameOptions::fast())
+                    .unwrap()
+                    .codes
+                    .data
+            })
     };
     let one = run(1);
     assert_eq!(one, run(2));
     assert_eq!(one, run(3));
     // and a different frame index is different noise
-    let other = s.frame_fast(&st, 8, Vec::new()).unwrap().codes.data;
+    let other = s
+        .frame(Radiance::Planes(&st), 8, FrameOptions::fast())
+        .unwrap()
+        .codes
+        .data;
     assert!(one.iter().zip(&other).filter(|(a, b)| a != b).count() > N * N / 2);
 }
 
@@ -151,15 +170,24 @@ fn band_crc_is_the_frame_crc() {
     for (w, h) in [(64usize, 16usize), (52, 36), (36, 4), (128, 132)] {
         let s = Sensor::new(&cfg, &Intrinsics::with_size(w, h), 9).unwrap();
         let st = sensor::flat_field(w, h, 0.04, 0.3, 20.0).unwrap();
-        assert_eq!(s.frame_fast(&st, 7, Vec::new()).unwrap().codes_crc32, None);
+        assert_eq!(
+            s.frame(Radiance::Planes(&st), 7, FrameOptions::fast())
+                .unwrap()
+                .codes_crc32,
+            None
+        );
         for threads in [1, 3] {
             let f = rayon::ThreadPoolBuilder::new()
                 .num_threads(threads)
                 .build()
                 .unwrap()
                 .install(|| {
-                    s.frame_fast_with(&st, 7, Vec::new(), sensor::FastSink::CodesCrc32)
-                        .unwrap()
+                    s.frame(
+                        Radiance::Planes(&st),
+                        7,
+                        FrameOptions::fast().with_sink(sensor::FastSink::CodesCrc32),
+                    )
+                    .unwrap()
                 });
             let bytes: Vec<u8> = f.codes.data.iter().flat_map(|c| c.to_le_bytes()).collect();
             let want = cfg!(target_endian = "little").then(|| crc32fast::hash(&bytes));

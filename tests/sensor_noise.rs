@@ -1,8 +1,13 @@
 //! Noise statistics, determinism, robustness and input checks of the sensor emulator.
 
+mod common;
+
+use common::simulate;
 use psns::camera::Intrinsics;
 use psns::image::StokesImage;
-use psns::sensor::{flat_field, simulate, Exposure, Preset, Sensor, SensorConfig, Stages};
+use psns::sensor::{
+    flat_field, Exposure, FrameOptions, Preset, Radiance, Sensor, SensorConfig, Stages,
+};
 
 fn sky(w: usize, h: usize) -> StokesImage {
     let mut s = StokesImage::zeros(w, h);
@@ -31,7 +36,13 @@ fn shot_electrons(radiance: f64, exposure_us: f64, frame: u64) -> (Vec<f64>, f64
     let s = Sensor::new(&cfg, &Intrinsics::with_size(w, h), 5).unwrap();
     let scene = flat_field(w, h, radiance, 0.0, 0.0).unwrap();
     let mean = s.electron_rate(&scene).unwrap()[0] * exposure_us * 1e-6;
-    let f = s.frame(&scene, frame).unwrap();
+    let f = s
+        .frame(
+            Radiance::Planes(&scene),
+            frame,
+            FrameOptions::exact().with_truth(),
+        )
+        .unwrap();
     let e = f
         .analog
         .unwrap()
@@ -134,8 +145,20 @@ fn deterministic_across_threads_and_frames() {
         ..Stages::default()
     };
     let sp = Sensor::new(&fp, &Intrinsics::with_size(w, h), 77).unwrap();
-    let f0 = sp.frame(&scene, 0).unwrap();
-    let f5 = sp.frame(&scene, 5).unwrap();
+    let f0 = sp
+        .frame(
+            Radiance::Planes(&scene),
+            0,
+            FrameOptions::exact().with_truth(),
+        )
+        .unwrap();
+    let f5 = sp
+        .frame(
+            Radiance::Planes(&scene),
+            5,
+            FrameOptions::exact().with_truth(),
+        )
+        .unwrap();
     assert_eq!(f0.codes, f5.codes);
     let mut np = fp.clone();
     np.stages.prnu = false;
@@ -222,7 +245,13 @@ fn auto_exposure() {
     cfg.stages = Stages::ideal();
     let scene = sky(w, h);
     let s = Sensor::new(&cfg, &Intrinsics::with_size(w, h), 0).unwrap();
-    let f = s.frame(&scene, 0).unwrap();
+    let f = s
+        .frame(
+            Radiance::Planes(&scene),
+            0,
+            FrameOptions::exact().with_truth(),
+        )
+        .unwrap();
     assert!(f.auto_exposed && !f.exposure_clipped);
     let line = 25.0 / 3.0;
     let n = f.exposure_us / line;
@@ -240,10 +269,22 @@ fn auto_exposure() {
     assert!(top > 0.6 * 4095.0 && top < 0.8 * 4095.0, "{top}");
 
     let dark = flat_field(w, h, 1e-9, 0.0, 0.0).unwrap();
-    let fd = s.frame(&dark, 0).unwrap();
+    let fd = s
+        .frame(
+            Radiance::Planes(&dark),
+            0,
+            FrameOptions::exact().with_truth(),
+        )
+        .unwrap();
     assert!(fd.exposure_clipped && (fd.exposure_us - 1e7).abs() < line);
     let bright = flat_field(w, h, 1e4, 0.0, 0.0).unwrap();
-    let fb = s.frame(&bright, 0).unwrap();
+    let fb = s
+        .frame(
+            Radiance::Planes(&bright),
+            0,
+            FrameOptions::exact().with_truth(),
+        )
+        .unwrap();
     assert!(fb.exposure_clipped && fb.exposure_us >= 20.0 && fb.exposure_us < 30.0);
 }
 

@@ -1,11 +1,14 @@
 //! Polarizer model, ground truth and the exact float model of the sensor emulator.
 
+mod common;
+
+use common::{simulate, simulate_float};
 use psns::camera::Intrinsics;
 use psns::image::{Image, StokesImage};
 use psns::sensor::mosaic::MosaicLayout;
 use psns::sensor::optics::RelativeIllumination;
 use psns::sensor::polarizer::diattenuation;
-use psns::sensor::{flat_field, simulate, Sensor, SensorConfig, Stages};
+use psns::sensor::{flat_field, FrameOptions, Radiance, Sensor, SensorConfig, Stages};
 
 /// A smooth sky-like scene: S0 0.07..0.28, DoLP 0..0.6, AoLP sweeping the frame.
 fn sky(w: usize, h: usize) -> StokesImage {
@@ -61,7 +64,11 @@ fn flat_field_follows_partial_polarizer_law() {
     for step in 0..=12 {
         let aolp = 15.0 * step as f64;
         let f = sensor
-            .frame(&flat_field(w, h, l, dolp, aolp).unwrap(), 0)
+            .frame(
+                Radiance::Planes(&flat_field(w, h, l, dolp, aolp).unwrap()),
+                0,
+                FrameOptions::exact(),
+            )
             .unwrap();
         let an = f.analog.as_ref().expect("quantize off gives analog values");
         for r in 0..h {
@@ -114,7 +121,11 @@ fn ideal_polarizer_superpixel_returns_input() {
         for step in 0..12 {
             let aolp = 15.0 * step as f64;
             let f = s
-                .frame(&flat_field(w, h, 0.1, 1.0, aolp).unwrap(), 0)
+                .frame(
+                    Radiance::Planes(&flat_field(w, h, 0.1, 1.0, aolp).unwrap()),
+                    0,
+                    FrameOptions::exact(),
+                )
                 .unwrap();
             let an = f.analog.unwrap();
             let v = |r: usize, c: usize| *an.get(r, c) as f64 - 5.0;
@@ -162,8 +173,7 @@ fn render_equals_truth_reading_rounded() {
         cfg.ri = ri;
         let scene = sky(w, h);
         let f = simulate(&scene, &Intrinsics::with_size(w, h), &cfg, 3, 0).unwrap();
-        let float =
-            psns::sensor::simulate_float(&scene, &Intrinsics::with_size(w, h), &cfg).unwrap();
+        let float = simulate_float(&scene, &Intrinsics::with_size(w, h), &cfg).unwrap();
         let (mut exact, mut ties) = (0, 0);
         for r in 0..h {
             for c in 0..w {

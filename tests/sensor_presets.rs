@@ -1,8 +1,11 @@
 //! PSNS presets (nfpi, gniipi, gniicpi) of the sensor emulator.
 
+mod common;
+
+use common::simulate;
 use psns::camera::Intrinsics;
 use psns::image::StokesImage;
-use psns::sensor::{simulate, Preset, SensorConfig};
+use psns::sensor::{Preset, SensorConfig};
 
 fn sky(w: usize, h: usize) -> StokesImage {
     let mut s = StokesImage::zeros(w, h);

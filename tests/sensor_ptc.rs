@@ -4,7 +4,7 @@
 
 use psns::camera::Intrinsics;
 use psns::sensor::emva::{pair_stats, photon_transfer, PairStats};
-use psns::sensor::{flat_field, Exposure, Sensor, SensorConfig};
+use psns::sensor::{flat_field, Exposure, FrameOptions, Radiance, Sensor, SensorConfig};
 
 #[test]
 fn photon_transfer_matches_configuration() {
@@ -46,8 +46,20 @@ fn check_seed(seed: u64) {
         let s = Sensor::new(&c, &intr, seed).unwrap();
         let (mut mean, mut var) = (0.0, 0.0);
         for j in 0..PAIRS {
-            let a = s.frame(scene, 2 * PAIRS * idx + 2 * j).unwrap();
-            let b = s.frame(scene, 2 * PAIRS * idx + 2 * j + 1).unwrap();
+            let a = s
+                .frame(
+                    Radiance::Planes(scene),
+                    2 * PAIRS * idx + 2 * j,
+                    FrameOptions::exact(),
+                )
+                .unwrap();
+            let b = s
+                .frame(
+                    Radiance::Planes(scene),
+                    2 * PAIRS * idx + 2 * j + 1,
+                    FrameOptions::exact(),
+                )
+                .unwrap();
             let p = pair_stats(&a.codes.data, &b.codes.data).unwrap();
             mean += p.mean / PAIRS as f64;
             var += p.var / PAIRS as f64;

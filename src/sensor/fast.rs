@@ -28,88 +28,15 @@ use super::{FastSink, Sensor};
 use crate::image::StokesRows;
 use rayon::prelude::*;
 
-use super::normal::normals_block;
-pub(crate) use super::normal::BLOCK;
-pub use super::normal::{normal_from_bits, uniform_from_bits};
+use super::normal::{normals_block, uniform_from_bits, NoiseKey, BLOCK};
 use crate::simd::simd_dispatch;
-pub use crate::simd::{simd, with_simd, Simd};
+use crate::simd::Simd;
 
 /// Below this mean (e⁻) shot noise is sampled exactly by inversion of the Poisson CDF.
 pub const EXACT_POISSON_BELOW: f64 = 16.0;
 
 /// Read noise at or above this σ (e⁻) is folded into the shot-noise draw.
 pub const FOLD_READ_NOISE_FROM: f64 = 1.0;
-
-/// Keys of one counter-based stream (camera seed, frame, stage).
-#[derive(Clone, Copy, Debug, PartialEq, Eq)]
-pub struct NoiseKey {
-    k1: u32,
-    k2: u32,
-}
-
-#[inline(always)]
-fn splitmix64(mut x: u64) -> u64 {
-    x = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
-    x = (x ^ (x >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
-    x = (x ^ (x >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
-    x ^ (x >> 31)
-}
-
-/// A bijective 32-bit mixer (xor-shift-multiply, constants of C. Wellons' "lowbias32").
-#[inline(always)]
-fn mix32(mut x: u32) -> u32 {
-    x ^= x >> 16;
-    x = x.wrapping_mul(0x7feb_352d);
-    x ^= x >> 15;
-    x = x.wrapping_mul(0x846c_a68b);
-    x ^ (x >> 16)
-}
-
-impl NoiseKey {
-    /// The stream of `stage` (see [`crate::sensor::noise`]'s stage ids) in frame `frame` of camera `seed`.
-    pub fn new(seed: u64, frame: u64, stage: u32) -> Self {
-        let h =
-            splitmix64(seed ^ splitmix64(frame ^ splitmix64(0x7073_6e73_0000_0000 | stage as u64)));
-        NoiseKey {
-            k1: h as u32,
-            k2: (h >> 32) as u32,
-        }
-    }
-    /// 32 random bits for counter `i` (the pixel index): two keyed rounds of a bijective mixer,
-    /// so each frame and stage is a different permutation, not a shifted copy.
-    #[inline(always)]
-    pub fn bits(&self, i: u32) -> u32 {
-        mix32(mix32(i ^ self.k1) ^ self.k2)
-    }
-    /// The first key word (for the vector hash of [`super::normal`]).
-    pub(crate) fn k1(&self) -> u32 {
-        self.k1
-    }
-    /// The second key word.
-    pub(crate) fn k2(&self) -> u32 {
-        self.k2
-    }
-}
-
-/// ln x for finite x > 0 (normal numbers), f32, branch-free: x = 2^e m with m in [√½, √2),
-/// ln m = 2 atanh(s), s = (m − 1)/(m + 1), |s| ≤ 0.172, series to s⁹ (error < 3e-9 relative).
-#[inline(always)]
-pub fn ln_f32(x: f32) -> f32 {
-    let bits = x.to_bits();
-    let mut e = ((bits >> 23) & 0xff) as i32 - 127;
-    let mut m = f32::from_bits((bits & 0x007f_ffff) | 0x3f80_0000);
-    let big = m > std::f32::consts::SQRT_2;
-    m = if big { 0.5 * m } else { m };
-    e += big as i32;
-    let s = (m - 1.0) / (m + 1.0);
-    let s2 = s * s;
-    let series = s2
-        .mul_add(1.0 / 9.0, 1.0 / 7.0)
-        .mul_add(s2, 0.2)
-        .mul_add(s2, 1.0 / 3.0)
-        .mul_add(s2, 1.0);
-    (e as f32).mul_add(std::f32::consts::LN_2, 2.0 * s * series)
-}
 
 /// Quantum of the per-pixel gain RI · g (range 0..2).
 const GAIN_UNIT: f32 = 1.0 / 32_768.0;
@@ -360,21 +287,6 @@ impl FrameConsts {
     }
 }
 
-/// e^x for f32, x in [−87, 0], branch-free: 2^n e^r with |r| ≤ ln2/2 and a degree-6 Taylor
-/// polynomial (relative error < 3e-7).
-#[inline(always)]
-pub fn exp_f32(x: f32) -> f32 {
-    let x = x.max(-87.0);
-    let n = (x * std::f32::consts::LOG2_E).round_ties_even();
-    // ln 2 in two parts so r keeps its precision
-    let r = x - n * 0.693_145_75 - n * 1.428_606_8e-6;
-    let p = 1.0
-        + r * (1.0
-            + r * (0.5
-                + r * (1.0 / 6.0 + r * (1.0 / 24.0 + r * (1.0 / 120.0 + r * (1.0 / 720.0))))));
-    p * f32::from_bits((((n as i32) + 127) as u32) << 23)
-}
-
 /// Rounds to the nearest integer, ties to even, for |x| < 2²² (larger f32 values pass
 /// unchanged; from 2²³ on they are integers): the add of 1.5 · 2²³ does the rounding in the
 /// FPU's default mode, so the loop vectorises without a rounding call.
@@ -446,7 +358,7 @@ fn chunk_unfolded(
         let mut k = [0f32; LANES];
         for l in 0..LANES {
             if m[l] < low {
-                p[l] = exp_f32(-m[l]);
+                p[l] = crate::vmath::exp_f32(-m[l]);
                 cdf[l] = p[l];
                 kmax = kmax.max(m[l] + 10.0 * m[l].sqrt() + 10.0);
             }
@@ -786,6 +698,8 @@ pub(crate) fn rates(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::sensor::normal::normal_from_bits;
+    use crate::simd::with_simd;
 
     #[test]
     fn aligned_rows_start_on_64_bytes() {
@@ -800,17 +714,6 @@ mod tests {
                 assert_eq!(b.as_ptr() as usize % 64, 0);
             }
         }
-    }
-
-    #[test]
-    fn ln_matches_std() {
-        let mut x = 1e-30f32;
-        while x < 1e30 {
-            let (a, b) = (ln_f32(x), x.ln());
-            assert!((a - b).abs() <= 2e-7 * b.abs().max(1.0), "{x}: {a} {b}");
-            x *= 1.37;
-        }
-        assert_eq!(ln_f32(1.0), 0.0);
     }
 
     #[test]
@@ -998,101 +901,5 @@ mod tests {
             })
             .collect();
         assert!(z.iter().all(|x| x == &z[0]));
-    }
-}
-
-#[cfg(test)]
-mod speed {
-    use super::*;
-
-    /// Single-thread ns per pixel of the kernels (a look, not a check):
-    /// `cargo test --release --lib sensor::fast::speed -- --ignored --nocapture`.
-    #[test]
-    #[ignore]
-    fn kernel_ns_per_pixel() {
-        let w = 2448usize;
-        let fc = FrameConsts {
-            t: 1e-3,
-            dark_e: 0.005,
-            fwc: 10500.0,
-            fwc_clip: true,
-            shot: true,
-            sigma_read: 2.5,
-            kg: 0.39,
-            black: 0.0,
-            max: 4095,
-            shot_key: NoiseKey::new(1, 2, 1),
-            read_key: NoiseKey::new(1, 2, 2),
-        };
-        let s0 = vec![1.0f32; w];
-        let s1 = vec![0.1f32; w];
-        let s2 = vec![0.05f32; w];
-        let gain = vec![32_000u16; w];
-        let delta = vec![100i16; w];
-        let dsnu = vec![100i16; w];
-        let cos0 = vec![1f32; w];
-        let sin0 = vec![0f32; w];
-        let sr = StaticRow {
-            gain: &gain,
-            delta: &delta,
-            dsnu: &dsnu,
-            cos0: &cos0,
-            sin0: &sin0,
-            scale: 3.0e6,
-            b: 0.99,
-        };
-        let mut mu = vec![0f32; w];
-        let mut out = vec![0u16; w];
-        let mut sat = [0u32; 4];
-        let rows = 2000;
-        for level in Simd::available() {
-            with_simd(level, || {
-                let t0 = std::time::Instant::now();
-                for r in 0..rows {
-                    let s = [&s0[..], &s1[..], &s2[..]];
-                    row_kernel(
-                        &fc,
-                        true,
-                        f32::MAX,
-                        s,
-                        &sr,
-                        r * w,
-                        r,
-                        &mut mu,
-                        &mut out,
-                        &mut sat,
-                    );
-                }
-                let ns = t0.elapsed().as_secs_f64() * 1e9 / (rows * w) as f64;
-                println!("{level:?} folded: {ns:.2} ns/pixel (mu {})", mu[0]);
-                let t0 = std::time::Instant::now();
-                for r in 0..rows / 10 {
-                    let s = [&s0[..], &s1[..], &s2[..]];
-                    row_kernel(
-                        &fc,
-                        false,
-                        0.0,
-                        s,
-                        &sr,
-                        r * w,
-                        r,
-                        &mut mu,
-                        &mut out,
-                        &mut sat,
-                    );
-                }
-                let ns = t0.elapsed().as_secs_f64() * 1e9 / (rows / 10 * w) as f64;
-                println!("{level:?} unfolded: {ns:.2} ns/pixel");
-                let mut z = vec![0f32; w];
-                let mut a = 0f32;
-                let t0 = std::time::Instant::now();
-                for r in 0..rows {
-                    normals_into(&fc.shot_key, (r * w) as u32, &mut z);
-                    a += z[7];
-                }
-                let ns = t0.elapsed().as_secs_f64() * 1e9 / (rows * w) as f64;
-                println!("{level:?} normals: {ns:.2} ns/pixel ({a})");
-            });
-        }
     }
 }

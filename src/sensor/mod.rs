@@ -72,6 +72,17 @@ impl Default for Exposure {
     }
 }
 
+/// The exposure a frame gets ([`Sensor::exposure_for`]).
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct ExposureChoice {
+    /// Exposure time, µs.
+    pub us: f64,
+    /// Chosen by auto-exposure.
+    pub auto: bool,
+    /// Auto-exposure wanted a time outside the sensor's range and got its nearest end.
+    pub clipped: bool,
+}
+
 impl Exposure {
     /// Auto-exposure with the spec defaults p = 99, f = 0.70.
     pub fn auto() -> Self {
@@ -419,13 +430,85 @@ pub struct RawFrame {
 }
 
 /// What the fast path also makes of a frame, band by band while the codes are in cache
-/// ([`Sensor::frame_fast_with`]).
+/// ([`FrameOptions::sink`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]
 pub enum FastSink {
     /// Only the codes.
     None,
     /// [`RawFrame::codes_crc32`] (on a big-endian machine it stays `None`).
     CodesCrc32,
+}
+
+/// Where a frame's sensor-frame Stokes radiance (W m⁻² sr⁻¹ nm⁻¹) comes from.
+#[derive(Clone, Copy)]
+pub enum Radiance<'a> {
+    /// Whole planes: any path, and the ground truth.
+    Planes(&'a StokesImage),
+    /// Rows on demand (a [`crate::render::SkyGrid`], no full-size planes): the fast path and
+    /// the PSNS presets; no ground truth.
+    Rows(&'a dyn StokesRows),
+}
+
+/// The path from radiance to codes ([`FrameOptions::path`]).
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum FramePath {
+    /// Counter-based noise, Cornish–Fisher shot noise above 16 e⁻, read noise folded in, an f32
+    /// kernel ([`fast`]); the camera model without crosstalk ([`Sensor::fast_capable`]).
+    Fast,
+    /// The bit-stable reference: exact Poisson draws from per-row ChaCha8 streams, every stage.
+    Exact,
+}
+
+/// How [`Sensor::frame`] makes a frame. The PSNS presets have one model of their own and take
+/// it whichever path is asked.
+#[derive(Clone, Debug)]
+pub struct FrameOptions {
+    /// The path.
+    pub path: FramePath,
+    /// Also the ground truth ([`RawFrame::truth`]; needs [`Radiance::Planes`]).
+    pub truth: bool,
+    /// A codes buffer to reuse (a stream's previous frame: no allocation and no page faults).
+    pub codes: Vec<u16>,
+    /// What the fast path also makes of the codes.
+    pub sink: FastSink,
+}
+
+impl FrameOptions {
+    /// The fast path, no truth.
+    pub fn fast() -> Self {
+        FrameOptions {
+            path: FramePath::Fast,
+            truth: false,
+            codes: Vec::new(),
+            sink: FastSink::None,
+        }
+    }
+
+    /// The exact path, no truth.
+    pub fn exact() -> Self {
+        FrameOptions {
+            path: FramePath::Exact,
+            ..Self::fast()
+        }
+    }
+
+    /// With the ground truth.
+    pub fn with_truth(mut self) -> Self {
+        self.truth = true;
+        self
+    }
+
+    /// Into the buffer `codes`.
+    pub fn into_codes(mut self, codes: Vec<u16>) -> Self {
+        self.codes = codes;
+        self
+    }
+
+    /// Also making what `sink` asks for.
+    pub fn with_sink(mut self, sink: FastSink) -> Self {
+        self.sink = sink;
+        self
+    }
 }
 
 impl RawFrame {
@@ -721,8 +804,7 @@ impl Sensor {
     }
 
     /// Exposure for this scene: the fixed value, or auto-exposure (`sensor.md` §5).
-    /// Returns (µs, auto, clipped).
-    pub fn exposure_for(&self, stokes: &StokesImage, rate: &[f64]) -> (f64, bool, bool) {
+    pub fn exposure_for(&self, stokes: &StokesImage, rate: &[f64]) -> ExposureChoice {
         self.exposure_from_sky_rates(|| {
             rate.iter()
                 .zip(&stokes.s0.data)
@@ -734,9 +816,13 @@ impl Sensor {
 
     /// [`Self::exposure_for`] given the electron rates of the sky pixels (S0 > 0), made only
     /// when auto-exposure needs them.
-    fn exposure_from_sky_rates(&self, sky_rates: impl FnOnce() -> Vec<f64>) -> (f64, bool, bool) {
+    fn exposure_from_sky_rates(&self, sky_rates: impl FnOnce() -> Vec<f64>) -> ExposureChoice {
         match self.cfg.exposure {
-            Exposure::Fixed { us } => (us, false, false),
+            Exposure::Fixed { us } => ExposureChoice {
+                us,
+                auto: false,
+                clipped: false,
+            },
             Exposure::Auto {
                 percentile,
                 fraction,
@@ -758,13 +844,16 @@ impl Sensor {
                 let lo = (MIN_EXPOSURE_US / line).ceil();
                 let hi = (MAX_EXPOSURE_US / line).floor();
                 let n = (wanted / line).round();
-                let clipped = !(n >= lo && n <= hi);
-                (n.clamp(lo, hi) * line, true, clipped)
+                ExposureChoice {
+                    us: n.clamp(lo, hi) * line,
+                    auto: true,
+                    clipped: !(n >= lo && n <= hi),
+                }
             }
         }
     }
 
-    /// True when [`Self::frame_fast`] models this configuration: the camera model (not a PSNS
+    /// True when [`FramePath::Fast`] models this configuration: the camera model (not a PSNS
     /// preset) without crosstalk, with the ADC on, all gain analog, under 2³² pixels.
     pub fn fast_capable(&self) -> bool {
         let c = &self.cfg;
@@ -780,21 +869,55 @@ impl Sensor {
         get_or_build(&self.fast, || fast::FastStatics::new(self))
     }
 
-    /// Frame `frame_index` by the fast path ([`fast`]: counter-based noise, Cornish–Fisher shot
-    /// noise above 16 e⁻, read noise folded in, f32 kernel) from a row source of sensor-frame
-    /// Stokes radiance. `codes` is a buffer to reuse. The frame has no ground truth (`truth` is
-    /// 0 × 0). Errors when [`Self::fast_capable`] is false.
-    pub fn frame_fast(
+    /// Frame `frame_index` of this camera from `radiance`, by the path and with what `opts`
+    /// ask: the one way to make a raw frame.
+    ///
+    /// The fast path errors when [`Self::fast_capable`] is false; the exact path and the
+    /// ground truth need [`Radiance::Planes`].
+    pub fn frame(
         &self,
-        src: &dyn StokesRows,
+        radiance: Radiance<'_>,
         frame_index: u64,
-        codes: Vec<u16>,
+        opts: FrameOptions,
     ) -> Result<RawFrame> {
-        self.frame_fast_with(src, frame_index, codes, FastSink::None)
+        let FrameOptions {
+            path,
+            truth,
+            codes,
+            sink,
+        } = opts;
+        match (radiance, self.cfg.psns.is_some(), path) {
+            (Radiance::Planes(st), true, _) | (Radiance::Planes(st), false, FramePath::Exact) => {
+                self.render(st, frame_index, truth, codes)
+            }
+            (_, _, _) if truth => Err(Error::Invalid(
+                "the ground truth needs the radiance as whole planes".into(),
+            )),
+            (Radiance::Rows(src), true, _) => {
+                self.check_rows(src)?;
+                presets::psns_frame(
+                    self,
+                    presets::PsnsSource::Rows(src),
+                    frame_index,
+                    false,
+                    codes,
+                )
+            }
+            (Radiance::Rows(src), false, FramePath::Fast) => {
+                self.frame_fast(src, frame_index, codes, sink)
+            }
+            (Radiance::Planes(st), false, FramePath::Fast) => {
+                self.frame_fast(st, frame_index, codes, sink)
+            }
+            (Radiance::Rows(_), false, FramePath::Exact) => Err(Error::Invalid(
+                "the exact path needs the radiance as whole planes".into(),
+            )),
+        }
     }
 
-    /// [`Self::frame_fast`], also making what `sink` asks for (the same codes either way).
-    pub fn frame_fast_with(
+    /// [`FramePath::Fast`]: no ground truth (`truth` is 0 × 0); `sink` as asked (the same codes
+    /// either way).
+    fn frame_fast(
         &self,
         src: &dyn StokesRows,
         frame_index: u64,
@@ -811,7 +934,11 @@ impl Sensor {
         let cfg = &self.cfg;
         let st = &cfg.stages;
         let statics = self.fast_statics();
-        let (t_us, auto, clipped) = self.exposure_from_sky_rates(|| {
+        let ExposureChoice {
+            us: t_us,
+            auto,
+            clipped,
+        } = self.exposure_from_sky_rates(|| {
             let (rate, sky) = fast::rates(self, statics, src);
             rate.into_iter()
                 .zip(sky)
@@ -836,8 +963,8 @@ impl Sensor {
             kg: kg * scale,
             black: cfg.black_level_dn * scale,
             max: adc::max_code(cfg.bit_depth),
-            shot_key: fast::NoiseKey::new(self.seed, frame_index, noise::STAGE_SHOT),
-            read_key: fast::NoiseKey::new(self.seed, frame_index, noise::STAGE_READ),
+            shot_key: normal::NoiseKey::new(self.seed, frame_index, noise::STAGE_SHOT),
+            read_key: normal::NoiseKey::new(self.seed, frame_index, noise::STAGE_READ),
         };
         let out = fast::render_codes(self, statics, src, &fc, codes, sink);
         Ok(RawFrame {
@@ -863,7 +990,7 @@ impl Sensor {
         Ok(fast::rates(self, self.fast_statics(), src).0)
     }
 
-    /// Ground truth of a frame made by [`Self::frame_fast`] (or [`Self::frame`]) with exposure
+    /// Ground truth of a frame made by [`Self::frame`] (either path) with exposure
     /// `exposure_us`: the Stokes vector in output DN above the black level of an ideal pixel.
     pub fn truth_for(&self, stokes: &StokesImage, exposure_us: f64) -> StokesImage {
         let cfg = &self.cfg;
@@ -883,51 +1010,8 @@ impl Sensor {
         )
     }
 
-    /// A PSNS-preset frame read row by row from `src` (a [`crate::render::SkyGrid`]: no
-    /// full-size Stokes planes): the codes, κ and saturation counts of [`Self::frame_codes`] of
-    /// the planes `src` fills. No ground truth. `codes`
-    /// is a buffer to reuse. Errors when the sensor is not a PSNS preset.
-    pub fn frame_psns_rows(
-        &self,
-        src: &dyn StokesRows,
-        frame_index: u64,
-        codes: Vec<u16>,
-    ) -> Result<RawFrame> {
-        self.check_rows(src)?;
-        if self.cfg.psns.is_none() {
-            return Err(Error::Invalid("not a PSNS preset".into()));
-        }
-        presets::psns_frame(
-            self,
-            presets::PsnsSource::Rows(src),
-            frame_index,
-            false,
-            codes,
-        )
-    }
-
-    /// Renders frame `frame_index` of this camera.
-    pub fn frame(&self, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
-        self.render(stokes, frame_index, true, Vec::new())
-    }
-
-    /// [`Sensor::frame`] without the ground truth: the same codes, exposure, flags and saturation
-    /// counts, but `truth` is an empty 0 × 0 image (for streams, which never read it).
-    pub fn frame_codes(&self, stokes: &StokesImage, frame_index: u64) -> Result<RawFrame> {
-        self.render(stokes, frame_index, false, Vec::new())
-    }
-
-    /// [`Sensor::frame_codes`] into `codes`, a buffer to reuse (a stream's previous frame: no
-    /// allocation and no page faults per frame).
-    pub fn frame_codes_into(
-        &self,
-        stokes: &StokesImage,
-        frame_index: u64,
-        codes: Vec<u16>,
-    ) -> Result<RawFrame> {
-        self.render(stokes, frame_index, false, codes)
-    }
-
+    /// [`FramePath::Exact`] from planes, or a PSNS preset's frame from planes; with the ground
+    /// truth when `want_truth`; into `codes`.
     fn render(
         &self,
         stokes: &StokesImage,
@@ -955,7 +1039,11 @@ impl Sensor {
             Exposure::Fixed { us } if !has_crosstalk => (None, us, false, false),
             _ => {
                 let mut rate = self.electron_rate(stokes)?;
-                let (t_us, auto, clipped) = self.exposure_for(stokes, &rate);
+                let ExposureChoice {
+                    us: t_us,
+                    auto,
+                    clipped,
+                } = self.exposure_for(stokes, &rate);
                 if has_crosstalk {
                     rate = crosstalk(&rate, w, h, cfg.crosstalk);
                 }
@@ -1104,7 +1192,7 @@ impl Sensor {
         cfg.psns = None;
         let ideal = Sensor::new(&cfg, &self.intrinsics, self.seed)?;
         let rate = ideal.electron_rate(stokes)?;
-        let (t_us, _, _) = ideal.exposure_for(stokes, &rate);
+        let t_us = ideal.exposure_for(stokes, &rate).us;
         let f = adc::system_gain(cfg.k0, cfg.gain_db) * adc::output_scale(cfg.bit_depth);
         let b = cfg.black_level_dn * adc::output_scale(cfg.bit_depth);
         let t = t_us * 1e-6;
@@ -1172,29 +1260,6 @@ pub fn crosstalk(img: &[f64], w: usize, h: usize, c: f64) -> Vec<f64> {
         }
     });
     out
-}
-
-/// Renders one frame: builds the camera of `seed` and renders frame `frame_index`. For a stream
-/// build a [`Sensor`] once instead (the fixed-pattern maps are then made only once).
-pub fn simulate(
-    stokes_radiance: &StokesImage,
-    intrinsics: &Intrinsics,
-    cfg: &SensorConfig,
-    seed: u64,
-    frame_index: u64,
-) -> Result<RawFrame> {
-    Sensor::new(cfg, intrinsics, seed)?.frame(stokes_radiance, frame_index)
-}
-
-/// The float image of the ideal model (see [`Sensor::float_image`]).
-pub fn simulate_float(
-    stokes_radiance: &StokesImage,
-    intrinsics: &Intrinsics,
-    cfg: &SensorConfig,
-) -> Result<Image<f32>> {
-    let mut c = cfg.clone();
-    c.psns = None;
-    Sensor::new(&c, intrinsics, 0)?.float_image(stokes_radiance)
 }
 
 /// Uniform flat-field scene (EMVA 1288): radiance S0 = `radiance` (W m⁻² sr⁻¹ nm⁻¹), degree

@@ -3,6 +3,7 @@
 //!
 //! The seeded random streams themselves are in [`crate::rng`].
 
+use crate::rng::map_rng;
 use rand::Rng;
 use rand_distr::{Distribution, Poisson, StandardNormal};
 use rayon::prelude::*;
@@ -22,8 +23,6 @@ pub const STAGE_READ: u32 = 2;
 pub const STAGE_PSNS_NOISE: u32 = 3;
 /// Temporal stage id: PSNS ellipse clouds (one stream, row 0).
 pub const STAGE_PSNS_CLOUDS: u32 = 4;
-
-pub use crate::rng::{frame_rng, map_rng, scene_rng};
 
 /// A `width` x `height` map of `offset + sigma · N(0, 1)`, one stream per row.
 pub fn gaussian_map(
@@ -306,6 +305,7 @@ pub fn normal<R: Rng + ?Sized>(rng: &mut R) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::rng::frame_rng;
     use rand::RngCore;
 
     #[test]

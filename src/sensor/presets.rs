@@ -14,7 +14,7 @@
 //! * `gniicpi`: plus 3–8 filled ellipses set to full scale, applied last (ground truth there:
 //!   unpolarized with S0 = 2 × full scale, consistent with every channel reading full scale).
 
-use super::fast::BLOCK;
+use super::normal::BLOCK;
 use super::optics::RelativeIllumination;
 use super::{adc, noise, nominal_axis, RawFrame, Sensor, SensorConfig, Stages};
 use crate::error::{check_range, Error, Result};
@@ -344,7 +344,7 @@ fn psns_row(
 }
 
 /// Renders a PSNS-model frame (called by [`Sensor::frame`] when `cfg.psns` is set, and by
-/// [`Sensor::frame_psns_rows`]); `codes` is a buffer to reuse. The ground truth needs the planes.
+/// [`Sensor::frame`] of rows); `codes` is a buffer to reuse. The ground truth needs the planes.
 pub(crate) fn psns_frame(
     s: &Sensor,
     src: PsnsSource,
@@ -372,7 +372,7 @@ pub(crate) fn psns_frame(
     // Gaussian noise from the fast path's counter-based generator (one keyed hash of the pixel
     // index per draw, inverted exactly to f32 precision): the frame does not depend on rows,
     // threads or blocks, and costs a few ns per pixel instead of ChaCha + ziggurat
-    let key = super::fast::NoiseKey::new(s.seed, frame_index, noise::STAGE_PSNS_NOISE);
+    let key = super::normal::NoiseKey::new(s.seed, frame_index, noise::STAGE_PSNS_NOISE);
     let ri = s.ri_map();
     // per-column pass-axis terms of even and odd rows
     let axis: [[Vec<f64>; 2]; 2] = std::array::from_fn(|r| {
@@ -384,7 +384,7 @@ pub(crate) fn psns_frame(
     });
     // clouds: filled ellipses at full scale, applied last (drawn from the frame's stream)
     let ellipses = if p.clouds {
-        let mut rng = noise::frame_rng(s.seed, frame_index, noise::STAGE_PSNS_CLOUDS, 0);
+        let mut rng = crate::rng::frame_rng(s.seed, frame_index, noise::STAGE_PSNS_CLOUDS, 0);
         clouds::psns_ellipses(w, h, &mut rng)
     } else {
         Vec::new()

@@ -1,4 +1,4 @@
-//! Helpers shared by the command-line integration tests.
+//! Helpers shared by the integration tests.
 #![allow(dead_code)] // each test binary uses a subset
 
 use std::io::Write;
@@ -76,4 +76,29 @@ pub fn wait_deadline(mut c: Child, secs: u64) -> Output {
         }
         std::thread::sleep(Duration::from_millis(20));
     }
+}
+
+/// Frame `frame_index` of camera `seed` by the exact path, with its ground truth.
+pub fn simulate(
+    st: &psns::image::StokesImage,
+    i: &psns::camera::Intrinsics,
+    cfg: &psns::sensor::SensorConfig,
+    seed: u64,
+    frame_index: u64,
+) -> psns::Result<psns::sensor::RawFrame> {
+    use psns::sensor::{FrameOptions, Radiance, Sensor};
+    let opts = FrameOptions::exact().with_truth();
+    Sensor::new(cfg, i, seed)?.frame(Radiance::Planes(st), frame_index, opts)
+}
+
+/// The float image of the ideal model ([`psns::sensor::Sensor::float_image`]) of the camera
+/// model of `cfg` (a PSNS preset's model is left out).
+pub fn simulate_float(
+    st: &psns::image::StokesImage,
+    i: &psns::camera::Intrinsics,
+    cfg: &psns::sensor::SensorConfig,
+) -> psns::Result<psns::image::Image<f32>> {
+    let mut c = cfg.clone();
+    c.psns = None;
+    psns::sensor::Sensor::new(&c, i, 0)?.float_image(st)
 }

@@ -469,7 +469,8 @@ pub fn noise_sweep(
     for (k, &n) in electrons.iter().enumerate() {
         psns::error::check_range("electrons", n, 1.0, 1e5)?;
         let st = sensor::flat_field(size, size, n / per_radiance, dolp, SWEEP_AOLP_DEG)?;
-        let fr = sensor.frame(&st, k as u64)?;
+        let opts = sensor::FrameOptions::exact().with_truth();
+        let fr = sensor.frame(sensor::Radiance::Planes(&st), k as u64, opts)?;
         let analog = fr
             .analog
             .ok_or_else(|| Error::Invalid("sweep sensor must keep analog values".into()))?;

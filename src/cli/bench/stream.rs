@@ -6,7 +6,7 @@ use psns::config::SceneConfig;
 use psns::io::create_dir;
 use psns::pipeline::RawPipeline;
 use psns::render::{self, SkyGrid, StokesOptions};
-use psns::sensor::{packing, FastSink};
+use psns::sensor::{packing, FastSink, FrameOptions, Radiance};
 use psns::sky::Sky;
 use psns::stream::{FrameMeta, StreamWriter};
 use psns::{Error, Result};
@@ -126,12 +126,10 @@ pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Res
                 } else {
                     FastSink::None
                 };
-                let f = pipe.sensor().frame_fast_with(
-                    &grid,
-                    k as u64,
-                    std::mem::take(&mut codes),
-                    sink,
-                )?;
+                let opts = FrameOptions::fast()
+                    .into_codes(std::mem::take(&mut codes))
+                    .with_sink(sink);
+                let f = pipe.sensor().frame(Radiance::Rows(&grid), k as u64, opts)?;
                 let t2 = Instant::now();
                 sky_t.push((t1 - t0).as_secs_f64());
                 sen_t.push((t2 - t1).as_secs_f64());

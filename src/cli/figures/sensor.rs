@@ -16,7 +16,9 @@ use psns::image::Image;
 use psns::io;
 use psns::pipeline::RawPipeline;
 use psns::sensor::emva::{pair_stats, photon_transfer, PairStats, PhotonTransfer};
-use psns::sensor::{flat_field, Exposure, Preset, RawFrame, Sensor, SensorConfig};
+use psns::sensor::{
+    flat_field, Exposure, FrameOptions, Preset, Radiance, RawFrame, Sensor, SensorConfig,
+};
 use std::path::Path;
 
 /// One exposure level of the photon-transfer measurement.
@@ -117,8 +119,16 @@ pub fn photon_transfer_data(
         let (mut mean, mut var) = (0.0, 0.0);
         for j in 0..pairs {
             // every frame of the measurement has its own index: independent temporal noise
-            let a = s.frame(scene, 2 * pairs * block + 2 * j)?;
-            let b = s.frame(scene, 2 * pairs * block + 2 * j + 1)?;
+            let a = s.frame(
+                Radiance::Planes(scene),
+                2 * pairs * block + 2 * j,
+                FrameOptions::exact(),
+            )?;
+            let b = s.frame(
+                Radiance::Planes(scene),
+                2 * pairs * block + 2 * j + 1,
+                FrameOptions::exact(),
+            )?;
             let p = pair_stats(&a.codes.data, &b.codes.data)?;
             mean += p.mean / pairs as f64;
             var += p.var / pairs as f64;
