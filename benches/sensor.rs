@@ -2,10 +2,11 @@
 //! `frame_fast/*` = sensor-frame Stokes rows → 12-bit codes (optics, polarizer, PRNU, dark
 //! current, shot and read noise, DSNU, full well, ADC); `frame_exact` = the exact path.
 //! `noise/normal_5M` = 5 M normal deviates from the counter-based generator, one thread.
+//! `pack/*` = a full frame of 12-bit codes into each payload format.
 
 use criterion::{criterion_group, criterion_main, Criterion};
 use psns::camera::Intrinsics;
-use psns::sensor::{self, fast, Sensor, SensorConfig};
+use psns::sensor::{self, normal, packing, FrameOptions, Radiance, Sensor, SensorConfig};
 use std::hint::black_box;
 
 fn bench(cr: &mut Criterion) {
@@ -20,8 +21,9 @@ fn bench(cr: &mut Criterion) {
     let mut codes = Vec::new();
     g.bench_function("flat_half_well", |b| {
         b.iter(|| {
+            let opts = FrameOptions::fast().into_codes(std::mem::take(&mut codes));
             let f = sensor
-                .frame_fast(black_box(&st), 1, std::mem::take(&mut codes))
+                .frame(Radiance::Planes(black_box(&st)), 1, opts)
                 .unwrap();
             codes = f.codes.data;
         })
@@ -30,21 +32,35 @@ fn bench(cr: &mut Criterion) {
     let mut g = cr.benchmark_group("frame_exact");
     g.sample_size(10);
     g.bench_function("flat_half_well", |b| {
-        b.iter(|| black_box(sensor.frame_codes(black_box(&st), 1).unwrap()))
+        b.iter(|| {
+            let st = Radiance::Planes(black_box(&st));
+            black_box(sensor.frame(st, 1, FrameOptions::exact()).unwrap())
+        })
     });
     g.finish();
     let mut g = cr.benchmark_group("noise");
     g.sample_size(10);
-    let key = fast::NoiseKey::new(1, 2, 3);
+    let key = normal::NoiseKey::new(1, 2, 3);
     g.bench_function("normal_5M", |b| {
         b.iter(|| {
             let mut acc = 0f32;
             for i in 0..(w * h) as u32 {
-                acc += fast::normal_from_bits(key.bits(i));
+                acc += normal::normal_from_bits(key.bits(i));
             }
             black_box(acc)
         })
     });
+    g.finish();
+    let codes: Vec<u16> = (0..(w * h) as u32)
+        .map(|k| (k.wrapping_mul(2_654_435_761) >> 20) as u16)
+        .collect();
+    let mut out = Vec::new();
+    let mut g = cr.benchmark_group("pack");
+    for f in packing::PixelFormat::ALL {
+        g.bench_function(f.to_string(), |b| {
+            b.iter(|| packing::pack(black_box(&codes), 12, f, false, &mut out).unwrap())
+        });
+    }
     g.finish();
 }
 

@@ -226,32 +226,3 @@ fn range_errors() {
     assert!(HosekWilkie::new(1.0, 0.0, 0.0, 320.0).is_ok());
     assert!(HosekWilkie::new(10.0, 1.0, std::f64::consts::FRAC_PI_2, 720.0).is_ok());
 }
-
-/// Timing note, not a test: `cargo test --release --test hosek -- --ignored --nocapture`.
-#[test]
-#[ignore]
-fn timing_radiance() {
-    let m = HosekWilkie::new(4.0, 0.1, 40f64.to_radians(), 450.0).unwrap();
-    let n = 5_000_000;
-    let t = std::time::Instant::now();
-    let mut acc = 0.0;
-    for i in 0..n {
-        let th = (i % 1000) as f64 * 1.5e-3;
-        let g = (i % 997) as f64 * 3.1e-3;
-        acc += m.radiance(th, g);
-    }
-    let dt = t.elapsed().as_secs_f64();
-    let t2 = std::time::Instant::now();
-    let mut acc2 = 0.0;
-    for i in 0..n {
-        let ct = 1.0 - (i % 1000) as f64 * 1e-3;
-        let g = (i % 997) as f64 * 3.1e-3;
-        acc2 += m.radiance_cos(ct, g, 1.0 - g * g * 0.5);
-    }
-    let dt2 = t2.elapsed().as_secs_f64();
-    println!(
-        "radiance: {:.1} ns/call; radiance_cos: {:.1} ns/call (checksums {acc:e} {acc2:e})",
-        dt / n as f64 * 1e9,
-        dt2 / n as f64 * 1e9
-    );
-}

@@ -766,42 +766,6 @@ proptest::proptest! {
     }
 }
 
-/// `cargo test --release --test sky_reference -- --ignored --nocapture bench_sample`
-#[test]
-#[ignore]
-fn bench_sample() {
-    use std::time::Instant;
-    for model in [PolarizationModel::Wang, PolarizationModel::Rayleigh] {
-        let p = SkyParams {
-            model,
-            ..SkyParams::default()
-        };
-        let sky = Sky::new(default_sun(), &p).unwrap();
-        // 5 Mpx worth of upper-hemisphere directions on a spiral
-        let n = 5_013_504usize;
-        let dirs: Vec<DVec3> = (0..n)
-            .map(|i| {
-                let f = (i as f64 + 0.5) / n as f64;
-                direction(89.0 * f.sqrt(), i as f64 * 137.508)
-            })
-            .collect();
-        let mut best = f64::INFINITY;
-        let mut acc = 0.0;
-        for _ in 0..3 {
-            let t0 = Instant::now();
-            for &v in &dirs {
-                let s = sky.sample(v);
-                acc += s.radiance + s.dop + s.e.x;
-            }
-            best = best.min(t0.elapsed().as_secs_f64());
-        }
-        println!(
-            "{model:?}: {:.1} ns/sample single-threaded ({n} samples, best of 3; checksum {acc:.3})",
-            best * 1e9 / n as f64
-        );
-    }
-}
-
 /// Maximum of the DOP over the sky on a 0.2° grid (plus the unclamped seed's maximum).
 fn sky_max(p: &SkyParams) -> (f64, f64) {
     let pf = PolarizationField::new(default_sun(), p).unwrap();
