@@ -25,6 +25,7 @@ pub mod io;
 pub mod pipeline;
 pub mod render;
 pub mod rng;
+pub mod ros2;
 pub mod sensor;
 pub mod simd;
 pub mod sky;
