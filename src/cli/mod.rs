@@ -3,7 +3,9 @@
 //! library. Nothing here is physics: every formula is in the `psns` library.
 
 pub mod args;
+pub mod bag;
 pub mod bench;
+pub mod convert;
 pub mod dataset;
 pub mod demosaic;
 pub mod figures;
