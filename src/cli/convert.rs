@@ -6,7 +6,7 @@
 //! misses frames the stream had). Dropped frames (an index gap the producer flagged) are no
 //! damage: the bag keeps the frames there are, with their indexes as MCAP sequence numbers.
 
-use super::bag::{BagArgs, BagSource, BagWriter, OutFormat};
+use super::bag::{BagKind, BagOptions, BagSource, BagWriter, Compression};
 use psns::error::Error;
 use psns::ros2::ImageEncoding;
 use psns::stream::{Event, StreamReader, FLAG_LAST};
@@ -21,19 +21,32 @@ pub struct ConvertArgs {
     /// The bag: a new or empty directory (rosbag2) or a file (mcap).
     #[arg(long, value_name = "PATH")]
     out: PathBuf,
-    #[command(flatten)]
-    bag: BagArgs,
+    /// The bag's format: rosbag2 (a directory: metadata.yaml and one MCAP file) or mcap (one
+    /// file).
+    #[arg(long, value_enum)]
+    format: Format,
+    /// Chunk compression.
+    #[arg(long, value_enum, default_value = "none")]
+    compression: Compression,
+}
+
+/// The bag formats.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, clap::ValueEnum)]
+enum Format {
+    Rosbag2,
+    Mcap,
 }
 
 /// Runs `psns convert`.
 pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
-    if a.bag.format == OutFormat::Psns {
-        return Err(Error::Invalid(
-            "psns convert writes a ROS 2 bag: give --format rosbag2 or --format mcap".into(),
-        )
-        .into());
-    }
-    let opts = a.bag.options(false)?.expect("a bag format");
+    let opts = BagOptions {
+        kind: match a.format {
+            Format::Rosbag2 => BagKind::Rosbag2,
+            Format::Mcap => BagKind::Mcap,
+        },
+        compression: a.compression,
+        truth_images: false,
+    };
     super::bag::check_out(&opts.kind, &a.out)?;
     let input = super::open_input(&a.input)?;
     let mut rd = StreamReader::new(input)?;
