@@ -263,8 +263,9 @@ struct FrameMaker {
     spare: Option<Receiver<Payload>>,
     /// Payload buffers made so far (at most [`PAYLOAD_BUFFERS`]).
     made: usize,
-    /// Also make the ground-truth DoLP and AoLP.
-    truth: bool,
+    /// A bag's frames (`None`: the psns format); `Some(true)`: also the ground-truth DoLP and
+    /// AoLP.
+    truth: Option<bool>,
 }
 
 /// Payload buffers in circulation: one being rendered, one queued, one being written. When all
@@ -336,9 +337,15 @@ impl FrameMaker {
         let codes = std::mem::take(&mut self.codes);
         // the payload and its CRC come with the frame (the fast path takes the Mono16 CRC band
         // by band, packing takes it chunk by chunk)
-        let (mut frame, info, crc) =
+        let (mut frame, info, crc) = if self.truth.is_some() && packing::codes_are_payload(self.fmt)
+        {
+            // a bag's mono16 image needs no payload CRC
+            let (f, i) = self.pipe.frame_at(sun, &pose.attitude, index, codes)?;
+            (f, i, None)
+        } else {
             self.pipe
-                .frame_payload_at(sun, &pose.attitude, index, codes, self.fmt, &mut bytes)?;
+                .frame_payload_at(sun, &pose.attitude, index, codes, self.fmt, &mut bytes)?
+        };
         // little-endian Mono16 is the code buffer itself: no packing pass
         let payload = if packing::codes_are_payload(self.fmt) {
             Payload::Codes(std::mem::take(&mut frame.codes.data))
@@ -395,7 +402,7 @@ impl FrameMaker {
             turbidity: self.turbidity,
             albedo: self.albedo,
         };
-        let truth = if self.truth {
+        let truth = if self.truth == Some(true) {
             let (st, _) = self.pipe.stokes(sun, &pose.attitude)?;
             frame.truth = self.pipe.sensor().truth_for(&st, frame.exposure_us);
             let (dolp, aolp) = frame.truth_dolp_aolp();
@@ -799,7 +806,7 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
         codes: Vec::new(),
         spare: None,
         made: 0,
-        truth: opts.bag.as_ref().is_some_and(|b| b.truth_images),
+        truth: opts.bag.as_ref().map(|b| b.truth_images),
         pipe,
     };
     // render thread: pose k+1 while frame k is written; written payloads come back for reuse
