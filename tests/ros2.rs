@@ -167,7 +167,7 @@ fn cdr_of_every_message_equals_rosbags_serialize_cdr() {
     ));
     let v = Vector3Stamped {
         header: h(FrameId::Enu),
-        vector: [0.1, -0.7, 0.707_106_781_186_547_6],
+        vector: [0.1, -0.7, 0.704_321_987_654_321],
     };
     cases.push((
         json!({"kind": "vector3", "value": {"header": hdr(t.sec, t.nanosec, FrameId::Enu),

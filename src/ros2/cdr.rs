@@ -199,7 +199,7 @@ mod tests {
 
     impl Reader<'_> {
         fn take(&mut self, size: usize, align: usize) -> &[u8] {
-            while (self.pos - 4) % align != 0 {
+            while !(self.pos - 4).is_multiple_of(align) {
                 assert_eq!(
                     self.b[self.pos], 0,
                     "padding byte at {} is not zero",

@@ -280,7 +280,7 @@ pub fn kannala_brandt_fit(p: Projection) -> [f64; 4] {
         .collect();
     // columns θ³, θ⁵, θ⁷, θ⁹; target ρ(θ) − θ
     let mut a: Vec<Vec<f64>> = (0..4)
-        .map(|j| thetas.iter().map(|t| t.powi(2 * j as i32 + 3)).collect())
+        .map(|j| thetas.iter().map(|t| t.powi(2 * j + 3)).collect())
         .collect();
     let y: Vec<f64> = thetas
         .iter()
