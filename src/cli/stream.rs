@@ -622,7 +622,7 @@ fn pin_workers() {
 enum Output {
     Stdout(StreamWriter<BufWriter<std::io::StdoutLock<'static>>>),
     Path(FileStreamWriter),
-    Bag(super::bag::BagWriter),
+    Bag(Box<super::bag::BagWriter>),
 }
 
 /// Asks the kernel for a 1 MiB buffer on a pipe or FIFO (the default 64 KiB wakes the reader
@@ -648,7 +648,9 @@ impl Output {
         if let Some(b) = bag {
             let enc = psns::ros2::ImageEncoding::of_pixel_format(header.pixel_format);
             let src = super::bag::BagSource::of_header(header, enc)?;
-            Ok(Output::Bag(super::bag::BagWriter::create(b, path, src)?))
+            Ok(Output::Bag(Box::new(super::bag::BagWriter::create(
+                b, path, src,
+            )?)))
         } else if path.as_os_str() == "-" {
             let out = std::io::stdout().lock();
             grow_pipe(out.as_raw_fd());
