@@ -80,6 +80,6 @@ mod tests {
     #[test]
     fn command_line_is_consistent() {
         use clap::CommandFactory;
-        crate::psns::options::negative_numbers(super::Cli::command()).debug_assert();
+        psns::options::negative_numbers(super::Cli::command()).debug_assert();
     }
 }
