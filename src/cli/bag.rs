@@ -321,7 +321,7 @@ impl BagWriter {
             BagKind::Rosbag2 => {
                 let name = bag_name(out)?;
                 made_dir = !out.exists();
-                super::create_dir(out)?;
+                psns::io::create_dir(out)?;
                 let file = format!("{name}_0.mcap");
                 (Some(out.to_path_buf()), out.join(&file), file)
             }

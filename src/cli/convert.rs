@@ -48,7 +48,7 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
         truth_images: false,
     };
     super::bag::check_out(&opts.kind, &a.out)?;
-    let input = super::open_input(&a.input)?;
+    let input = psns::io::open_input(&a.input)?;
     let mut rd = StreamReader::new(input)?;
     let h = rd.header().clone();
     let enc = ImageEncoding::of_pixel_format(h.pixel_format);
