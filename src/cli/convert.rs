@@ -7,6 +7,7 @@
 //! damage: the bag keeps the frames there are, with their indexes as MCAP sequence numbers.
 
 use super::bag::{BagKind, BagOptions, BagSource, BagWriter, Compression};
+use super::progress::{Progress, Unit};
 use psns::error::Error;
 use psns::ros2::ImageEncoding;
 use psns::stream::{Event, StreamReader, FLAG_LAST};
@@ -57,6 +58,8 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
     let name = a.input.display().to_string();
     let mut codes: Vec<u16> = Vec::new();
     let (mut n, mut last) = (0u64, false);
+    let total = (h.frame_count > 0).then_some(h.frame_count);
+    let mut progress = Progress::new("psns convert", Unit::Frames, total, false);
     let bad = |what: String| {
         Error::Invalid(format!(
             "{name}: {what}; nothing written (psns verify {name} tells more)"
@@ -107,8 +110,10 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
         }
         last = f.meta.flags & FLAG_LAST != 0;
         n += 1;
+        progress.inc(1);
         rd.recycle(f.payload);
     };
+    drop(progress);
     match res {
         Ok(()) => {
             let path = bag.path().to_path_buf();
