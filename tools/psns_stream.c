@@ -85,7 +85,7 @@ static uint32_t crc_run(uint32_t c, const uint8_t *p, size_t n) {
    multiplication (PCLMULQDQ) folds 64 bytes per step, as crc32fast, zlib and Linux do (Intel,
    "Fast CRC computation for generic polynomials using PCLMULQDQ", bit-reflected; constants as
    in crc32fast). It is used only if the CPU has PCLMULQDQ and SSE4.1, checked at run time, and
-   gives the same CRCs as the portable code (tests/stream_readers.rs compiles both). */
+   gives the same CRCs as the portable code (tests/stream/readers.rs compiles both). */
 #include <immintrin.h>
 #define CRC_CLMUL 1
 #define CLMUL_TARGET __attribute__((target("pclmul,sse4.1")))

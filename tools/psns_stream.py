@@ -644,7 +644,7 @@ def describe(ev):
 
 
 def canonical_event(ev):
-    """Canonical line(s) of one event, as tests/stream_readers.rs prints the Rust reader's."""
+    """Canonical line(s) of one event, as tests/stream/readers.rs prints the Rust reader's."""
     k = ev[0]
     idx = lambda i: "-" if i is None else str(i)  # noqa: E731
     if k == "frame":

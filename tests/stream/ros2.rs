@@ -1,11 +1,10 @@
 //! ROS 2 bags from `psns stream --format rosbag2|mcap` and `psns convert`, read by two readers
 //! nobody here wrote (rosbags' AnyReader with the Humble type store, and mcap with
-//! mcap-ros2-support's DecoderFactory, from the test venv: `tests/ros2_check.py`): topics, types,
+//! mcap-ros2-support's DecoderFactory, from the test venv: `tests/stream/ros2_check.py`): topics, types,
 //! counts, every field against the psns stream of the same options; psns's CDR against rosbags'
 //! `serialize_cdr`; conversion equal to the direct bag; bad input and full disks.
 
-mod common;
-
+use crate::common;
 use common::{psns, psns_stdin, python_cmd, stderr};
 use psns::camera::{Intrinsics, Projection};
 use psns::ros2::msg::{Header, Image, Message, PoseStamped, Vector3Stamped};
@@ -23,7 +22,7 @@ fn s(p: &Path) -> &str {
 }
 
 fn checker() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/ros2_check.py")
+    PathBuf::from(env!("CARGO_MANIFEST_DIR")).join("tests/stream/ros2_check.py")
 }
 
 /// Fails (never skips) when the venv lacks the readers.

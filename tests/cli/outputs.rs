@@ -1,8 +1,7 @@
 //! Where the commands that regenerate the docs write by default: outside the tracked tree
 //! (`out/...`), with `docs/...` only on an explicit `--out`; `--quick` never writes into docs/.
 
-mod common;
-
+use crate::common;
 use std::process::Command;
 
 fn psns_in(cwd: &std::path::Path, args: &[&str]) -> std::process::Output {

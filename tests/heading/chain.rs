@@ -1,6 +1,7 @@
 //! The whole chain sky -> sensor -> demosaic -> Stokes -> heading (issue 12, first estimator):
 //! a wrong sign or frame anywhere shows up as a heading error.
 
+use crate::common;
 use psns::camera::{Attitude, Intrinsics};
 use psns::config::SceneConfig;
 use psns::demosaic::{full_chain, Method};
@@ -85,8 +86,6 @@ fn raw_frames_give_the_true_yaw() {
         );
     }
 }
-
-mod common;
 
 /// `psns heading IMAGE` as a user with a camera calls it: pixels, sun, intrinsics and tilt.
 #[test]

@@ -2,7 +2,7 @@
 //! uninterrupted result, verify catches damage, labels reproduce the images through `psns render`,
 //! bad descriptions write nothing, and the Slurm / GNU parallel recipes of docs/dataset.md work.
 
-mod common;
+use crate::common;
 use common::{psns, stderr};
 use std::collections::BTreeMap;
 use std::path::{Path, PathBuf};

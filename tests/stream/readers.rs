@@ -1,8 +1,7 @@
 //! The Python (numpy) and C readers in tools/ return the same pixels and metadata as the Rust
 //! reader; the golden stream in fixtures/stream/ is reproduced byte for byte.
 
-mod common;
-
+use crate::common;
 use psns::sensor::packing::{self, PixelFormat};
 use psns::stream::*;
 use sha2::{Digest, Sha256};

@@ -2,8 +2,7 @@
 //! and a stream's header record, and `psns heading` mapping pixels through the camera model the
 //! frames were rendered with (from the options or the stream's record).
 
-mod common;
-
+use crate::common;
 use common::{psns, stderr};
 
 fn s(p: &std::path::Path) -> &str {

@@ -1,7 +1,6 @@
 //! PSNS presets (nfpi, gniipi, gniicpi) of the sensor emulator.
 
-mod common;
-
+use crate::common;
 use common::simulate;
 use psns::camera::Intrinsics;
 use psns::image::StokesImage;

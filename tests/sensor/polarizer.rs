@@ -1,7 +1,6 @@
 //! Polarizer model, ground truth and the exact float model of the sensor emulator.
 
-mod common;
-
+use crate::common;
 use common::{simulate, simulate_float};
 use psns::camera::Intrinsics;
 use psns::image::{Image, StokesImage};

@@ -1,8 +1,7 @@
 //! End-to-end tests of the `psns` binary: outputs, bad input (exit code 2, nothing written),
 //! and the reference values of sky.md through `psns sky` and `psns sun`.
 
-mod common;
-
+use crate::common;
 use common::{psns, psns_stdin, stderr};
 use std::io::Write;
 use std::path::Path;

@@ -1,8 +1,7 @@
 //! `psns render --raw` end to end: files, ground truth identity with every non-ideality off,
 //! presets, flat field, and bad input (exit 2, nothing written).
 
-mod common;
-
+use crate::common;
 use common::{psns, stderr as err};
 use std::path::Path;
 

@@ -174,7 +174,7 @@ fn scene_files_without_dop_model_load_with_the_default() {
 }
 
 /// Dense sweep: turbidity 1.7..10 every 0.1, sun zenith 0..90 every 1°, wavelength 380..720
-/// every 20 nm (`cargo test --release --test sky_stability -- --ignored --nocapture`; measured:
+/// every 20 nm (`cargo test --release --test sky -- --ignored --nocapture`; measured:
 /// 0 of 137 592 unstable, 14 min at low priority on 2 shared cores).
 #[test]
 #[ignore]

@@ -2,7 +2,7 @@
 //! (file, FIFO, stdout), trajectories from files and stdin, bad trajectory lines, early-closing and
 //! slow readers, pacing, flags, the moving sun, and `psns verify` on what was written.
 
-mod common;
+use crate::common;
 use common::{mkfifo, wait_deadline};
 
 use psns::stream::{

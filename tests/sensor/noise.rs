@@ -1,7 +1,6 @@
 //! Noise statistics, determinism, robustness and input checks of the sensor emulator.
 
-mod common;
-
+use crate::common;
 use common::simulate;
 use psns::camera::Intrinsics;
 use psns::image::StokesImage;

@@ -2,8 +2,7 @@
 //! no noise, quantisation, fixed patterns or polarizer non-idealities (a float mosaic):
 //! bilinear and better recover the true AoLP within 0.01°.
 
-mod common;
-
+use crate::common;
 use common::simulate_float;
 use psns::camera::{Attitude, Camera, Intrinsics};
 use psns::demosaic::{demosaic, Method};

@@ -2,8 +2,7 @@
 //! unfinished streams, concatenated streams, degraded mode for a damaged file header, refusing a
 //! terminal, non-stream input, and the Python reader on a closed pipe.
 
-mod common;
-
+use crate::common;
 use common::{psns, python_cmd, require_numpy, stderr};
 use psns::sensor::packing::PixelFormat;
 use psns::stream::{

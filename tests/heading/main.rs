@@ -1,0 +1,6 @@
+//! The heading estimators from rendered and streamed frames.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod chain;

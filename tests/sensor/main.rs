@@ -1,0 +1,13 @@
+//! The IMX250MZR emulator: noise, polarizer, presets, photon transfer, the fast path, golden hashes.
+
+#[path = "../common/mod.rs"]
+mod common;
+
+mod fast_path;
+mod frame_payload;
+mod golden;
+mod noise;
+mod polarizer;
+mod presets;
+mod ptc;
+mod spectral;
