@@ -104,7 +104,8 @@ fn elementary(cr: &mut Criterion) {
             .collect()
     };
     type Loop = fn(&[f64], &mut [f64]);
-    let cases: [(&str, Vec<f64>, Loop, fn(f64) -> f64); 6] = [
+    type Case = (&'static str, Vec<f64>, Loop, fn(f64) -> f64);
+    let cases: [Case; 6] = [
         ("exp", span(-20.0, 5.0), exp_loop::run, f64::exp),
         ("ln", span(1e-3, 10.0), ln_loop::run, f64::ln),
         ("acos", span(-1.0, 1.0), acos_loop::run, f64::acos),

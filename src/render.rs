@@ -1291,7 +1291,11 @@ mod tests {
         for fs in [255.0, 65_535.0, 1e6] {
             // the brightest value is fs itself, so κ = 1 and v·κ = v: every awkward value is
             // met as it is (those above fs would change the maximum and are left out)
-            let mut a: Vec<f32> = vals.iter().copied().filter(|v| !(*v > fs as f32)).collect();
+            let mut a: Vec<f32> = vals
+                .iter()
+                .copied()
+                .filter(|v| v.partial_cmp(&(fs as f32)) != Some(std::cmp::Ordering::Greater))
+                .collect();
             a.push(fs as f32);
             let imgs: [Image<f32>; 4] =
                 std::array::from_fn(|_| Image::from_vec(a.len(), 1, a.clone()));

@@ -543,6 +543,8 @@ fn host_monotonic_ns() -> i64 {
         };
         // SAFETY: clock_gettime writes one timespec through a valid pointer to a live local
         if unsafe { libc::clock_gettime(libc::CLOCK_MONOTONIC, &mut ts) } == 0 {
+            // time_t and c_long are i64 on 64-bit Linux, narrower elsewhere
+            #[allow(clippy::unnecessary_cast)]
             return (ts.tv_sec as i64)
                 .saturating_mul(1_000_000_000)
                 .saturating_add(ts.tv_nsec as i64);

@@ -170,7 +170,7 @@ fn viridis8(s: &[f32; 8], o: &mut [[u8; 3]; 8]) {
         } else {
             0.0
         } * 8.0;
-        // SAFETY (here and below): t is in [0, 8] and x in [0, 255], so the truncations fit
+        // SAFETY: t is in [0, 8] and x in [0, 255] (here and below), so the truncations fit
         // i32; `as` would add saturation code that keeps the loops from vectorising
         let k = unsafe { t.to_int_unchecked::<i32>() }.min(7);
         f[j] = t - k as f64;
@@ -180,6 +180,7 @@ fn viridis8(s: &[f32; 8], o: &mut [[u8; 3]; 8]) {
         for j in 0..8 {
             let (a, b) = (VIRIDIS[i[j]][c], VIRIDIS[i[j] + 1][c]);
             let x = (a * (1.0 - f[j]) + b * f[j]).clamp(0.0, 255.0);
+            // SAFETY: as above
             let t = unsafe { x.to_int_unchecked::<i32>() };
             o[j][c] = (t + (x - t as f64 >= 0.5) as i32) as u8;
         }
@@ -194,7 +195,7 @@ fn viridis8(s: &[f32; 8], o: &mut [[u8; 3]; 8]) {
 unsafe fn hue8(s: &[f32; 8], o: &mut [[u8; 3]; 8]) {
     for j in 0..8 {
         let h = (s[j] as f64 / 180.0) * 6.0;
-        // SAFETY (here and below): h is in [0, 6) and the channels in [0, 255], so the
+        // SAFETY: h is in [0, 6) and the channels in [0, 255] (here and below), so the
         // truncations fit i32 (`as` would add saturation code)
         let k = unsafe { h.to_int_unchecked::<i32>() };
         let x = 1.0 - ((h - (k & !1) as f64) - 1.0).abs();
@@ -219,6 +220,7 @@ unsafe fn hue8(s: &[f32; 8], o: &mut [[u8; 3]; 8]) {
         } else {
             0.0
         };
+        // SAFETY: as above
         let u = |c: f64| unsafe { (c * 255.0).to_int_unchecked::<i32>() } as u8;
         o[j] = [u(r), u(g), u(b)];
     }

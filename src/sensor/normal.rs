@@ -271,7 +271,9 @@ unsafe fn block_avx512(k1: u32, k2: u32, idx0: u32, z: &mut [f32]) -> bool {
         let x = _mm512_mullo_epi32(x, c(0x846c_a68b));
         _mm512_xor_si512(x, _mm512_srli_epi32(x, 16))
     };
-    let tabs: [__m512; 7] = std::array::from_fn(|d| _mm512_loadu_ps(NORMAL_POLY[d].as_ptr()));
+    // SAFETY: each row of NORMAL_POLY holds the 16 floats read
+    let tabs: [__m512; 7] =
+        std::array::from_fn(|d| unsafe { _mm512_loadu_ps(NORMAL_POLY[d].as_ptr()) });
     let iota = _mm512_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15);
     let mut tail: u16 = 0;
     for q in 0..z.len() / 16 {
@@ -293,7 +295,8 @@ unsafe fn block_avx512(k1: u32, k2: u32, idx0: u32, z: &mut [f32]) -> bool {
             r = _mm512_fmadd_ps(r, y, _mm512_permutexvar_ps(p, *tab));
         }
         let zs = _mm512_xor_si512(_mm512_castps_si512(r), _mm512_and_si512(v, c(0x8000_0000)));
-        _mm512_storeu_ps(z.as_mut_ptr().add(16 * q), _mm512_castsi512_ps(zs));
+        // SAFETY: z holds 16 floats at 16q (its length is a multiple of 16, asserted)
+        unsafe { _mm512_storeu_ps(z.as_mut_ptr().add(16 * q), _mm512_castsi512_ps(zs)) };
     }
     tail != 0
 }
@@ -316,7 +319,8 @@ unsafe fn block_avx2(k1: u32, k2: u32, idx0: u32, z: &mut [f32]) -> bool {
     };
     let tabs: [[__m256; 2]; 7] = std::array::from_fn(|d| {
         let p = NORMAL_POLY[d].as_ptr();
-        [_mm256_loadu_ps(p), _mm256_loadu_ps(p.add(8))]
+        // SAFETY: each row of NORMAL_POLY holds the 16 floats read
+        unsafe { [_mm256_loadu_ps(p), _mm256_loadu_ps(p.add(8))] }
     });
     let iota = _mm256_setr_epi32(0, 1, 2, 3, 4, 5, 6, 7);
     let mut tail = 0;
@@ -347,7 +351,8 @@ unsafe fn block_avx2(k1: u32, k2: u32, idx0: u32, z: &mut [f32]) -> bool {
             r = _mm256_fmadd_ps(r, y, lut(tab));
         }
         let zs = _mm256_xor_si256(_mm256_castps_si256(r), _mm256_and_si256(v, c(0x8000_0000)));
-        _mm256_storeu_ps(z.as_mut_ptr().add(8 * q), _mm256_castsi256_ps(zs));
+        // SAFETY: z holds 8 floats at 8q (its length is a multiple of 8, asserted)
+        unsafe { _mm256_storeu_ps(z.as_mut_ptr().add(8 * q), _mm256_castsi256_ps(zs)) };
     }
     tail != 0
 }

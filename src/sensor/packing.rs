@@ -372,16 +372,19 @@ unsafe fn pack12p_avx512(codes: &[u16], out: &mut [u8]) -> (usize, u16) {
     let perm = _mm512_setr_epi32(0, 1, 2, 4, 5, 6, 8, 9, 10, 12, 13, 14, 15, 15, 15, 15);
     let mut acc = _mm512_setzero_si512();
     for b in 0..blocks {
-        // SAFETY: 64 bytes from codes[32b..32b + 32] and at most 48 bytes (masked) to
-        // out[48b..48b + 48], both in bounds by the choice of `blocks`
-        let x = _mm512_loadu_si512(codes.as_ptr().add(32 * b).cast());
+        // SAFETY: 64 bytes from codes[32b..32b + 32], in bounds by the choice of `blocks`
+        let x = unsafe { _mm512_loadu_si512(codes.as_ptr().add(32 * b).cast()) };
         acc = _mm512_or_si512(acc, x);
         let y = _mm512_or_si512(
             _mm512_and_si512(x, lo12),
             _mm512_and_si512(_mm512_srli_epi32::<4>(x), hi12),
         );
         let z = _mm512_permutexvar_epi32(perm, _mm512_shuffle_epi8(y, shuf));
-        _mm512_mask_storeu_epi8(out.as_mut_ptr().add(48 * b).cast(), (1u64 << 48) - 1, z);
+        // SAFETY: at most 48 bytes (masked) to out[48b..48b + 48], in bounds by the choice of
+        // `blocks`
+        unsafe {
+            _mm512_mask_storeu_epi8(out.as_mut_ptr().add(48 * b).cast(), (1u64 << 48) - 1, z)
+        };
     }
     let a = _mm512_reduce_or_epi32(acc) as u32;
     (32 * blocks, (a | a >> 16) as u16)

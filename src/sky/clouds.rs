@@ -324,10 +324,10 @@ mod tests {
             ..Default::default()
         };
         let a = apply_soft_clouds(&mut s, &p, 9).unwrap();
-        assert!(a.iter().any(|&x| x == 1.0), "some pixel fully cloudy");
+        assert!(a.contains(&1.0), "some pixel fully cloudy");
         assert!(a.iter().any(|&x| x > 0.0 && x < 1.0), "soft rim");
-        for k in 0..w * h {
-            let al = a[k] as f64;
+        for (k, &al) in a.iter().enumerate().take(w * h) {
+            let al = al as f64;
             let want0 = (1.0 - al) * 0.1 + al * 0.25;
             assert!((s.s0.data[k] as f64 - want0).abs() < 1e-6);
             assert!((s.s1.data[k] as f64 - (1.0 - al) * 0.03).abs() < 1e-6);

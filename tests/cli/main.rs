@@ -1,5 +1,8 @@
 //! The `psns` command line: every command's outputs, bad input, progress; the house's layering.
 
+// tests set a field or two of a default configuration
+#![allow(clippy::field_reassign_with_default)]
+
 #[path = "../common/mod.rs"]
 mod common;
 

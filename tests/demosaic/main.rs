@@ -1,5 +1,8 @@
 //! Demosaic methods and Stokes estimation against the emulator's truth and real frames.
 
+// tests set a field or two of a default configuration
+#![allow(clippy::field_reassign_with_default)]
+
 #[path = "../common/mod.rs"]
 mod common;
 

@@ -1,5 +1,8 @@
 //! The heading estimators from rendered and streamed frames.
 
+// tests set a field or two of a default configuration
+#![allow(clippy::field_reassign_with_default)]
+
 #[path = "../common/mod.rs"]
 mod common;
 

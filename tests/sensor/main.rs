@@ -1,5 +1,8 @@
 //! The IMX250MZR emulator: noise, polarizer, presets, photon transfer, the fast path, golden hashes.
 
+// tests set a field or two of a default configuration
+#![allow(clippy::field_reassign_with_default)]
+
 #[path = "../common/mod.rs"]
 mod common;
 

@@ -1,5 +1,8 @@
 //! The frame stream: format, writer, readers (Python, C, Rust), reliability, bags.
 
+// tests set a field or two of a default configuration
+#![allow(clippy::field_reassign_with_default)]
+
 #[path = "../common/mod.rs"]
 mod common;
 
