@@ -6,7 +6,7 @@ use psns::camera::{Attitude, AttitudeFrame, Lens, Projection};
 use psns::config::{SceneConfig, SceneKind};
 use psns::sensor::packing::PixelFormat;
 use psns::sensor::{Exposure, Preset, SensorConfig};
-use psns::sky::{DopModel, DopNorm, PolarizationModel};
+use psns::sky::{DopModel, DopNorm, NeutralLaw, PolarizationModel};
 use psns::sun::{Place, Refraction};
 use std::path::PathBuf;
 
@@ -61,6 +61,11 @@ pub(crate) fn finite_list<const N: usize>(s: &str) -> Result<[f64; N], String> {
 pub(crate) enum ModelArg {
     Wang,
     Rayleigh,
+    DepolarizedRayleigh,
+    Berry,
+    Pan,
+    Queen,
+    Asymmetric,
 }
 
 #[derive(Clone, Copy, ValueEnum)]
@@ -111,9 +116,27 @@ pub(crate) struct SceneArgs {
     pub(crate) observer_height: Option<f64>,
     #[command(flatten)]
     pub(crate) spa: SpaArgs,
-    /// Polarization model.
+    /// Polarization model: wang (default; Berry AOP, PSNS/Wang DOP), rayleigh,
+    /// depolarized-rayleigh (Wu 2014), berry (DOP = |w|), pan (Pan 2023's neutral points),
+    /// queen (Pan's points, DOP = |w|/(2-|w|)), asymmetric (four independent neutral points);
+    /// docs/sky.md.
     #[arg(long, value_enum)]
     pub(crate) model: Option<ModelArg>,
+    /// Sky radiance: hosek (Hosek-Wilkie, default) or cie:N (CIE S 011 standard sky N = 1..15,
+    /// scaled to the Hosek-Wilkie zenith; 1-5 overcast, without the sun's disc).
+    #[arg(long, value_parser = parse_radiance, value_name = "hosek|cie:N")]
+    pub(crate) radiance: Option<psns::sky::cie::Radiance>,
+    /// Molecular depolarization ratio of --model depolarized-rayleigh, 0..0.5 (default 0.0279).
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "D")]
+    pub(crate) depolarization_ratio: Option<f64>,
+    /// --model asymmetric: Arago point's distance above the anti-sun, degrees 0..90 (default:
+    /// the Brewster distance).
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG")]
+    pub(crate) arago: Option<f64>,
+    /// --model asymmetric: fourth point's distance below the anti-sun, degrees 0..90 (default:
+    /// the Brewster distance).
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG")]
+    pub(crate) fourth: Option<f64>,
     /// Turbidity, 1.7..10 (1..10 with --dop-model wang-paper or --model rayleigh).
     #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "T")]
     pub(crate) turbidity: Option<f64>,
@@ -123,7 +146,8 @@ pub(crate) struct SceneArgs {
     /// Ground albedo, 0..1.
     #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "A")]
     pub(crate) albedo: Option<f64>,
-    /// Distance of both neutral points from the sun (Babinet and Brewster), degrees 0..60.
+    /// Distance of both neutral points from the sun (Babinet and Brewster), degrees 0..60
+    /// (default 25; --model asymmetric: Pan's law unless given).
     #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG")]
     pub(crate) neutral_distance: Option<f64>,
     /// Babinet point distance above the sun, degrees 0..60.
@@ -132,7 +156,7 @@ pub(crate) struct SceneArgs {
     /// Brewster point distance below the sun, degrees 0..60.
     #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG", conflicts_with = "neutral_distance")]
     pub(crate) brewster: Option<f64>,
-    /// Maximum DOP of the Rayleigh model, 0..1.
+    /// Maximum DOP, 0..1, of every model but wang (default 1, as in the models' papers).
     #[arg(long, value_parser = finite, allow_negative_numbers = true)]
     pub(crate) dop_max: Option<f64>,
     /// Uniform unpolarized radiance of ground pixels, W m^-2 sr^-1 nm^-1 (default 0).
@@ -185,6 +209,10 @@ pub(crate) struct SceneArgs {
     /// projected on the focal plane, PSNS eqs. 19-20; the PSNS presets' default).
     #[arg(long, value_parser = parse_lens, value_name = "NAME")]
     pub(crate) lens: Option<Lens>,
+}
+
+pub(crate) fn parse_radiance(s: &str) -> Result<psns::sky::cie::Radiance, String> {
+    s.parse().map_err(|e: psns::Error| e.to_string())
 }
 
 pub(crate) fn parse_projection(s: &str) -> Result<Projection, String> {
@@ -267,11 +295,30 @@ impl SceneArgs {
             k.model = match m {
                 ModelArg::Wang => PolarizationModel::Wang,
                 ModelArg::Rayleigh => PolarizationModel::Rayleigh,
+                ModelArg::DepolarizedRayleigh => PolarizationModel::DepolarizedRayleigh,
+                ModelArg::Berry => PolarizationModel::Berry,
+                ModelArg::Pan => PolarizationModel::Pan,
+                ModelArg::Queen => PolarizationModel::Queen,
+                ModelArg::Asymmetric => PolarizationModel::Asymmetric,
             };
+        }
+        if let Some(r) = self.radiance {
+            k.radiance = r;
         }
         k.turbidity = self.turbidity.unwrap_or(k.turbidity);
         k.wavelength_nm = self.wavelength.unwrap_or(k.wavelength_nm);
         k.albedo = self.albedo.unwrap_or(k.albedo);
+        let one_point = self.babinet.is_some() != self.brewster.is_some();
+        if self.neutral_distance.is_some() || self.babinet.is_some() || self.brewster.is_some() {
+            if one_point && k.law() == NeutralLaw::Pan {
+                return Err(psns::Error::Invalid(format!(
+                    "--model {} places both neutral points by Pan's law: to fix them give both \
+                     --babinet and --brewster, or --neutral-distance",
+                    k.model
+                )));
+            }
+            k.neutral_law = Some(NeutralLaw::Fixed);
+        }
         if let Some(d) = self.neutral_distance {
             k.babinet_deg = d;
             k.brewster_deg = d;
@@ -279,6 +326,13 @@ impl SceneArgs {
         k.babinet_deg = self.babinet.unwrap_or(k.babinet_deg);
         k.brewster_deg = self.brewster.unwrap_or(k.brewster_deg);
         k.dop_max = self.dop_max.unwrap_or(k.dop_max);
+        k.depolarization_ratio = self.depolarization_ratio.unwrap_or(k.depolarization_ratio);
+        if self.arago.is_some() {
+            k.arago_deg = self.arago;
+        }
+        if self.fourth.is_some() {
+            k.fourth_deg = self.fourth;
+        }
         if self.ground_radiance.is_some() {
             k.ground_radiance = self.ground_radiance;
         }
