@@ -57,7 +57,10 @@ fn depolarized_rayleigh_reference_values() {
     let (d60, _) = dop_chi(&p, 0.0, 0.0, 60.0, 10.0);
     assert!((d60 - 0.573656982).abs() < 1e-8, "{d60}");
     // the figure: 0.9457 at D = 0.0279
-    assert_eq!(format!("{:.4}", psns::sky::depolarized::peak_dop(1.0, 0.0279)), "0.9457");
+    assert_eq!(
+        format!("{:.4}", psns::sky::depolarized::peak_dop(1.0, 0.0279)),
+        "0.9457"
+    );
     // D = 0.1, dop_max 0.8: 0.8 · 0.9/1.1 = 0.654545455
     let p = SkyParams {
         depolarization_ratio: 0.1,
@@ -119,7 +122,11 @@ fn asymmetric_reference_values() {
     let (d0, chi0) = dop_chi(&p, 50.0, 200.0, 0.0, 0.0);
     let (d1, _) = dop_chi(&p, 50.0, 200.0, 60.0, 20.0);
     let m = |d: f64| 2.0 * d / (1.0 + d);
-    assert!((m(d0) / m(d1) - 1.080877790).abs() < 1e-8, "{}", m(d0) / m(d1));
+    assert!(
+        (m(d0) / m(d1) - 1.080877790).abs() < 1e-8,
+        "{}",
+        m(d0) / m(d1)
+    );
     // the peak is at least the meridian pole's (1/√2)⁴ = 1/4, so m(zenith) ≤ 0.127896/0.25
     let f = PolarizationField::new(SunPosition::new(50.0, 200.0), &p).unwrap();
     let peak = f.quartic().unwrap().peak();
@@ -155,9 +162,16 @@ fn pan_law_reproduces_its_table() {
     //   e = 0: δ_Ba = 42.53, δ_Br = 37.34;
     //   e = 27: δ_Ba = 42.53 − 15.12 = 27.41, δ_Br = 37.34 + 13.23 = 50.57 (lower branch);
     //   e = 64: δ_Ba = 42.53 − 35.84 = 6.69, δ_Br = 56.84 − 16.00 = 40.84.
-    for (e, ba, br) in [(0.0, 42.53, 37.34), (27.0, 27.41, 50.57), (64.0, 6.69, 40.84)] {
+    for (e, ba, br) in [
+        (0.0, 42.53, 37.34),
+        (27.0, 27.41, 50.57),
+        (64.0, 6.69, 40.84),
+    ] {
         let (b, r) = pan::distances(90.0 - e);
-        assert!((b - ba).abs() < 1e-9 && (r - br).abs() < 1e-9, "{e}: {b} {r}");
+        assert!(
+            (b - ba).abs() < 1e-9 && (r - br).abs() < 1e-9,
+            "{e}: {b} {r}"
+        );
         let f = PolarizationField::new(
             SunPosition::new(90.0 - e, 10.0),
             &params(PolarizationModel::Pan),
@@ -217,12 +231,7 @@ fn aop_is_world_chart_angle_and_mirrored_in_the_image() {
     // meridian AOP is χ − A. Image: a level camera with zero ENU yaw has +x (columns) east and +y
     // (rows) north, so the sensor angle from +x toward +y of a chart angle χ is 90° − χ: the
     // image is the sky seen from below, a mirror of the map.
-    let cam = Camera::new(
-        Intrinsics::default(),
-        &Attitude::enu(0.0, 0.0, 0.0),
-        200.0,
-    )
-    .unwrap();
+    let cam = Camera::new(Intrinsics::default(), &Attitude::enu(0.0, 0.0, 0.0), 200.0).unwrap();
     let (cx, cy) = (1223.5, 1023.5);
     for m in NEW_MODELS {
         for (ts, as_) in [(50.0, 200.0), (30.0, 75.0), (70.0, 310.0)] {
@@ -233,12 +242,19 @@ fn aop_is_world_chart_angle_and_mirrored_in_the_image() {
             assert!(axial(chi, as_ + 90.0) < 1e-9, "{m} {ts} {as_}: {chi}");
             let cam = Camera::new(cam.intrinsics, &Attitude::enu(0.0, 0.0, 0.0), as_).unwrap();
             let px = pixel_sky(&sky, &cam, cx, cy);
-            assert!(axial(px.aop_deg(), 90.0 - chi) < 1e-6, "{m}: {}", px.aop_deg());
+            assert!(
+                axial(px.aop_deg(), 90.0 - chi) < 1e-6,
+                "{m}: {}",
+                px.aop_deg()
+            );
             // away from the zenith: meridian AOP = χ − A
             let v = direction(40.0, as_ + 70.0);
             let s = sky.sample(v);
             assert!(
-                axial(aop_meridian_deg(v, s.e), aop_chart_deg(v, s.e) - (as_ + 70.0)) < 1e-9
+                axial(
+                    aop_meridian_deg(v, s.e),
+                    aop_chart_deg(v, s.e) - (as_ + 70.0)
+                ) < 1e-9
             );
         }
     }
@@ -306,7 +322,11 @@ fn aop_is_continuous_where_pyskylumos_flips() {
         }
         shifts.sort_by(f64::total_cmp);
         let median = shifts[shifts.len() / 2];
-        assert!(median < 0.05, "{:?} at θ_s = {thr}: median shift {median}", p.model);
+        assert!(
+            median < 0.05,
+            "{:?} at θ_s = {thr}: median shift {median}",
+            p.model
+        );
     }
     // over the whole sun range: the stability statistic's median AOP shift for 0.5° of sun
     // stays small for every model (a flip shows as 90°)
@@ -344,7 +364,10 @@ fn pan_law_is_continuous_outside_its_fit() {
 #[test]
 fn psns_sky_matches_pyskylumos() {
     common::require_numpy();
-    let script = concat!(env!("CARGO_MANIFEST_DIR"), "/tools/sky_models_pyskylumos.py");
+    let script = concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/tools/sky_models_pyskylumos.py"
+    );
     let out = common::python_cmd()
         .arg(script)
         .arg(env!("CARGO_BIN_EXE_psns"))
@@ -364,10 +387,107 @@ fn psns_sky_matches_pyskylumos() {
     let passed: usize = last.split_whitespace().next().unwrap().parse().unwrap();
     // 12 suns × 7 cases + 6 flip cases × 3 checks
     assert_eq!(passed, 12 * 7 + 6 * 3, "{text}");
-    for m in ["rayleigh", "depolarized-rayleigh", "berry", "pan", "queen", "asymmetric"] {
+    for m in [
+        "rayleigh",
+        "depolarized-rayleigh",
+        "berry",
+        "pan",
+        "queen",
+        "asymmetric",
+    ] {
         assert!(
             text.lines().any(|l| l.starts_with(&format!("{m},"))),
             "no summary row for {m}"
         );
     }
+}
+
+// ------------------------------------------------------------------ CIE standard skies
+
+/// L/L_z of `--radiance cie:N` at (θ, A) for the sun at (θ_s, A_s), through [`Sky::sample`].
+fn cie_rel(n: u8, ts: f64, as_: f64, z: f64, a: f64) -> f64 {
+    let p = SkyParams {
+        radiance: psns::sky::cie::Radiance::Cie(n),
+        ..SkyParams::default()
+    };
+    let sky = Sky::new(SunPosition::new(ts, as_), &p).unwrap();
+    sky.sample(direction(z, a)).radiance / sky.sample(DVec3::Z).radiance
+}
+
+#[test]
+fn cie_skies_reference_values() {
+    // every type is 1 at the zenith, and the zenith is the Hosek–Wilkie zenith of the scene
+    let hw = Sky::new(SunPosition::new(40.0, 0.0), &SkyParams::default()).unwrap();
+    for n in 1..=15u8 {
+        let p = SkyParams {
+            radiance: psns::sky::cie::Radiance::Cie(n),
+            ..SkyParams::default()
+        };
+        let sky = Sky::new(SunPosition::new(40.0, 0.0), &p).unwrap();
+        let (a, b) = (sky.sample(DVec3::Z).radiance, hw.sample(DVec3::Z).radiance);
+        assert!((a - b).abs() <= 1e-12 * b, "type {n}");
+        assert_eq!(sky.sun_visible(), n > 5, "type {n}");
+        // symmetric about the solar meridian
+        for &(z, d) in &[(30.0, 40.0), (70.0, 120.0), (85.0, 10.0)] {
+            let (l, r) = (cie_rel(n, 40.0, 0.0, z, d), cie_rel(n, 40.0, 0.0, z, -d));
+            assert!((l - r).abs() < 1e-12 * l, "type {n}");
+        }
+    }
+    // Type 12 (a = −1, b = −0.32, c = 10, d = −3, e = 0.45), sun zenith 30°, looking at zenith
+    // 60° with χ = 40° from the sun (sun azimuth 0, view azimuth from cos χ = cos 60 cos 30 +
+    // sin 60 sin 30 cos A):
+    //   φ(60°) = 1 − e^{−0.64} = 0.472708, φ(0) = 1 − e^{−0.32} = 0.273851;
+    //   f(40°) = 1 + 10(e^{−2.094395} − e^{−4.712389}) + 0.45 cos² 40° = 2.405685,
+    //   f(30°) = 1 + 10(e^{−1.570796} − e^{−4.712389}) + 0.45 cos² 30° = 3.326463;
+    //   L/L_z = 0.472708 × 2.405685 / (0.273851 × 3.326463) = 1.248344.
+    let ca = (40f64.to_radians().cos() - 60f64.to_radians().cos() * 30f64.to_radians().cos())
+        / (60f64.to_radians().sin() * 30f64.to_radians().sin());
+    let a = ca.acos().to_degrees();
+    let r = cie_rel(12, 30.0, 0.0, 60.0, a);
+    assert!((r - 1.248344).abs() < 1e-6, "{r}");
+    // Type 12 is the CIE clear sky of 1973 (Kittler), whose indicatrix has 0.91 where the
+    // general sky has 1 − 10 e^{−3π/2} = 0.910167: L/L_z = (0.91 + 10 e^{−3χ} + 0.45 cos²χ)
+    // (1 − e^{−0.32/cos Z}) / [(0.91 + 10 e^{−3 Z_s} + 0.45 cos² Z_s)(1 − e^{−0.32})].
+    for &(ts, z, az) in &[(30.0, 60.0, 50.0), (60.0, 20.0, 170.0), (10.0, 85.0, 300.0)] {
+        let v = direction(z, az);
+        let chi = v.dot(SunPosition::new(ts, 0.0).vector()).acos();
+        let (zr, tr) = (f64::to_radians(z), f64::to_radians(ts));
+        let f = |x: f64| 0.91 + 10.0 * (-3.0 * x).exp() + 0.45 * x.cos().powi(2);
+        let old = f(chi) * (1.0 - (-0.32 / zr.cos()).exp()) / (f(tr) * (1.0 - (-0.32f64).exp()));
+        let r = cie_rel(12, ts, 0.0, z, az);
+        // the two indicatrices differ by 1.67e-4, at most 2e-4 of the smaller f (≥ 0.91)
+        assert!((r / old - 1.0).abs() < 2e-4, "{ts} {z} {az}: {r} {old}");
+    }
+    // Type 1, the CIE standard overcast sky: no azimuth dependence, and the horizon
+    // (1 + 4·0)/(1 + 4 e^{−0.7}) = 1/2.986342 = 0.334858 of the zenith: about the 1:3 of the
+    // traditional overcast sky (Moon & Spencer). At 45°: (1 + 4 e^{−0.989949})/2.986342 = 0.832585.
+    let h = cie_rel(1, 40.0, 0.0, 90.0 - 1e-9, 123.0);
+    assert!((h - 0.334858).abs() < 1e-6, "{h}");
+    assert!((cie_rel(1, 40.0, 0.0, 45.0, 0.0) - 0.832585).abs() < 1e-6);
+    assert!((cie_rel(1, 40.0, 0.0, 45.0, 0.0) - cie_rel(1, 80.0, 90.0, 45.0, 270.0)).abs() < 1e-12);
+    // Type 5: uniform
+    for &(z, a) in &[(10.0, 0.0), (60.0, 100.0), (89.0, 250.0)] {
+        assert!((cie_rel(5, 35.0, 0.0, z, a) - 1.0).abs() < 1e-12);
+    }
+    // through psns sky: the radiance column of cie:12 is the same ratio
+    let out = common::psns_stdin(
+        &[
+            "sky",
+            "--radiance",
+            "cie:12",
+            "--sun-zenith",
+            "30",
+            "--sun-azimuth",
+            "0",
+        ],
+        &format!("zenith_deg,azimuth_deg\n0,0\n60,{a}\n"),
+    );
+    assert!(out.status.success(), "{}", common::stderr(&out));
+    let text = String::from_utf8_lossy(&out.stdout);
+    let rad: Vec<f64> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').nth(3).unwrap().parse().unwrap())
+        .collect();
+    assert!((rad[1] / rad[0] - 1.248344).abs() < 1e-6, "{text}");
 }
