@@ -662,6 +662,24 @@ pub fn summary(rows: &[BudgetRow]) -> Vec<(HeadingMethod, Vec<(String, BudgetRow
     out
 }
 
+/// The chart's name of a summary row.
+fn short_label(label: &str) -> &str {
+    match label.split(' ').next().unwrap_or("") {
+        "estimator" => "estimator",
+        "shot/read" => "shot/read noise",
+        "quantisation" => "ADC 12 bit",
+        "demosaic" => "demosaic",
+        "fixed" => "fixed patterns",
+        "sky-model" => "sky model",
+        "IMU" => "IMU 0.5 deg",
+        "lens:" if label.contains("pinhole") => "pinhole lens",
+        "lens:" => "calibration",
+        "clouds" => "clouds",
+        "end" => "end to end",
+        _ => label,
+    }
+}
+
 type PlotErr<E> = plotters::drawing::DrawingAreaErrorKind<E>;
 fn perr<E: std::error::Error + Send + Sync>(e: PlotErr<E>) -> Error {
     Error::Invalid(format!("plotting: {e}"))
@@ -674,7 +692,7 @@ pub fn budget_svg(rows: &[BudgetRow]) -> Result<String> {
     let sum = summary(rows);
     let labels: Vec<String> = sum
         .first()
-        .map(|(_, v)| v.iter().map(|(l, _)| l.clone()).collect())
+        .map(|(_, v)| v.iter().map(|(l, _)| short_label(l).to_string()).collect())
         .unwrap_or_default();
     if labels.is_empty() {
         return Err(Error::Invalid("nothing to chart".into()));
@@ -687,7 +705,7 @@ pub fn budget_svg(rows: &[BudgetRow]) -> Result<String> {
     ];
     let mut svg = String::new();
     {
-        let root = SVGBackend::with_string(&mut svg, (1300, 620)).into_drawing_area();
+        let root = SVGBackend::with_string(&mut svg, (1300, 520)).into_drawing_area();
         root.fill(&WHITE).map_err(perr)?;
         let lab = labels.clone();
         let mut chart = ChartBuilder::on(&root)
@@ -696,7 +714,7 @@ pub fn budget_svg(rows: &[BudgetRow]) -> Result<String> {
                 ("sans-serif", 18),
             )
             .margin(14)
-            .x_label_area_size(150)
+            .x_label_area_size(40)
             .y_label_area_size(70)
             .build_cartesian_2d(-0.5f64..(n as f64 - 0.5), (1e-5f64..30.0).log_scale())
             .map_err(perr)?;
@@ -711,11 +729,6 @@ pub fn budget_svg(rows: &[BudgetRow]) -> Result<String> {
                     String::new()
                 }
             })
-            .x_label_style(
-                ("sans-serif", 12)
-                    .into_font()
-                    .transform(FontTransform::Rotate90),
-            )
             .y_desc("yaw error, deg (log)")
             .disable_x_mesh()
             .max_light_lines(0)
