@@ -37,12 +37,14 @@ pub mod pan;
 pub mod quartic;
 pub mod rayleigh;
 pub mod stability;
+pub mod values;
 
 use crate::error::{check_range, Result};
 pub use crate::sun::SunPosition;
 use crate::vmath;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
+pub use values::SkyValues;
 
 /// Which polarization model to use (`docs/sky.md` gives each one's formulas, source and range).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]

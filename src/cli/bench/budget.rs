@@ -27,15 +27,15 @@
 //! elevation 15°, 35°, 55° at azimuth 200°, yaws 17° + 90° k.
 
 use super::demosaic::inside_docs;
-use crate::cli::create_dir;
-use crate::cli::heading::polar_from_codes;
 use psns::camera::{Attitude, Intrinsics, Lens};
 use psns::config::SceneConfig;
 use psns::demosaic::{full_chain, Method, PolarImages};
+use psns::heading::polar_from_codes;
 use psns::heading::{
     error_stats, estimate_heading_info, wrap180, HeadingMethod, HeadingSetup, PolarView,
 };
 use psns::image::Image;
+use psns::io::create_dir;
 use psns::sensor::{Exposure, SensorConfig, Stages};
 use psns::sky::cie::Radiance;
 use psns::sky::clouds::SoftClouds;
@@ -801,7 +801,7 @@ pub fn bench_budget(opts: &BudgetOptions) -> Result<Vec<String>> {
     let mut written = Vec::new();
     let mut put = |name: &str, text: &str| -> Result<()> {
         let p: &Path = &opts.out.join(name);
-        crate::cli::write_text(p, text)?;
+        psns::io::write_text(p, text)?;
         written.push(p.display().to_string());
         Ok(())
     };

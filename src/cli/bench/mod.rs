@@ -10,8 +10,8 @@ pub mod stream;
 #[cfg(test)]
 mod tests;
 
-use super::args::SceneArgs;
 use clap::Subcommand;
+use psns::options::SceneArgs;
 use std::path::PathBuf;
 
 /// `psns bench` subcommands.
@@ -24,7 +24,7 @@ pub enum BenchCmd {
         #[arg(long, default_value = "out-bench")]
         out: PathBuf,
         /// Timed runs per method (median reported).
-        #[arg(long, default_value_t = 7, value_parser = crate::cli::args::runs)]
+        #[arg(long, default_value_t = 7, value_parser = psns::options::runs)]
         runs: usize,
         /// Small frames and few runs (a quick look; refused with an --out inside docs/).
         #[arg(long)]
@@ -55,7 +55,7 @@ pub enum BenchCmd {
         #[arg(long, default_value = "out-bench")]
         out: PathBuf,
         /// Timed runs per setting (median reported).
-        #[arg(long, default_value_t = 5, value_parser = crate::cli::args::runs)]
+        #[arg(long, default_value_t = 5, value_parser = psns::options::runs)]
         runs: usize,
     },
     /// Stream frames/s per stage (sky, sensor, packing, write) and end to end, fast path against
@@ -68,13 +68,13 @@ pub enum BenchCmd {
         #[arg(long, default_value = "out-bench")]
         out: PathBuf,
         /// Frames per stage measurement (median reported).
-        #[arg(long, default_value_t = 20, value_parser = crate::cli::args::runs)]
+        #[arg(long, default_value_t = 20, value_parser = psns::options::runs)]
         frames: usize,
         /// Frames per end-to-end run of `psns stream` (a third of them with --exact).
-        #[arg(long, default_value_t = 300, value_parser = crate::cli::args::runs)]
+        #[arg(long, default_value_t = 300, value_parser = psns::options::runs)]
         e2e_frames: usize,
         /// End-to-end runs per command (median reported, with the slowest and fastest run).
-        #[arg(long, default_value_t = 3, value_parser = crate::cli::args::runs)]
+        #[arg(long, default_value_t = 3, value_parser = psns::options::runs)]
         runs: usize,
         /// Sky grid steps of the fast path to time.
         #[arg(long, value_delimiter = ',', default_values_t = vec![8usize, 16, 32])]
