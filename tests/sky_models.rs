@@ -491,3 +491,36 @@ fn cie_skies_reference_values() {
         .collect();
     assert!((rad[1] / rad[0] - 1.248344).abs() < 1e-6, "{text}");
 }
+
+/// A stream or a dataset renders each frame with its own sun through `RawPipeline`: with Pan's
+/// law the neutral points move from frame to frame (nothing keeps the first sun's distances).
+#[test]
+fn pan_law_follows_the_sun_through_the_pipeline() {
+    use psns::config::SceneConfig;
+    use psns::pipeline::RawPipeline;
+    use psns::render::{render_stokes, StokesOptions};
+    let mut cfg = SceneConfig::default();
+    cfg.camera.intrinsics = Intrinsics {
+        pixel_pitch_um: 3.45 * 32.0,
+        ..Intrinsics::with_size(76, 64)
+    };
+    cfg.sky = params(PolarizationModel::Pan);
+    cfg.raw.sun_disc = Some(false);
+    cfg.raw.sky_grid = 1;
+    let pipe = RawPipeline::new(&cfg).unwrap();
+    let att = Attitude::enu(0.0, 0.0, 0.0);
+    for z in [30.0, 60.0, 45.0] {
+        let sun = SunPosition::new(z, 150.0);
+        let (st, _) = pipe.stokes(sun, &att).unwrap();
+        let sky = Sky::new(sun, &cfg.sky).unwrap();
+        let cam = Camera::new(cfg.intrinsics(), &att, sun.azimuth_deg).unwrap();
+        let (want, _) = render_stokes(&sky, &cam, StokesOptions { sun_disc: false });
+        assert_eq!(st.s1.data, want.s1.data, "sun zenith {z}");
+        assert_eq!(st.s2.data, want.s2.data, "sun zenith {z}");
+        assert_eq!(
+            sky.polarization().neutral_distances(),
+            pan::distances(z),
+            "sun zenith {z}"
+        );
+    }
+}
