@@ -28,6 +28,7 @@ pub mod pipeline;
 pub mod progress;
 pub mod render;
 pub mod rng;
+pub mod ros2;
 pub mod sensor;
 pub mod simd;
 pub mod sky;

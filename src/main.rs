@@ -28,6 +28,8 @@ enum Cmd {
     Sun(cli::sun::SunArgs),
     /// Stream raw frames driven by a trajectory to a file, FIFO or stdout (hardware in the loop).
     Stream(cli::stream::StreamArgs),
+    /// Turn a psns frame stream into a ROS 2 bag (rosbag2 directory or MCAP file).
+    Convert(cli::convert::ConvertArgs),
     /// Check a frame stream: frame count, drops, corrupt and truncated frames. Exit 0 only if clean.
     Verify(cli::verify::VerifyArgs),
     /// Write one frame of a stream as PNG and TIFF plus its metadata as JSON.
@@ -56,6 +58,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Cmd::Sky(a) => cli::sky::run(a),
         Cmd::Sun(a) => cli::sun::run(a),
         Cmd::Stream(a) => cli::stream::run(a),
+        Cmd::Convert(a) => cli::convert::run(a),
         Cmd::Verify(a) => cli::verify::run_verify(a),
         Cmd::Extract(a) => cli::verify::run_extract(a),
         Cmd::Demosaic(a) => cli::demosaic::run(a),

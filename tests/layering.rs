@@ -25,6 +25,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("heading", 8),
     ("config", 9),
     ("io", 9),
+    ("ros2", 9),
     ("pipeline", 10),
     ("dataset", 11),
     ("options", 12),

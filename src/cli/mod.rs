@@ -2,7 +2,9 @@
 //! code around the library. The options it parses are the library's ([`psns::options`], shared
 //! with the Python package); nothing here is physics.
 
+pub mod bag;
 pub mod bench;
+pub mod convert;
 pub mod dataset;
 pub mod demosaic;
 pub mod figures;

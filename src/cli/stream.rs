@@ -77,6 +77,12 @@ pub struct StreamArgs {
     /// the k-th CPU this process may use; frames are the same either way).
     #[arg(long)]
     no_pin: bool,
+    #[command(flatten)]
+    bag: super::bag::BagArgs,
+    /// ROS 2 bag: also the ground-truth DoLP and AoLP (degrees) as 32FC1 images on
+    /// /psns/truth/dolp and /psns/truth/aolp.
+    #[arg(long)]
+    truth_images: bool,
 }
 
 /// The refusal to write binary frames to a terminal: `Some(message)` when the output is stdout
@@ -94,7 +100,13 @@ fn refuse_terminal(out: &Path, stdout_is_terminal: bool) -> Option<Error> {
 /// Runs `psns stream`.
 pub fn run(a: StreamArgs) -> anyhow::Result<()> {
     use std::io::IsTerminal;
-    if let Some(e) = refuse_terminal(&a.out, std::io::stdout().is_terminal()) {
+    let bag = a.bag.options(a.truth_images)?;
+    if bag.is_some() && a.stamp_host_time {
+        return Err(
+            Error::Invalid("--stamp-host-time applies to the psns format only".into()).into(),
+        );
+    }
+    if let Some(e) = refuse_terminal(&a.out, bag.is_none() && std::io::stdout().is_terminal()) {
         return Err(e.into());
     }
     let mut cfg = a.scene.scene()?;
@@ -111,6 +123,7 @@ pub fn run(a: StreamArgs) -> anyhow::Result<()> {
         yaw_rate_deg_s: a.yaw_rate,
         frame_interval_ms: a.frame_interval_ms,
         stamp_host_time: a.stamp_host_time,
+        bag,
     };
     let s = run_stream(&cfg, &opts)?;
     eprintln!(
@@ -159,6 +172,8 @@ pub struct StreamOptions {
     pub frame_interval_ms: f64,
     /// Stamp host CLOCK_MONOTONIC into frame headers (breaks byte-identical output).
     pub stamp_host_time: bool,
+    /// Write a ROS 2 bag instead of the psns format (`None`).
+    pub bag: Option<super::bag::BagOptions>,
 }
 
 impl Default for StreamOptions {
@@ -172,6 +187,7 @@ impl Default for StreamOptions {
             yaw_rate_deg_s: 10.0,
             frame_interval_ms: 50.0,
             stamp_host_time: false,
+            bag: None,
         }
     }
 }
@@ -196,6 +212,8 @@ struct Rendered {
     /// The payload's CRC-32 when it was made with the payload (while the bytes were in cache);
     /// `None`: the writer computes it.
     crc: Option<u32>,
+    /// Ground-truth DoLP and AoLP (degrees) for a bag's `--truth-images`.
+    truth: Option<(Vec<f32>, Vec<f32>)>,
 }
 
 /// A frame's payload: packed bytes, or (little-endian Mono16) the codes themselves.
@@ -245,6 +263,9 @@ struct FrameMaker {
     spare: Option<Receiver<Payload>>,
     /// Payload buffers made so far (at most [`PAYLOAD_BUFFERS`]).
     made: usize,
+    /// A bag's frames (`None`: the psns format); `Some(true)`: also the ground-truth DoLP and
+    /// AoLP.
+    truth: Option<bool>,
 }
 
 /// Payload buffers in circulation: one being rendered, one queued, one being written. When all
@@ -316,9 +337,15 @@ impl FrameMaker {
         let codes = std::mem::take(&mut self.codes);
         // the payload and its CRC come with the frame (the fast path takes the Mono16 CRC band
         // by band, packing takes it chunk by chunk)
-        let (mut frame, info, crc) =
+        let (mut frame, info, crc) = if self.truth.is_some() && packing::codes_are_payload(self.fmt)
+        {
+            // a bag's mono16 image needs no payload CRC
+            let (f, i) = self.pipe.frame_at(sun, &pose.attitude, index, codes)?;
+            (f, i, None)
+        } else {
             self.pipe
-                .frame_payload_at(sun, &pose.attitude, index, codes, self.fmt, &mut bytes)?;
+                .frame_payload_at(sun, &pose.attitude, index, codes, self.fmt, &mut bytes)?
+        };
         // little-endian Mono16 is the code buffer itself: no packing pass
         let payload = if packing::codes_are_payload(self.fmt) {
             Payload::Codes(std::mem::take(&mut frame.codes.data))
@@ -375,8 +402,21 @@ impl FrameMaker {
             turbidity: self.turbidity,
             albedo: self.albedo,
         };
+        let truth = if self.truth == Some(true) {
+            let (st, _) = self.pipe.stokes(sun, &pose.attitude)?;
+            frame.truth = self.pipe.sensor().truth_for(&st, frame.exposure_us);
+            let (dolp, aolp) = frame.truth_dolp_aolp();
+            Some((dolp.data, aolp.data))
+        } else {
+            None
+        };
         self.codes = frame.codes.data;
-        Ok(Rendered { meta, payload, crc })
+        Ok(Rendered {
+            meta,
+            payload,
+            crc,
+            truth,
+        })
     }
 }
 
@@ -577,10 +617,12 @@ fn pin_workers() {
         .build_global();
 }
 
-/// The output: stdout, or a path (regular file, FIFO, device) with the count patched on close.
+/// The output: stdout, or a path (regular file, FIFO, device) with the count patched on close,
+/// or a ROS 2 bag.
 enum Output {
     Stdout(StreamWriter<BufWriter<std::io::StdoutLock<'static>>>),
     Path(FileStreamWriter),
+    Bag(Box<super::bag::BagWriter>),
 }
 
 /// Asks the kernel for a 1 MiB buffer on a pipe or FIFO (the default 64 KiB wakes the reader
@@ -597,9 +639,19 @@ pub(crate) fn grow_pipe(fd: std::os::fd::RawFd) {
 }
 
 impl Output {
-    fn open(path: &Path, header: &FileHeader) -> Result<Self> {
+    fn open(
+        path: &Path,
+        header: &FileHeader,
+        bag: Option<&super::bag::BagOptions>,
+    ) -> Result<Self> {
         use std::os::fd::AsRawFd;
-        if path.as_os_str() == "-" {
+        if let Some(b) = bag {
+            let enc = psns::ros2::ImageEncoding::of_pixel_format(header.pixel_format);
+            let src = super::bag::BagSource::of_header(header, enc)?;
+            Ok(Output::Bag(Box::new(super::bag::BagWriter::create(
+                b, path, src,
+            )?)))
+        } else if path.as_os_str() == "-" {
             let out = std::io::stdout().lock();
             grow_pipe(out.as_raw_fd());
             let w = BufWriter::with_capacity(1 << 20, out);
@@ -614,6 +666,10 @@ impl Output {
         match self {
             Output::Stdout(w) => w.write_payload_crc(&r.meta, r.payload.as_bytes(), r.crc),
             Output::Path(w) => w.write_payload_crc(&r.meta, r.payload.as_bytes(), r.crc),
+            Output::Bag(w) => {
+                let truth = r.truth.as_ref().map(|(d, a)| (&d[..], &a[..]));
+                w.write_frame(&r.meta, r.payload.as_bytes(), truth)
+            }
         }
     }
     fn finish(self) -> Result<()> {
@@ -623,6 +679,7 @@ impl Output {
                 .flush()
                 .map_err(|e| Error::io("flushing stdout", e)),
             Output::Path(w) => w.finish().map(|_| ()),
+            Output::Bag(w) => w.finish(),
         }
     }
 }
@@ -688,6 +745,10 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
     let start_ns = start
         .timestamp_nanos_opt()
         .ok_or_else(|| Error::Invalid(format!("start time {start_s} is out of range")))?;
+    if let Some(b) = &opts.bag {
+        super::bag::check_out(&b.kind, &opts.out)?;
+        psns::ros2::Time::from_unix_ns(start_ns)?;
+    }
     let pipe = RawPipeline::new(cfg)?;
     let sc = pipe.sensor_config().clone();
     let Trajectory {
@@ -722,6 +783,13 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
         "attitude_frame": "enu",
     });
     let header = stream_header(cfg, &pipe, extra)?;
+    // a bag's image is mono8 or the codes as mono16: what the frames are made as
+    let fmt = match &opts.bag {
+        Some(_) => psns::ros2::ImageEncoding::of_pixel_format(header.pixel_format)
+            .pixel_format()
+            .unwrap_or(header.pixel_format),
+        None => header.pixel_format,
+    };
     let mut maker = FrameMaker {
         sun: sun_src,
         place: cfg.sun.place,
@@ -733,13 +801,14 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
             Exposure::Fixed { us } => seconds_to_ns(us * 0.5e-6)?,
             Exposure::Auto { .. } => 0,
         },
-        fmt: header.pixel_format,
-        bits_valid: header.bits_valid,
+        fmt,
+        bits_valid: packing::bits_valid(fmt, sc.bit_depth),
         turbidity: cfg.sky.turbidity as f32,
         albedo: cfg.sky.albedo as f32,
         codes: Vec::new(),
         spare: None,
         made: 0,
+        truth: opts.bag.as_ref().map(|b| b.truth_images),
         pipe,
     };
     // render thread: pose k+1 while frame k is written; written payloads come back for reuse
@@ -787,7 +856,7 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
         })
         .map_err(|e| Error::io("starting the render thread", e))?;
 
-    let mut out = match Output::open(&opts.out, &header) {
+    let mut out = match Output::open(&opts.out, &header, opts.bag.as_ref()) {
         Ok(o) => o,
         Err(e) if e.is_broken_pipe() => {
             drop(producer);
