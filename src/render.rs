@@ -464,8 +464,11 @@ fn add_sun_disc(sky: &Sky, cam: &Camera, st: &mut StokesImage) -> usize {
 
 /// The solar disc's radiance per pixel it touches, (pixel index, radiance), sorted by index:
 /// the limb-darkened Hosek–Wilkie solar radiance averaged over 4 × 4 sub-samples within
-/// r_sun + 2 IFOV of the sun.
+/// r_sun + 2 IFOV of the sun. None under an overcast CIE sky ([`Sky::sun_visible`]).
 fn sun_disc_pixels(sky: &Sky, cam: &Camera) -> Vec<(usize, f32)> {
+    if !sky.sun_visible() {
+        return Vec::new();
+    }
     let p = sky.params();
     let Ok(hw) = HosekWilkie::new(
         p.turbidity,

@@ -79,10 +79,21 @@ def test_heading_matches_cli(psns_bin, tmp_path):
     assert abs(py["yaw_deg"] - 33) < 0.5
 
 
-def test_sky_matches_cli(psns_bin):
+@pytest.mark.parametrize(
+    "model",
+    [
+        {},
+        dict(model="queen", dop_max=0.8),
+        dict(model="asymmetric", arago=20, fourth=30),
+        dict(model="depolarized-rayleigh", depolarization_ratio=0.1),
+        dict(model="pan", radiance="cie:12"),
+        dict(model="berry", neutral_distance=15),
+    ],
+)
+def test_sky_matches_cli(psns_bin, model):
     z = np.array([[0.0, 10.0, 45.0], [80.0, 89.5, 120.0]])
     a = np.array([[0.0, 90.0, 200.0], [359.0, 17.5, 3.0]])
-    opts = dict(sun_zenith=60, sun_azimuth=100, turbidity=5)
+    opts = dict(sun_zenith=60, sun_azimuth=100, turbidity=5, **model)
     text = "zenith_deg,azimuth_deg\n" + "".join(f"{zz},{aa}\n" for zz, aa in zip(z.ravel(), a.ravel()))
     r = run(psns_bin, "sky", *cli_args(opts), input=text)
     rows = np.loadtxt(io.StringIO(r.stdout), delimiter=",", skiprows=1)
@@ -105,6 +116,13 @@ def test_sky_matches_cli(psns_bin):
         (["render"], dict(width=0), lambda: psns.render(width=0)),
         (["render"], dict(preset="camera"), lambda: psns.render(preset="camera")),
         (["render"], dict(dop_model="nope"), lambda: psns.render(dop_model="nope")),
+        (["render"], dict(model="nope"), lambda: psns.render(model="nope")),
+        (
+            ["render"],
+            dict(model="pan", babinet=10, brewster=12),
+            lambda: psns.render(model="pan", babinet=10, brewster=12),
+        ),
+        (["render"], dict(radiance="cie:0"), lambda: psns.render(radiance="cie:0")),
         (["render", "--raw"], dict(bit_depth=9), lambda: psns.render_raw(bit_depth=9)),
         (["render", "--raw"], dict(preset="foo"), lambda: psns.Camera(preset="foo")),
         (["render", "--raw"], dict(sky_grid=0), lambda: psns.render_raw(sky_grid=0)),

@@ -1,11 +1,11 @@
 //! `psns sky`: sky values (radiance, DOP, AOP) for directions read as CSV on stdin; with
-//! `--stability`, the DOP stability map of both DOP models instead.
+//! `--stability`, the stability map of the DOP models (and the other models' rows) instead.
 
 use super::progress::{Progress, Unit};
 use psns::config::SceneConfig;
 use psns::options::{first_given, SkyArgs};
-use psns::sky::stability::{stability_map, Grid, MapCell, MAX_JUMP};
-use psns::sky::{DopModel, SkyParams};
+use psns::sky::stability::{stability_map, Grid, MapCell, MAX_AOP_SHIFT_DEG, MAX_JUMP};
+use psns::sky::{DopModel, PolarizationModel, SkyParams};
 use psns::{Error, Result};
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
@@ -27,7 +27,7 @@ pub fn run(a: SkyArgs) -> anyhow::Result<()> {
         ]);
         if let Some(n) = swept {
             return Err(Error::Invalid(format!(
-                "--{n} would be ignored: --stability sweeps the sun, turbidity and wavelength for both DOP models"
+                "--{n} would be ignored: --stability sweeps the sun, turbidity and wavelength for every model"
             ))
             .into());
         }
@@ -136,66 +136,121 @@ pub const MAP_WAVELENGTHS: [f64; 5] = [380.0, 450.0, 550.0, 650.0, 720.0];
 /// One model's map: per turbidity, the cells (sun zenith × wavelength) or the refusal.
 type ModelMap = Vec<(f64, std::result::Result<Vec<MapCell>, String>)>;
 
+/// The rows of the map: the two forms of the Wang DOP, then the models whose polarization does
+/// not depend on turbidity or wavelength (evaluated once per sun zenith, at T = 4 and 450 nm,
+/// and drawn across every turbidity).
+const MAP_ROWS: [(&str, PolarizationModel, DopModel); 7] = [
+    ("wang-paper", PolarizationModel::Wang, DopModel::WangPaper),
+    (
+        "wang-bounded",
+        PolarizationModel::Wang,
+        DopModel::WangBounded,
+    ),
+    (
+        "depolarized-rayleigh",
+        PolarizationModel::DepolarizedRayleigh,
+        DopModel::WangBounded,
+    ),
+    ("berry", PolarizationModel::Berry, DopModel::WangBounded),
+    ("pan", PolarizationModel::Pan, DopModel::WangBounded),
+    ("queen", PolarizationModel::Queen, DopModel::WangBounded),
+    (
+        "asymmetric",
+        PolarizationModel::Asymmetric,
+        DopModel::WangBounded,
+    ),
+];
+
 /// Writes `dop_stability.csv`, `.svg` and `.png` into `dir` (created if missing; other
 /// files are left alone). Returns the files written.
 pub fn write_stability(base: &SkyParams, dir: &Path) -> Result<Vec<String>> {
     let ts = map_turbidities();
     let zs = map_sun_zeniths();
-    let models = [DopModel::WangPaper, DopModel::WangBounded];
+    let steps: usize = MAP_ROWS
+        .iter()
+        .map(|r| {
+            if r.1 == PolarizationModel::Wang {
+                ts.len()
+            } else {
+                1
+            }
+        })
+        .sum();
     let mut progress = Progress::new(
         "psns sky --stability",
         Unit::Steps,
-        Some((models.len() * ts.len()) as u64),
+        Some(steps as u64),
         false,
     );
-    let mut maps: Vec<(DopModel, ModelMap)> = Vec::new();
-    for m in models {
+    let mut maps: Vec<(&str, bool, ModelMap)> = Vec::new();
+    for (name, model, m) in MAP_ROWS {
+        let asym = model == PolarizationModel::Asymmetric;
         let p = SkyParams {
-            model: psns::sky::PolarizationModel::Wang,
+            model,
             dop_model: m,
+            neutral_law: None,
+            arago_deg: base.arago_deg.filter(|_| asym),
+            fourth_deg: base.fourth_deg.filter(|_| asym),
             ..base.clone()
         };
         let mut rows = Vec::new();
-        for &t in &ts {
-            progress.set_message(format!("{} T = {t}", model_name(m)));
-            let r = stability_map(&p, &[t], &zs, &MAP_WAVELENGTHS, Grid::default())
+        if model == PolarizationModel::Wang {
+            for &t in &ts {
+                progress.set_message(format!("{name} T = {t}"));
+                let r = stability_map(&p, &[t], &zs, &MAP_WAVELENGTHS, Grid::default())
+                    .map_err(|e| e.to_string());
+                rows.push((t, r));
+                progress.inc(1);
+            }
+        } else {
+            progress.set_message(name.to_string());
+            let r = stability_map(&p, &[4.0], &zs, &[450.0], Grid::default())
                 .map_err(|e| e.to_string());
-            rows.push((t, r));
+            rows = ts.iter().map(|&t| (t, r.clone())).collect();
             progress.inc(1);
         }
-        maps.push((m, rows));
+        maps.push((name, model == PolarizationModel::Wang, rows));
     }
     psns::io::create_dir(dir)?;
     let mut csv = String::from(
-        "dop_model,turbidity,sun_zenith_deg,wavelength_nm,status,directions,mid_directions,pinned_low,pinned_high,max_jump,jumps,max_dop\n",
+        "model,turbidity,sun_zenith_deg,wavelength_nm,status,directions,mid_directions,pinned_low,pinned_high,max_jump,jumps,max_dop,median_aop_shift_deg\n",
     );
-    for (m, rows) in &maps {
+    for (name, per_t, rows) in &maps {
+        // the turbidity- and wavelength-free models: one row per sun zenith
+        let rows = if *per_t { &rows[..] } else { &rows[..1] };
         for (t, r) in rows {
             match r {
                 Ok(cells) => {
                     for c in cells {
                         let s = &c.stats;
+                        let (tt, ll) = if *per_t {
+                            (c.turbidity.to_string(), c.wavelength_nm.to_string())
+                        } else {
+                            ("any".to_string(), "any".to_string())
+                        };
                         csv += &format!(
-                            "{},{},{},{},{},{},{},{},{},{:.6},{},{:.6}\n",
-                            model_name(*m),
-                            c.turbidity,
+                            "{name},{tt},{},{ll},{},{},{},{},{},{:.6},{},{:.6},{:.4}\n",
                             c.sun_zenith_deg,
-                            c.wavelength_nm,
-                            if s.is_stable() { "stable" } else { "unstable" },
+                            if s.is_stable() && !s.aop_flips() {
+                                "stable"
+                            } else {
+                                "unstable"
+                            },
                             s.directions,
                             s.mid_directions,
                             s.pinned_low,
                             s.pinned_high,
                             s.max_jump,
                             s.jumps,
-                            s.max_dop
+                            s.max_dop,
+                            s.median_aop_shift_deg
                         );
                     }
                 }
                 Err(_) => {
                     for z in &zs {
                         for l in MAP_WAVELENGTHS {
-                            csv += &format!("{},{t},{z},{l},refused,,,,,,,\n", model_name(*m));
+                            csv += &format!("{name},{t},{z},{l},refused,,,,,,,,\n");
                         }
                     }
                 }
@@ -204,6 +259,7 @@ pub fn write_stability(base: &SkyParams, dir: &Path) -> Result<Vec<String>> {
     }
     let pcsv = dir.join("dop_stability.csv");
     write(&pcsv, csv.as_bytes())?;
+    let maps: Vec<(&str, ModelMap)> = maps.into_iter().map(|(n, _, r)| (n, r)).collect();
     let psvg = dir.join("dop_stability.svg");
     let mut svg = String::new();
     draw_map(&maps, &ts, &zs, &mut svg)
@@ -222,35 +278,37 @@ fn write(p: &Path, bytes: &[u8]) -> Result<()> {
     std::fs::write(p, bytes).map_err(|e| Error::io(format!("writing {}", p.display()), e))
 }
 
-fn model_name(m: DopModel) -> &'static str {
-    match m {
-        DopModel::WangPaper => "wang-paper",
-        DopModel::WangBounded => "wang-bounded",
-    }
-}
-
 /// Per map cell (turbidity, sun zenith) the worst over the wavelengths of: fraction pinned low,
-/// fraction pinned high, largest jump.
-fn worst(cells: &[MapCell], z: f64) -> [f64; 3] {
-    let mut w = [0.0f64; 3];
+/// fraction pinned high, largest jump, median AOP shift (degrees).
+fn worst(cells: &[MapCell], z: f64) -> [f64; 4] {
+    let mut w = [0.0f64; 4];
     for c in cells.iter().filter(|c| c.sun_zenith_deg == z) {
         w[0] = w[0].max(c.stats.low_fraction());
         w[1] = w[1].max(c.stats.high_fraction());
         w[2] = w[2].max(c.stats.max_jump);
+        w[3] = w[3].max(c.stats.median_aop_shift_deg);
     }
     w
 }
 
-/// Colour of one map cell for metric `k` (0 pinned low, 1 pinned high, 2 jump): grey where the
-/// model refuses the turbidity, pale green for none pinned, white → red with the fraction
-/// pinned; jumps blue up to 0.15, red above.
+/// Colour of one map cell for metric `k` (0 pinned low, 1 pinned high, 2 jump, 3 AOP shift):
+/// grey where the model refuses the turbidity, pale green for none pinned, white → red with the
+/// fraction pinned; jumps blue up to 0.15, red above; AOP shifts blue up to 10°, red above (a
+/// flip: 90°).
 fn cell_color(r: &std::result::Result<Vec<MapCell>, String>, z: f64, k: usize) -> [u8; 3] {
     let cells = match r {
         Err(_) => return [190, 190, 190],
         Ok(c) => c,
     };
     let v = worst(cells, z)[k];
-    if k == 2 {
+    if k == 3 {
+        if v > MAX_AOP_SHIFT_DEG {
+            [255, 60, 60]
+        } else {
+            let g = (255.0 - 120.0 * (v / MAX_AOP_SHIFT_DEG).clamp(0.0, 1.0)) as u8;
+            [g, g, 255]
+        }
+    } else if k == 2 {
         if v > MAX_JUMP {
             let f = ((v - MAX_JUMP) / (1.0 - MAX_JUMP)).clamp(0.0, 1.0);
             let g = (140.0 * (1.0 - f)) as u8;
@@ -267,14 +325,14 @@ fn cell_color(r: &std::result::Result<Vec<MapCell>, String>, z: f64, k: usize) -
     }
 }
 
-/// The map as a small PNG without text: rows wang-paper, wang-bounded; columns pinned low,
-/// pinned high, jump; in each panel turbidity grows to the right (one 8-px column per value of
+/// The map as a small PNG without text: rows as [`MAP_ROWS`]; columns pinned low, pinned high,
+/// jump, AOP shift; in each panel turbidity grows to the right (one 8-px column per value of
 /// [`map_turbidities`]) and sun zenith downwards (4 px per 2°).
-fn map_png(maps: &[(DopModel, ModelMap)], zs: &[f64]) -> psns::image::Image<[u8; 3]> {
+fn map_png(maps: &[(&str, ModelMap)], zs: &[f64]) -> psns::image::Image<[u8; 3]> {
     let mut rows = Vec::new();
     for (_, rows_m) in maps {
         let mut panels = Vec::new();
-        for k in 0..3 {
+        for k in 0..4 {
             let (w, h) = (rows_m.len() * 8, zs.len() * 4);
             let mut data = vec![[255u8; 3]; w * h];
             for (i, (_, r)) in rows_m.iter().enumerate() {
@@ -295,21 +353,22 @@ fn map_png(maps: &[(DopModel, ModelMap)], zs: &[f64]) -> psns::image::Image<[u8;
 }
 
 fn draw_map(
-    maps: &[(DopModel, ModelMap)],
+    maps: &[(&str, ModelMap)],
     ts: &[f64],
     zs: &[f64],
     svg: &mut String,
 ) -> std::result::Result<(), Box<dyn std::error::Error>> {
     use plotters::prelude::*;
-    let root = SVGBackend::with_string(svg, (1260, 760)).into_drawing_area();
+    let root =
+        SVGBackend::with_string(svg, (1600, 260 * maps.len() as u32 + 40)).into_drawing_area();
     root.fill(&WHITE)?;
     let (title, body) = root.split_vertically(40);
     title.draw(&Text::new(
-        "DOP stability, worst of 380/450/550/650/720 nm (4050 directions per cell; grey: refused)",
+        "DOP stability and AOP continuity, worst of 380/450/550/650/720 nm for wang (4050 directions per cell; grey: refused)",
         (20, 12),
         ("sans-serif", 17),
     ))?;
-    let rows = body.split_evenly((maps.len(), 3));
+    let rows = body.split_evenly((maps.len(), 4));
     // cell edges: turbidity steps are 0.5 except around 1.7
     let edges: Vec<f64> = {
         let mut e = vec![ts[0] - 0.25];
@@ -323,13 +382,14 @@ fn draw_map(
         "pinned DOP <= 0.001 (40..140 deg from sun)",
         "pinned DOP >= 0.95",
         "max jump over 2 deg (red: > 0.15)",
+        "median AOP shift, sun 0.5 deg (red: > 10 deg)",
     ];
     for (mi, (m, rows_m)) in maps.iter().enumerate() {
         let unstable: usize = rows_m
             .iter()
             .filter_map(|(_, r)| r.as_ref().ok())
             .flat_map(|c| c.iter())
-            .filter(|c| !c.stats.is_stable())
+            .filter(|c| !c.stats.is_stable() || c.stats.aop_flips())
             .count();
         let total: usize = rows_m
             .iter()
@@ -337,11 +397,11 @@ fn draw_map(
             .map(|c| c.len())
             .sum();
         for (k, name) in metrics.iter().enumerate() {
-            let area = &rows[mi * 3 + k];
+            let area = &rows[mi * 4 + k];
             let cap = if k == 0 {
-                format!("{}: {name} ({unstable}/{total} unstable)", model_name(*m))
+                format!("{m}: {name} ({unstable}/{total} unstable)")
             } else {
-                format!("{}: {name}", model_name(*m))
+                format!("{m}: {name}")
             };
             let mut ch = ChartBuilder::on(area)
                 .caption(cap, ("sans-serif", 13))

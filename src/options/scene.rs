@@ -4,7 +4,8 @@
 use super::{finite, finite_list, first_given, parsed};
 use crate::camera::{Attitude, AttitudeFrame, Lens, Projection};
 use crate::config::SceneConfig;
-use crate::sky::{DopModel, DopNorm, PolarizationModel};
+use crate::sky::cie::Radiance;
+use crate::sky::{DopModel, DopNorm, NeutralLaw, PolarizationModel};
 use crate::sun::{Place, Refraction};
 use clap::{Args, ValueEnum};
 use std::path::PathBuf;
@@ -16,6 +17,11 @@ use std::path::PathBuf;
 pub enum ModelArg {
     Wang,
     Rayleigh,
+    DepolarizedRayleigh,
+    Berry,
+    Pan,
+    Queen,
+    Asymmetric,
 }
 
 /// The values of `--dop-norm`.
@@ -76,9 +82,27 @@ pub struct SceneArgs {
     #[command(flatten)]
     #[allow(missing_docs)]
     pub spa: SpaArgs,
-    /// Polarization model.
+    /// Polarization model: wang (default; Berry AOP, PSNS/Wang DOP), rayleigh,
+    /// depolarized-rayleigh (Wu 2014), berry (DOP = |w|), pan (Pan 2023's neutral points),
+    /// queen (Pan's points, DOP = |w|/(2-|w|)), asymmetric (four independent neutral points);
+    /// docs/sky.md.
     #[arg(long, value_enum)]
     pub model: Option<ModelArg>,
+    /// Sky radiance: hosek (Hosek-Wilkie, default) or cie:N (CIE S 011 standard sky N = 1..15,
+    /// scaled to the Hosek-Wilkie zenith; 1-5 overcast, without the sun's disc).
+    #[arg(long, value_parser = parsed::<Radiance>, value_name = "hosek|cie:N")]
+    pub radiance: Option<Radiance>,
+    /// Molecular depolarization ratio of --model depolarized-rayleigh, 0..0.5 (default 0.0279).
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "D")]
+    pub depolarization_ratio: Option<f64>,
+    /// --model asymmetric: Arago point's distance above the anti-sun, degrees 0..90 (default:
+    /// the Brewster distance).
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG")]
+    pub arago: Option<f64>,
+    /// --model asymmetric: fourth point's distance below the anti-sun, degrees 0..90 (default:
+    /// the Brewster distance).
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG")]
+    pub fourth: Option<f64>,
     /// Turbidity, 1.7..10 (1..10 with --dop-model wang-paper or --model rayleigh).
     #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "T")]
     pub turbidity: Option<f64>,
@@ -88,7 +112,8 @@ pub struct SceneArgs {
     /// Ground albedo, 0..1.
     #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "A")]
     pub albedo: Option<f64>,
-    /// Distance of both neutral points from the sun (Babinet and Brewster), degrees 0..60.
+    /// Distance of both neutral points from the sun (Babinet and Brewster), degrees 0..60
+    /// (default 25; --model asymmetric: Pan's law unless given).
     #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG")]
     pub neutral_distance: Option<f64>,
     /// Babinet point distance above the sun, degrees 0..60.
@@ -97,7 +122,7 @@ pub struct SceneArgs {
     /// Brewster point distance below the sun, degrees 0..60.
     #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG", conflicts_with = "neutral_distance")]
     pub brewster: Option<f64>,
-    /// Maximum DOP of the Rayleigh model, 0..1.
+    /// Maximum DOP, 0..1, of every model but wang (default 1, as in the models' papers).
     #[arg(long, value_parser = finite, allow_negative_numbers = true)]
     pub dop_max: Option<f64>,
     /// Uniform unpolarized radiance of ground pixels, W m^-2 sr^-1 nm^-1 (default 0).
@@ -225,11 +250,30 @@ impl SceneArgs {
             k.model = match m {
                 ModelArg::Wang => PolarizationModel::Wang,
                 ModelArg::Rayleigh => PolarizationModel::Rayleigh,
+                ModelArg::DepolarizedRayleigh => PolarizationModel::DepolarizedRayleigh,
+                ModelArg::Berry => PolarizationModel::Berry,
+                ModelArg::Pan => PolarizationModel::Pan,
+                ModelArg::Queen => PolarizationModel::Queen,
+                ModelArg::Asymmetric => PolarizationModel::Asymmetric,
             };
+        }
+        if let Some(r) = self.radiance {
+            k.radiance = r;
         }
         k.turbidity = self.turbidity.unwrap_or(k.turbidity);
         k.wavelength_nm = self.wavelength.unwrap_or(k.wavelength_nm);
         k.albedo = self.albedo.unwrap_or(k.albedo);
+        let one_point = self.babinet.is_some() != self.brewster.is_some();
+        if self.neutral_distance.is_some() || self.babinet.is_some() || self.brewster.is_some() {
+            if one_point && k.law() == NeutralLaw::Pan {
+                return Err(crate::Error::Invalid(format!(
+                    "--model {} places both neutral points by Pan's law: to fix them give both \
+                     --babinet and --brewster, or --neutral-distance",
+                    k.model
+                )));
+            }
+            k.neutral_law = Some(NeutralLaw::Fixed);
+        }
         if let Some(d) = self.neutral_distance {
             k.babinet_deg = d;
             k.brewster_deg = d;
@@ -237,6 +281,13 @@ impl SceneArgs {
         k.babinet_deg = self.babinet.unwrap_or(k.babinet_deg);
         k.brewster_deg = self.brewster.unwrap_or(k.brewster_deg);
         k.dop_max = self.dop_max.unwrap_or(k.dop_max);
+        k.depolarization_ratio = self.depolarization_ratio.unwrap_or(k.depolarization_ratio);
+        if self.arago.is_some() {
+            k.arago_deg = self.arago;
+        }
+        if self.fourth.is_some() {
+            k.fourth_deg = self.fourth;
+        }
         if self.ground_radiance.is_some() {
             k.ground_radiance = self.ground_radiance;
         }

@@ -10,9 +10,10 @@ pub struct SkyArgs {
     #[command(flatten)]
     #[allow(missing_docs)]
     pub scene: SceneArgs,
-    /// Instead of reading directions: write the DOP stability map of both DOP models
-    /// (dop_stability.csv, .svg and a small .png) over turbidity 1..10 x sun zenith 0..90 x
-    /// wavelength 380..720 nm; the scene's other sky settings (albedo, neutral points, norm) apply.
+    /// Instead of reading directions: write the stability map of both Wang DOP models over
+    /// turbidity 1..10 x sun zenith 0..90 x wavelength 380..720 nm, and of the other models over
+    /// sun zenith (dop_stability.csv, .svg and a small .png); the scene's other sky settings
+    /// (albedo, neutral points, norm, dop-max) apply.
     #[arg(long)]
     pub stability: bool,
     /// Output directory of --stability (regenerate the docs' map with `--out docs/img`).

@@ -250,7 +250,7 @@ impl BerryField {
 /// Half-angle direction of p without trig: ∝ (r + Re p, Im p), or (Im p, r − Re p) when Re p < 0
 /// (the same direction, better conditioned); r = |p|.
 #[inline(always)]
-fn half_angle(p: Complex64, r: f64) -> (f64, f64) {
+pub(crate) fn half_angle(p: Complex64, r: f64) -> (f64, f64) {
     if p.re >= 0.0 {
         (r + p.re, p.im)
     } else {

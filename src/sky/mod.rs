@@ -1,9 +1,12 @@
 //! The clear sky: radiance, degree and angle of polarization in any direction above the horizon.
 //!
-//! * radiance: Hosek–Wilkie spectral model v1.4a ([`hosek`]), W m⁻² sr⁻¹ nm⁻¹;
-//! * E-vector (AOP): Berry, Dennis & Lee's four-neutral-point field ([`berry`]) or the single-scattering
-//!   Rayleigh field ([`rayleigh`]);
-//! * DOP: PSNS eq. (5) after Wang et al. 2016 ([`dop`]) or Rayleigh.
+//! * radiance: Hosek–Wilkie spectral model v1.4a ([`hosek`]), W m⁻² sr⁻¹ nm⁻¹,
+//!   or a CIE standard general sky scaled to its zenith ([`cie`]);
+//! * E-vector (AOP): Berry, Dennis & Lee's four-neutral-point field ([`berry`]), with fixed
+//!   distances or Pan et al.'s law ([`pan`]), four independent neutral points ([`quartic`]), or
+//!   the single-scattering Rayleigh field ([`rayleigh`]);
+//! * DOP: PSNS eq. (5) after Wang et al. 2016 ([`dop`]), Rayleigh, depolarized Rayleigh
+//!   ([`depolarized`]), Berry's |w|, or the QuEEN map |w|/(2 − |w|) ([`quartic`]).
 //!
 //! Frame: ENU (x east, y north, z up); directions as zenith angle θ and compass azimuth A
 //! (`sky.md` §1). The E-vector is returned as a 3-D unit vector perpendicular to the view
@@ -25,9 +28,13 @@
 //! arXiv:2007.13081 (2020).
 
 pub mod berry;
+pub mod cie;
 pub mod clouds;
+pub mod depolarized;
 pub mod dop;
 pub mod hosek;
+pub mod pan;
+pub mod quartic;
 pub mod rayleigh;
 pub mod stability;
 pub mod values;
@@ -39,15 +46,110 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 pub use values::SkyValues;
 
-/// Which polarization model to use.
-#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(rename_all = "lowercase")]
+/// Which polarization model to use (`docs/sky.md` gives each one's formulas, source and range).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash, Serialize, Deserialize)]
+#[serde(rename_all = "kebab-case")]
 pub enum PolarizationModel {
     /// Berry AOP + Wang/PSNS DOP (default).
     #[default]
     Wang,
     /// Single-scattering Rayleigh baseline.
     Rayleigh,
+    /// Rayleigh with anisotropic molecules (Wu et al. 2014): DOP sin²γ/(1 + cos²γ + a).
+    DepolarizedRayleigh,
+    /// Berry, Dennis & Lee 2004: the Berry field with DOP = DOP_max |w|.
+    Berry,
+    /// Pan et al. 2023: the Berry field with the neutral points at Pan's elevation law, DOP =
+    /// DOP_max |w|.
+    Pan,
+    /// QuEEN (Moutenet et al. 2024): Pan's neutral points, DOP = DOP_max |w|/(2 − |w|).
+    Queen,
+    /// Four independent neutral points on the solar meridian (the quartic field with explicit
+    /// roots), DOP = DOP_max m/(2 − m).
+    Asymmetric,
+}
+
+impl PolarizationModel {
+    /// Every model.
+    pub const ALL: [PolarizationModel; 7] = [
+        PolarizationModel::Wang,
+        PolarizationModel::Rayleigh,
+        PolarizationModel::DepolarizedRayleigh,
+        PolarizationModel::Berry,
+        PolarizationModel::Pan,
+        PolarizationModel::Queen,
+        PolarizationModel::Asymmetric,
+    ];
+
+    /// The name used on the command line and in scene files.
+    ///
+    /// ```
+    /// use psns::sky::PolarizationModel;
+    /// assert_eq!(PolarizationModel::DepolarizedRayleigh.name(), "depolarized-rayleigh");
+    /// assert_eq!("queen".parse::<PolarizationModel>().unwrap(), PolarizationModel::Queen);
+    /// ```
+    pub fn name(self) -> &'static str {
+        match self {
+            PolarizationModel::Wang => "wang",
+            PolarizationModel::Rayleigh => "rayleigh",
+            PolarizationModel::DepolarizedRayleigh => "depolarized-rayleigh",
+            PolarizationModel::Berry => "berry",
+            PolarizationModel::Pan => "pan",
+            PolarizationModel::Queen => "queen",
+            PolarizationModel::Asymmetric => "asymmetric",
+        }
+    }
+
+    /// True for the models built on Berry's quartic field (their neutral points can be placed).
+    pub fn is_quartic(self) -> bool {
+        !matches!(
+            self,
+            PolarizationModel::Rayleigh | PolarizationModel::DepolarizedRayleigh
+        )
+    }
+
+    /// The neutral-point law a model uses when the scene sets none: Pan's for `pan`, `queen`
+    /// and `asymmetric`, the fixed distances otherwise.
+    pub fn default_law(self) -> NeutralLaw {
+        match self {
+            PolarizationModel::Pan | PolarizationModel::Queen | PolarizationModel::Asymmetric => {
+                NeutralLaw::Pan
+            }
+            _ => NeutralLaw::Fixed,
+        }
+    }
+}
+
+impl std::fmt::Display for PolarizationModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for PolarizationModel {
+    type Err = crate::Error;
+    fn from_str(s: &str) -> Result<Self> {
+        let t = s.trim().to_ascii_lowercase();
+        PolarizationModel::ALL
+            .into_iter()
+            .find(|m| m.name() == t)
+            .ok_or_else(|| crate::Error::OutOfRange {
+                name: "model".into(),
+                value: s.into(),
+                allowed: "wang, rayleigh, depolarized-rayleigh, berry, pan, queen, asymmetric"
+                    .into(),
+            })
+    }
+}
+
+/// Where the Babinet and Brewster points of a quartic model lie.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum NeutralLaw {
+    /// At the fixed distances `babinet_deg` and `brewster_deg` from the sun.
+    Fixed,
+    /// At Pan et al.'s distances for the sun's elevation ([`pan`]), moving with the sun.
+    Pan,
 }
 
 /// Normalisation of the PSNS eq. (5) DOP before the clamp to [0, 1].
@@ -92,8 +194,23 @@ pub struct SkyParams {
     pub babinet_deg: f64,
     /// Brewster point distance below the sun, degrees, 0..60 (default 25).
     pub brewster_deg: f64,
-    /// Maximum DOP of the Rayleigh model, 0..1 (default 1).
+    /// Maximum DOP of the Rayleigh, depolarized-Rayleigh, Berry, Pan, QuEEN and asymmetric
+    /// models, 0..1 (default 1, as in their papers).
     pub dop_max: f64,
+    /// Molecular depolarization ratio D of the depolarized Rayleigh model, 0..0.5 (default
+    /// 0.0279, Bodhaine et al.'s dry air).
+    pub depolarization_ratio: f64,
+    /// Neutral-point law of the quartic models: `None` = the model's own
+    /// ([`PolarizationModel::default_law`]); `pan` and `queen` accept only Pan's.
+    pub neutral_law: Option<NeutralLaw>,
+    /// Asymmetric model: distance of the Arago point above the anti-sun, degrees 0..90
+    /// (`None` = the Brewster distance).
+    pub arago_deg: Option<f64>,
+    /// Asymmetric model: distance of the fourth point below the anti-sun, degrees 0..90
+    /// (`None` = the Brewster distance).
+    pub fourth_deg: Option<f64>,
+    /// Sky radiance: Hosek–Wilkie (default) or a CIE standard sky (`cie:N`).
+    pub radiance: cie::Radiance,
     /// DOP normalisation of the Wang model.
     pub dop_norm: DopNorm,
     /// Form of the Wang model's DOP: `wang-bounded` (default) or `wang-paper`.
@@ -113,6 +230,11 @@ impl Default for SkyParams {
             babinet_deg: 25.0,
             brewster_deg: 25.0,
             dop_max: 1.0,
+            depolarization_ratio: depolarized::DEFAULT_DEPOLARIZATION_RATIO,
+            neutral_law: None,
+            arago_deg: None,
+            fourth_deg: None,
+            radiance: cie::Radiance::Hosek,
             dop_norm: DopNorm::Clamp,
             dop_model: DopModel::WangBounded,
             ground_radiance: None,
@@ -121,17 +243,63 @@ impl Default for SkyParams {
 }
 
 impl SkyParams {
+    /// The neutral-point law in force: the scene's, or the model's own.
+    pub fn law(&self) -> NeutralLaw {
+        self.neutral_law.unwrap_or(self.model.default_law())
+    }
+
+    /// (Babinet, Brewster) distances from the sun, degrees, for a sun at zenith angle
+    /// `sun_zenith_deg`: the fixed ones or Pan's law ([`Self::law`]).
+    pub fn neutral_distances(&self, sun_zenith_deg: f64) -> (f64, f64) {
+        match self.law() {
+            NeutralLaw::Fixed => (self.babinet_deg, self.brewster_deg),
+            NeutralLaw::Pan => pan::distances(sun_zenith_deg),
+        }
+    }
+
     /// Checks every range of `sky.md` §8 (turbidity from 1.7 for the `wang-bounded` DOP).
     pub fn validate(&self) -> Result<()> {
         match self.model {
             PolarizationModel::Wang => dop::check_turbidity(self.turbidity, self.dop_model)?,
-            PolarizationModel::Rayleigh => check_range("turbidity", self.turbidity, 1.0, 10.0)?,
+            _ => check_range("turbidity", self.turbidity, 1.0, 10.0)?,
         };
         check_range("wavelength", self.wavelength_nm, 320.0, 720.0)?;
         check_range("albedo", self.albedo, 0.0, 1.0)?;
         check_range("babinet", self.babinet_deg, 0.0, 60.0)?;
         check_range("brewster", self.brewster_deg, 0.0, 60.0)?;
         check_range("dop-max", self.dop_max, 0.0, 1.0)?;
+        check_range(
+            "depolarization-ratio",
+            self.depolarization_ratio,
+            0.0,
+            depolarized::MAX_DEPOLARIZATION_RATIO,
+        )?;
+        if let Some(a) = self.arago_deg {
+            check_range("arago", a, 0.0, 90.0)?;
+        }
+        if let Some(f) = self.fourth_deg {
+            check_range("fourth", f, 0.0, 90.0)?;
+        }
+        if matches!(
+            self.model,
+            PolarizationModel::Pan | PolarizationModel::Queen
+        ) && self.neutral_law == Some(NeutralLaw::Fixed)
+        {
+            return Err(crate::Error::Invalid(format!(
+                "--model {} places its neutral points by Pan's law; fixed distances \
+                 (--babinet, --brewster, --neutral-distance) go with --model berry or asymmetric",
+                self.model
+            )));
+        }
+        if (self.arago_deg.is_some() || self.fourth_deg.is_some())
+            && self.model != PolarizationModel::Asymmetric
+        {
+            return Err(crate::Error::Invalid(format!(
+                "--arago and --fourth place the anti-solar neutral points of --model asymmetric, \
+                 not of --model {}",
+                self.model
+            )));
+        }
         if let Some(g) = self.ground_radiance {
             check_range("ground-radiance", g, 0.0, 100.0)?;
         }
@@ -178,6 +346,12 @@ pub struct PolarizationField {
     berry: berry::BerryField,
     wang: dop::WangDop,
     dop_max: f64,
+    /// Anisotropy term a of the depolarized Rayleigh model (0 for the others).
+    depol_a: f64,
+    /// The asymmetric model's field (`None` for the others).
+    quartic: Option<quartic::QuarticField>,
+    /// (Babinet, Brewster) distances in force, degrees.
+    neutral: (f64, f64),
 }
 
 impl PolarizationField {
@@ -186,15 +360,23 @@ impl PolarizationField {
         params.validate()?;
         sun.check_up()?;
         check_range("sun-azimuth", sun.azimuth_deg, -720.0, 720.0)?;
+        let (babinet, brewster) = params.neutral_distances(sun.zenith_deg);
+        let quartic = (params.model == PolarizationModel::Asymmetric).then(|| {
+            quartic::QuarticField::new(
+                sun.azimuth_deg,
+                quartic::meridian_angles(
+                    sun.zenith_deg,
+                    babinet,
+                    brewster,
+                    params.arago_deg.unwrap_or(brewster),
+                    params.fourth_deg.unwrap_or(brewster),
+                ),
+            )
+        });
         Ok(PolarizationField {
             model: params.model,
             sun_vec: sun.vector(),
-            berry: berry::BerryField::new(
-                sun.zenith_deg,
-                sun.azimuth_deg,
-                params.babinet_deg,
-                params.brewster_deg,
-            ),
+            berry: berry::BerryField::new(sun.zenith_deg, sun.azimuth_deg, babinet, brewster),
             wang: dop::WangDop::with_model(
                 sun.zenith_deg,
                 params.turbidity,
@@ -202,14 +384,38 @@ impl PolarizationField {
                 params.albedo,
                 params.dop_norm,
                 match params.model {
-                    // the Rayleigh model never evaluates eq. (5): cook the paper's form, which
+                    // the other models never evaluate eq. (5): cook the paper's form, which
                     // accepts every turbidity the radiance does
                     PolarizationModel::Wang => params.dop_model,
-                    PolarizationModel::Rayleigh => DopModel::WangPaper,
+                    _ => DopModel::WangPaper,
                 },
             )?,
             dop_max: params.dop_max,
+            depol_a: match params.model {
+                PolarizationModel::DepolarizedRayleigh => {
+                    depolarized::anisotropy(params.depolarization_ratio)
+                }
+                _ => 0.0,
+            },
+            quartic,
+            neutral: (babinet, brewster),
         })
+    }
+
+    /// The model.
+    pub fn model(&self) -> PolarizationModel {
+        self.model
+    }
+
+    /// (Babinet, Brewster) distances from the sun in force, degrees (the fixed ones or Pan's
+    /// law at this sun; unused by the Rayleigh models).
+    pub fn neutral_distances(&self) -> (f64, f64) {
+        self.neutral
+    }
+
+    /// The asymmetric model's field.
+    pub fn quartic(&self) -> Option<&quartic::QuarticField> {
+        self.quartic.as_ref()
     }
 
     /// The cooked Berry field.
@@ -243,7 +449,10 @@ impl PolarizationField {
                 let d = self.wang.dop(b.abs_w, theta, cos_t, gamma, cos_g);
                 (d, b.e)
             }
-            PolarizationModel::Rayleigh => self.rayleigh(v, cross, sin_g2, cos_g),
+            PolarizationModel::Rayleigh | PolarizationModel::DepolarizedRayleigh => {
+                self.rayleigh(v, cross, sin_g2, cos_g)
+            }
+            _ => self.quartic_dop_e(v),
         };
         (
             cos_t,
@@ -270,12 +479,38 @@ impl PolarizationField {
         )
     }
 
-    /// The Rayleigh model's DOP and E-vector ∝ s × v; at the sun and the anti-sun (s ∥ v) DOP 0
-    /// and the chart's north. Branch-free but for selects.
+    /// DOP and E-vector of the Berry, Pan, QuEEN and asymmetric models (not Wang's, whose DOP
+    /// needs θ and γ).
+    #[inline(always)]
+    fn quartic_dop_e(&self, v: DVec3) -> (f64, DVec3) {
+        match self.model {
+            PolarizationModel::Berry | PolarizationModel::Pan => {
+                let b = self.berry.eval(v);
+                (dop::clamp01(self.dop_max * b.abs_w), b.e)
+            }
+            PolarizationModel::Queen => {
+                let b = self.berry.eval(v);
+                let m = b.abs_w.min(1.0);
+                (quartic::intensity_to_dop(self.dop_max, m), b.e)
+            }
+            PolarizationModel::Asymmetric => {
+                let q = self
+                    .quartic
+                    .as_ref()
+                    .expect("the asymmetric model cooks its field")
+                    .eval(v);
+                (quartic::intensity_to_dop(self.dop_max, q.m), q.e)
+            }
+            _ => unreachable!("quartic_dop_e is for the quartic models without eq. (5)"),
+        }
+    }
+
+    /// The Rayleigh (a = 0) and depolarized Rayleigh models' DOP and E-vector ∝ s × v; at the
+    /// sun and the anti-sun (s ∥ v) DOP 0 and the chart's north. Branch-free but for selects.
     #[inline(always)]
     fn rayleigh(&self, v: DVec3, cross: DVec3, sin_g2: f64, cos_g: f64) -> (f64, DVec3) {
         let c2 = cos_g * cos_g;
-        let d = self.dop_max * sin_g2 / (sin_g2 + 2.0 * c2);
+        let d = self.dop_max * sin_g2 / (sin_g2 + 2.0 * c2 + self.depol_a);
         let e = cross / sin_g2.sqrt();
         let north = berry::chart_basis(v).0;
         if sin_g2 > 0.0 {
@@ -334,6 +569,10 @@ pub struct Sky {
     params: SkyParams,
     pol: PolarizationField,
     hw: hosek::HosekWilkie,
+    /// The CIE standard sky when the radiance is `cie:N`.
+    cie: Option<cie::CieSky>,
+    /// Hosek–Wilkie zenith radiance, the CIE sky's scale.
+    cie_zenith: f64,
 }
 
 impl Sky {
@@ -347,12 +586,39 @@ impl Sky {
             (90.0 - sun.zenith_deg).to_radians(),
             params.wavelength_nm,
         )?;
+        let (cie, cie_zenith) = match params.radiance {
+            cie::Radiance::Hosek => (None, 0.0),
+            cie::Radiance::Cie(n) => {
+                let ts = sun.zenith_deg.to_radians();
+                let zenith = hw.radiance_cos(1.0, ts, ts.cos()).max(0.0);
+                (Some(cie::CieSky::new(n, ts)?), zenith)
+            }
+        };
         Ok(Sky {
             sun,
             params: params.clone(),
             pol,
             hw,
+            cie,
+            cie_zenith,
         })
+    }
+
+    /// Whether the sun's disc is in view of the sky: not under an overcast CIE sky (types 1–5).
+    pub fn sun_visible(&self) -> bool {
+        !self.cie.is_some_and(|c| c.overcast())
+    }
+
+    /// Radiance at cos θ, γ and cos γ of a direction above the horizon: Hosek–Wilkie floored
+    /// at 0, or the CIE sky scaled to Hosek–Wilkie's zenith.
+    #[inline(always)]
+    fn radiance(&self, cos_t: f64, gamma: f64, cos_g: f64) -> f64 {
+        match &self.cie {
+            // HW v1.4a dips slightly below zero within ~0.005° of the horizon for low suns (e.g.
+            // θ_s = 84°, A − A_s = 100°, 450 nm, T = 4; docs/sky.md); radiance cannot be negative.
+            None => self.hw.radiance_cos(cos_t, gamma, cos_g).max(0.0),
+            Some(c) => self.cie_zenith * c.relative(cos_t, gamma),
+        }
     }
 
     /// The sun position.
@@ -385,9 +651,7 @@ impl Sky {
             return SkySample::GROUND;
         }
         let (cos_t, cos_g, mut s) = self.pol.eval(v);
-        // HW v1.4a dips slightly below zero within ~0.005° of the horizon for low suns (e.g.
-        // θ_s = 84°, A − A_s = 100°, 450 nm, T = 4; docs/sky.md); radiance cannot be negative.
-        s.radiance = self.hw.radiance_cos(cos_t, s.gamma_rad, cos_g).max(0.0);
+        s.radiance = self.radiance(cos_t, s.gamma_rad, cos_g);
         s
     }
 
@@ -425,7 +689,7 @@ impl Sky {
                 p.berry.eval_lanes(n, v, abs_w, e, rest);
                 p.wang.dop_lanes(n, abs_w, theta, ct, gamma, cg, dop, rest);
             }
-            PolarizationModel::Rayleigh => {
+            PolarizationModel::Rayleigh | PolarizationModel::DepolarizedRayleigh => {
                 for j in 0..n {
                     let vj = DVec3::new(v[0][j], v[1][j], v[2][j]);
                     let x = DVec3::new(cx[j], cy[j], cz[j]);
@@ -434,10 +698,26 @@ impl Sky {
                     (e[0][j], e[1][j], e[2][j]) = (ej.x, ej.y, ej.z);
                 }
             }
+            _ => {
+                for j in 0..n {
+                    let (d, ej) = p.quartic_dop_e(DVec3::new(v[0][j], v[1][j], v[2][j]));
+                    dop[j] = d;
+                    (e[0][j], e[1][j], e[2][j]) = (ej.x, ej.y, ej.z);
+                }
+            }
         }
-        self.hw.radiance_lanes(n, ct, gamma, cg, radiance, rest);
-        for r in &mut radiance[..n] {
-            *r = r.max(0.0);
+        match &self.cie {
+            None => {
+                self.hw.radiance_lanes(n, ct, gamma, cg, radiance, rest);
+                for r in &mut radiance[..n] {
+                    *r = r.max(0.0);
+                }
+            }
+            Some(c) => {
+                for j in 0..n {
+                    radiance[j] = self.cie_zenith * c.relative(ct[j], gamma[j]);
+                }
+            }
         }
     }
 }

@@ -1,4 +1,5 @@
-//! Stability statistics of the sky DOP on a grid of directions (issue 10, part 1).
+//! Stability statistics of the sky DOP (and the AOP's continuity in sun position) on a grid of
+//! directions.
 //!
 //! For one scene (turbidity, sun zenith, wavelength and the rest of [`SkyParams`]) the DOP is
 //! evaluated on a grid of view directions above the horizon, zenith 1°, 3°, …, 89° (step 2°)
@@ -9,7 +10,11 @@
 //!   neutral points and the sun are not, for neutral-point distances up to 40°);
 //! * **pinned high**: DOP ≥ 0.95 anywhere (the Rayleigh limit for air is about 0.94);
 //! * **max jump**: the largest |ΔDOP| between neighbouring directions 2° apart in zenith angle
-//!   (same azimuth).
+//!   (same azimuth);
+//! * **AOP shift**: the median over the directions of the axial AOP change when the sun sinks
+//!   by [`AOP_SUN_STEP_DEG`] (rises, at the horizon). A continuous model moves by about that
+//!   step; a model that turns every angle by 90° at some sun position (pyskylumos 0.1.3's
+//!   Berry and asymmetric skies, `docs/sky.md`) shows 90° in the cell where it does.
 //!
 //! Pure: no files, no allocation beyond the result.
 
@@ -24,6 +29,10 @@ pub const PINNED_HIGH: f64 = 0.95;
 pub const LOW_GAMMA_DEG: (f64, f64) = (40.0, 140.0);
 /// Largest acceptable DOP change between directions 2° apart in zenith.
 pub const MAX_JUMP: f64 = 0.15;
+/// Sun step of the AOP-shift statistic, degrees of zenith angle.
+pub const AOP_SUN_STEP_DEG: f64 = 0.5;
+/// Median AOP shift (degrees) above which a cell counts as an AOP flip.
+pub const MAX_AOP_SHIFT_DEG: f64 = 10.0;
 
 /// Direction grid: zenith from `zenith_step/2` in steps of `zenith_step_deg` below 90°,
 /// azimuth from 0 in steps of `azimuth_step_deg`.
@@ -76,6 +85,9 @@ pub struct Stability {
     pub pairs: usize,
     /// Largest DOP on the grid.
     pub max_dop: f64,
+    /// Median axial AOP change, degrees, over the directions polarized at both sun positions,
+    /// when the sun's zenith angle changes by [`AOP_SUN_STEP_DEG`].
+    pub median_aop_shift_deg: f64,
 }
 
 impl Stability {
@@ -98,6 +110,12 @@ impl Stability {
     pub fn is_stable(&self) -> bool {
         self.pinned_low == 0 && self.pinned_high == 0 && self.jumps == 0
     }
+
+    /// True when the AOP turns as a whole with a small move of the sun (median shift above
+    /// [`MAX_AOP_SHIFT_DEG`]).
+    pub fn aop_flips(&self) -> bool {
+        self.median_aop_shift_deg > MAX_AOP_SHIFT_DEG
+    }
 }
 
 /// Stability statistics of the DOP for `params` (its turbidity, wavelength, model …) with the
@@ -105,13 +123,27 @@ impl Stability {
 pub fn stability(sun_zenith_deg: f64, params: &SkyParams, grid: Grid) -> Result<Stability> {
     let sun = SunPosition::new(sun_zenith_deg, 0.0);
     let field = PolarizationField::new(sun, params)?;
+    let z2 = if sun_zenith_deg + AOP_SUN_STEP_DEG <= 90.0 {
+        sun_zenith_deg + AOP_SUN_STEP_DEG
+    } else {
+        sun_zenith_deg - AOP_SUN_STEP_DEG
+    };
+    let moved = PolarizationField::new(SunPosition::new(z2, 0.0), params)?;
     let s = sun.vector();
     let mut st = Stability::default();
+    let mut shifts = Vec::with_capacity(4096);
     for a in grid.azimuths() {
         let mut prev: Option<f64> = None;
         for z in grid.zeniths() {
             let v = direction(z, a);
-            let d = field.sample(v).dop;
+            let here = field.sample(v);
+            let d = here.dop;
+            let there = moved.sample(v);
+            if d > 0.0 && there.dop > 0.0 {
+                let x = super::aop_chart_deg(v, here.e) - super::aop_chart_deg(v, there.e);
+                let x = x.rem_euclid(180.0);
+                shifts.push(x.min(180.0 - x));
+            }
             st.directions += 1;
             st.max_dop = st.max_dop.max(d);
             let gamma = v.dot(s).clamp(-1.0, 1.0).acos().to_degrees();
@@ -134,6 +166,10 @@ pub fn stability(sun_zenith_deg: f64, params: &SkyParams, grid: Grid) -> Result<
             }
             prev = Some(d);
         }
+    }
+    if !shifts.is_empty() {
+        shifts.sort_by(f64::total_cmp);
+        st.median_aop_shift_deg = shifts[shifts.len() / 2];
     }
     Ok(st)
 }

@@ -520,8 +520,9 @@ fn ignored_options_are_refused_and_the_sun_is_recorded() {
     assert_eq!(v["sun"]["azimuth_deg"], 200.0);
 }
 
-/// `psns sky --stability --out DIR` writes the stability map of both DOP models (issue 10):
-/// the published formula has unstable cells at T >= 1.7, the default none, and refuses T < 1.7.
+/// `psns sky --stability --out DIR` writes the stability map of both DOP models and the other
+/// models' rows: the published formula has unstable cells at T >= 1.7, the default none, and
+/// refuses T < 1.7; no model's AOP flips with the sun.
 #[test]
 fn sky_stability_map() {
     let dir = tempfile::tempdir().unwrap();
@@ -537,8 +538,17 @@ fn sky_stability_map() {
     }
     let csv = std::fs::read_to_string(out.join("dop_stability.csv")).unwrap();
     let (mut paper_bad, mut bounded_bad, mut bounded_refused, mut bounded_ok) = (0, 0, 0, 0);
+    let mut other = std::collections::HashMap::new();
     for l in csv.lines().skip(1) {
         let c: Vec<&str> = l.split(',').collect();
+        if !c[0].starts_with("wang") {
+            // the models without turbidity or wavelength: one row per sun zenith, no AOP flip
+            assert_eq!((c[1], c[3]), ("any", "any"), "{l}");
+            let shift: f64 = c[12].parse().unwrap();
+            assert!(shift < 1.0, "{l}");
+            *other.entry(c[0].to_string()).or_insert(0) += 1;
+            continue;
+        }
         let t: f64 = c[1].parse().unwrap();
         match (c[0], c[4]) {
             ("wang-paper", "unstable") if t >= 1.7 => paper_bad += 1,
@@ -551,6 +561,15 @@ fn sky_stability_map() {
     assert_eq!((bounded_bad, bounded_ok), (0, 4140));
     assert_eq!(bounded_refused, 460);
     assert!(paper_bad > 500, "{paper_bad}");
+    for m in [
+        "depolarized-rayleigh",
+        "berry",
+        "pan",
+        "queen",
+        "asymmetric",
+    ] {
+        assert_eq!(other.get(m), Some(&46), "{m}");
+    }
     // --out belongs to --stability, and --stability sweeps what it would otherwise take
     let o = psns(&["sky", "--out", out.to_str().unwrap()]);
     assert_eq!(o.status.code(), Some(2));

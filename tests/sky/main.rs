@@ -5,5 +5,6 @@
 
 mod camera_chain;
 mod hosek;
+mod models;
 mod reference;
 mod stability;

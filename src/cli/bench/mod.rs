@@ -1,6 +1,7 @@
 //! `psns bench`: benchmarks that chart speed against accuracy, with the named benchmark scenes
 //! ([`scenes`]) and their charts. Front-end code: the measurements call the library's kernels.
 
+pub mod budget;
 pub mod demosaic;
 pub mod heading;
 pub mod scenes;
@@ -39,6 +40,12 @@ pub enum BenchCmd {
         /// Small frames, two yaws, two values per factor (refused with an --out inside docs/).
         #[arg(long)]
         quick: bool,
+        /// The error budget instead of the sweep: each source of yaw error (noise, quantisation,
+        /// demosaic, sky-model mismatch, IMU tilt error, lens model, clouds) alone and end to
+        /// end, for every estimator on its own and every other sky model; writes budget.csv,
+        /// budget_summary.csv, budget_frames.csv, budget_panfit.csv and budget.svg.
+        #[arg(long)]
+        budget: bool,
     },
     /// Exact vs coarse-grid sky evaluation: time per full frame and error (writes sky_grid.csv).
     Sky {
@@ -104,9 +111,13 @@ pub fn run(what: BenchCmd) -> anyhow::Result<()> {
                 eprintln!("wrote {f}");
             }
         }
-        BenchCmd::Heading { out, quick } => {
-            let opts = heading::HeadingBenchOptions { out, quick };
-            for f in heading::bench_heading(&opts)? {
+        BenchCmd::Heading { out, quick, budget } => {
+            let written = if budget {
+                budget::bench_budget(&budget::BudgetOptions { out, quick })?
+            } else {
+                heading::bench_heading(&heading::HeadingBenchOptions { out, quick })?
+            };
+            for f in written {
                 eprintln!("wrote {f}");
             }
         }
