@@ -333,7 +333,7 @@ pub fn hypot(x: f64, y: f64) -> f64 {
     sel(ax == f64::INFINITY || ay == f64::INFINITY, f64::INFINITY, h)
 }
 
-// f32: the fast path's noise (`crate::sensor::fast`, `crate::sensor::normal`). These use
+// f32: the sensor's fast-path noise. These use
 // `mul_add`, which is exactly rounded with or without the FMA instruction, so every build agrees.
 
 /// ln x for finite x > 0 (normal numbers), f32, branch-free: x = 2^e m with m in [√½, √2),

@@ -110,3 +110,146 @@ fn library_modules_import_only_lower_layers() {
         violations.join("\n")
     );
 }
+
+/// The library's module path of a source file: `src/a/b.rs` and `src/a/b/mod.rs` are `a::b`.
+fn module_path(rel: &Path) -> Vec<String> {
+    let mut parts: Vec<String> = rel
+        .components()
+        .map(|c| c.as_os_str().to_str().unwrap().to_string())
+        .collect();
+    let last = parts.pop().unwrap();
+    let stem = last.trim_end_matches(".rs");
+    if stem != "mod" {
+        parts.push(stem.to_string());
+    }
+    parts
+}
+
+/// No import cycle at any level: between the library's top modules, and between the sibling
+/// submodules of every module (`sensor::fast` and `sensor::normal` may not use each other both
+/// ways). A use of a parent by its child, or the reverse, is not an edge: a module and its
+/// children are one unit.
+#[test]
+fn no_module_imports_another_that_imports_it() {
+    let src = Path::new(env!("CARGO_MANIFEST_DIR")).join("src");
+    let mut files = Vec::new();
+    rust_files(&src, &mut files);
+    let mut modules: std::collections::HashSet<Vec<String>> = Default::default();
+    let mut texts = Vec::new();
+    for f in &files {
+        let rel = f.strip_prefix(&src).unwrap();
+        if rel == Path::new("lib.rs") || rel == Path::new("main.rs") {
+            continue;
+        }
+        let m = module_path(rel);
+        modules.insert(m.clone());
+        texts.push((m, rel.to_path_buf(), std::fs::read_to_string(f).unwrap()));
+    }
+    // edges between siblings: (parent, from child, to child) -> a line that makes it
+    let mut edges: HashMap<(Vec<String>, String, String), String> = HashMap::new();
+    for (m, rel, text) in &texts {
+        for (i, line) in text.lines().enumerate() {
+            if line.trim_start().starts_with("//") {
+                continue;
+            }
+            let mut targets = Vec::new();
+            for (prefix, base) in [("crate::", Vec::new()), ("super::", m.clone())] {
+                let mut rest = line;
+                while let Some(k) = rest.find(prefix) {
+                    let before = rest[..k].chars().last();
+                    rest = &rest[k + prefix.len()..];
+                    if before.is_some_and(|c| c.is_ascii_alphanumeric() || c == '_' || c == ':') {
+                        continue; // `$crate::`, or part of a longer path
+                    }
+                    let mut path = base.clone();
+                    if prefix == "super::" {
+                        // `super` of a file's module is its parent
+                        path.pop();
+                        let mut r = rest;
+                        while let Some(x) = r.strip_prefix("super::") {
+                            path.pop();
+                            r = x;
+                        }
+                        rest = r;
+                    }
+                    for seg in rest.split("::") {
+                        let name: String = seg
+                            .chars()
+                            .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+                            .collect();
+                        let mut next = path.clone();
+                        next.push(name.clone());
+                        if name.is_empty() || !modules.contains(&next) {
+                            break;
+                        }
+                        path = next;
+                        if seg.len() != name.len() {
+                            break;
+                        }
+                    }
+                    if !path.is_empty() {
+                        targets.push(path);
+                    }
+                }
+            }
+            for t in targets {
+                let common = m.iter().zip(&t).take_while(|(a, b)| a == b).count();
+                if common < m.len() && common < t.len() {
+                    let key = (m[..common].to_vec(), m[common].clone(), t[common].clone());
+                    edges
+                        .entry(key)
+                        .or_insert_with(|| format!("{}:{}", rel.display(), i + 1));
+                }
+            }
+        }
+    }
+    let mut cycles = Vec::new();
+    for ((parent, a, b), at) in &edges {
+        if a < b {
+            if let Some(back) = edges.get(&(parent.clone(), b.clone(), a.clone())) {
+                cycles.push(format!(
+                    "{}: {a} and {b} import each other ({at}, {back})",
+                    if parent.is_empty() {
+                        "crate".to_string()
+                    } else {
+                        parent.join("::")
+                    }
+                ));
+            }
+        }
+    }
+    // longer cycles: a path from a module back to itself through its siblings
+    let mut by_parent: HashMap<Vec<String>, HashMap<String, Vec<String>>> = HashMap::new();
+    for (parent, a, b) in edges.keys() {
+        by_parent
+            .entry(parent.clone())
+            .or_default()
+            .entry(a.clone())
+            .or_default()
+            .push(b.clone());
+    }
+    for (parent, graph) in &by_parent {
+        for start in graph.keys() {
+            let mut stack = vec![(start.clone(), vec![start.clone()])];
+            let mut seen = std::collections::HashSet::new();
+            while let Some((n, trail)) = stack.pop() {
+                for next in graph.get(&n).into_iter().flatten() {
+                    if next == start && trail.len() > 2 {
+                        cycles.push(format!(
+                            "{}: cycle {} -> {start}",
+                            parent.join("::"),
+                            trail.join(" -> ")
+                        ));
+                    } else if seen.insert(next.clone()) {
+                        let mut t = trail.clone();
+                        t.push(next.clone());
+                        stack.push((next.clone(), t));
+                    }
+                }
+            }
+        }
+    }
+    cycles.sort();
+    cycles.dedup();
+    assert!(cycles.is_empty(), "import cycles:\n{}", cycles.join("\n"));
+}

@@ -1,7 +1,8 @@
-use crate::common;
 //! `psns bench heading --budget --quick`: every source, sky model and end-to-end variant gets a
 //! row for every estimator, with sane values; the sources that must vanish do, the known
 //! mismatches do not, and the model fit finds Pan's neutral-point distances on Pan's sky.
+
+use crate::common;
 
 fn read(path: &std::path::Path) -> Vec<Vec<String>> {
     std::fs::read_to_string(path)
