@@ -9,6 +9,7 @@ pub mod demosaic;
 pub mod figures;
 pub mod heading;
 pub mod output;
+pub mod poses;
 pub mod progress;
 pub mod render;
 pub mod sky;
