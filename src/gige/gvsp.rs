@@ -281,8 +281,9 @@ pub fn decode(b: &[u8]) -> Result<Packet<'_>, GvspError> {
     })
 }
 
-/// A block kept after it was sent, so that any of its packets can be sent again.
-pub struct Block {
+/// A block kept after it was sent, so that any of its packets can be sent again; `I` holds
+/// the image bytes.
+pub struct Block<I: AsRef<[u8]> = Vec<u8>> {
     /// Block id.
     pub block_id: u16,
     /// The leader's fields.
@@ -290,21 +291,15 @@ pub struct Block {
     /// How the payload is cut into packets.
     pub layout: BlockLayout,
     /// The image bytes.
-    pub image: Box<dyn AsRef<[u8]> + Send + Sync>,
+    pub image: I,
     /// What follows the image in the payload (chunks), possibly empty.
     pub tail: Vec<u8>,
 }
 
-impl Block {
+impl<I: AsRef<[u8]>> Block<I> {
     /// A block of `image` then `tail`, cut for `packet_size`.
-    pub fn new(
-        block_id: u16,
-        leader: Leader,
-        image: Box<dyn AsRef<[u8]> + Send + Sync>,
-        tail: Vec<u8>,
-        packet_size: u32,
-    ) -> Self {
-        let layout = BlockLayout::new((*image).as_ref().len() + tail.len(), packet_size);
+    pub fn new(block_id: u16, leader: Leader, image: I, tail: Vec<u8>, packet_size: u32) -> Self {
+        let layout = BlockLayout::new(image.as_ref().len() + tail.len(), packet_size);
         Block {
             block_id,
             leader,
@@ -321,7 +316,7 @@ impl Block {
         if id == 0 {
             leader_packet(self.block_id, &self.leader, out);
         } else if id < trailer {
-            let image: &[u8] = (*self.image).as_ref();
+            let image: &[u8] = self.image.as_ref();
             self.layout
                 .data_packet(self.block_id, id, &[image, &self.tail], out);
         } else if id == trailer {
@@ -346,13 +341,13 @@ impl Block {
 
 /// The most recent blocks, for PACKETRESEND: at most `max_bytes` of payload, but always the
 /// newest block.
-pub struct BlockRing {
-    blocks: std::collections::VecDeque<std::sync::Arc<Block>>,
+pub struct BlockRing<I: AsRef<[u8]> = Vec<u8>> {
+    blocks: std::collections::VecDeque<std::sync::Arc<Block<I>>>,
     max_bytes: usize,
     bytes: usize,
 }
 
-impl BlockRing {
+impl<I: AsRef<[u8]>> BlockRing<I> {
     /// An empty ring holding at most `max_bytes` of payload (and always the newest block).
     pub fn new(max_bytes: usize) -> Self {
         BlockRing {
@@ -363,7 +358,7 @@ impl BlockRing {
     }
 
     /// Adds the newest block; returns the blocks that no longer fit, oldest first.
-    pub fn push(&mut self, b: std::sync::Arc<Block>) -> Vec<std::sync::Arc<Block>> {
+    pub fn push(&mut self, b: std::sync::Arc<Block<I>>) -> Vec<std::sync::Arc<Block<I>>> {
         self.bytes += b.bytes();
         self.blocks.push_back(b);
         let mut out = Vec::new();
@@ -376,7 +371,7 @@ impl BlockRing {
     }
 
     /// The newest block with this id.
-    pub fn get(&self, block_id: u16) -> Option<std::sync::Arc<Block>> {
+    pub fn get(&self, block_id: u16) -> Option<std::sync::Arc<Block<I>>> {
         self.blocks
             .iter()
             .rev()
@@ -459,7 +454,7 @@ mod tests {
             Arc::new(Block::new(
                 id,
                 Leader::default(),
-                Box::new(vec![id as u8; 100]),
+                vec![id as u8; 100],
                 vec![],
                 1500,
             ))
