@@ -28,6 +28,8 @@ enum Cmd {
     Sun(cli::sun::SunArgs),
     /// Stream raw frames driven by a trajectory to a file, FIFO or stdout (hardware in the loop).
     Stream(cli::stream::StreamArgs),
+    /// Be a GigE Vision camera: GenICam clients (Aravis) discover, configure and stream it.
+    Gige(cli::gige::GigeArgs),
     /// Check a frame stream: frame count, drops, corrupt and truncated frames. Exit 0 only if clean.
     Verify(cli::verify::VerifyArgs),
     /// Write one frame of a stream as PNG and TIFF plus its metadata as JSON.
@@ -56,6 +58,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Cmd::Sky(a) => cli::sky::run(a),
         Cmd::Sun(a) => cli::sun::run(a),
         Cmd::Stream(a) => cli::stream::run(a),
+        Cmd::Gige(a) => cli::gige::run(a),
         Cmd::Verify(a) => cli::verify::run_verify(a),
         Cmd::Extract(a) => cli::verify::run_extract(a),
         Cmd::Demosaic(a) => cli::demosaic::run(a),

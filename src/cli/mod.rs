@@ -7,6 +7,7 @@ pub mod bench;
 pub mod dataset;
 pub mod demosaic;
 pub mod figures;
+pub mod gige;
 pub mod heading;
 pub mod output;
 pub mod poses;
