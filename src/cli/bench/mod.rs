@@ -2,6 +2,7 @@
 //! ([`scenes`]) and their charts. Front-end code: the measurements call the library's kernels.
 
 pub mod demosaic;
+pub mod gige;
 pub mod heading;
 pub mod scenes;
 pub mod sky;
@@ -39,6 +40,20 @@ pub enum BenchCmd {
         /// Small frames, two yaws, two values per factor (refused with an --out inside docs/).
         #[arg(long)]
         quick: bool,
+    },
+    /// Frames/s an Aravis receiver (arv-camera-test-0.8 -f 200 -i 8192) gets from psns gige on
+    /// this machine, Mono8, Mono16 and under DeviceLinkThroughputLimit, against Aravis's fake
+    /// camera, with each side's CPU time (writes gige.csv and gige.md). Needs aravis-tools.
+    Gige {
+        /// Output directory (the docs' table: `--out docs/bench`).
+        #[arg(long, default_value = "out-bench")]
+        out: PathBuf,
+        /// Seconds per receiver run.
+        #[arg(long, default_value_t = 12, value_parser = clap::value_parser!(u32).range(4..=600))]
+        duration: u32,
+        /// Runs per case (median reported, with the slowest and fastest).
+        #[arg(long, default_value_t = 3, value_parser = crate::cli::args::runs)]
+        runs: usize,
     },
     /// Exact vs coarse-grid sky evaluation: time per full frame and error (writes sky_grid.csv).
     Sky {
@@ -101,6 +116,20 @@ pub fn run(what: BenchCmd) -> anyhow::Result<()> {
                 steps,
             };
             for f in stream::bench_stream(&cfg, &opts)? {
+                eprintln!("wrote {f}");
+            }
+        }
+        BenchCmd::Gige {
+            out,
+            duration,
+            runs,
+        } => {
+            let opts = gige::GigeBenchOptions {
+                out,
+                duration_s: duration,
+                runs,
+            };
+            for f in gige::bench_gige(&opts)? {
                 eprintln!("wrote {f}");
             }
         }
