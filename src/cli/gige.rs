@@ -244,7 +244,7 @@ pub fn run(a: GigeArgs) -> anyhow::Result<()> {
     let control = bind(SocketAddrV4::new(a.address, a.port))?;
     let stream = bind(SocketAddrV4::new(a.address, 0))?;
     let port = control.local_addr().map(|s| s.port()).unwrap_or(a.port);
-    let discovery = broadcast_socket(a.address, port);
+    let discovery = broadcast_socket(port);
     let mut device = Device::new(info, psns::gige::xml::genicam_xml());
     device.set_source_port(stream.local_addr().map(|s| s.port()).unwrap_or(0));
     let serial = device.info().serial.clone();
@@ -358,8 +358,8 @@ fn spawn(
 
 /// A socket on 255.255.255.255:`port` for discovery broadcasts (shared with other devices on
 /// this host); `None` when it cannot be had (then only unicast discovery works).
-fn broadcast_socket(address: Ipv4Addr, port: u16) -> Option<UdpSocket> {
-    if !(address.is_loopback() || address.is_unspecified()) && port == 0 {
+fn broadcast_socket(port: u16) -> Option<UdpSocket> {
+    if port == 0 {
         return None;
     }
     use std::os::fd::FromRawFd;
@@ -609,22 +609,27 @@ fn send_loop(
             if link_free < now {
                 link_free = now;
             }
+            let paced = o.throughput.is_some() || o.packet_delay_ns > 0;
             for id in 0..=o.block.layout.trailer_id() {
                 if stopping() {
                     break;
                 }
                 o.block.packet(id, &mut buf);
                 let data = id != 0 && id != o.block.layout.trailer_id();
-                if let Some(rate) = o.throughput {
-                    let wire = (buf.len() + gvsp::IP_UDP_LEN) as u64 + ETHERNET_FRAMING;
-                    link_free += Duration::from_nanos(wire * 1_000_000_000 / rate);
+                if paced {
+                    // the packet leaves when the link is free; the delay between packets and the
+                    // link's time for the packet move the schedule, so the average is exact
+                    // even though the scheduler wakes the thread only every few tens of µs
                     let ahead = link_free.saturating_duration_since(Instant::now());
                     if ahead > PACING_SLACK {
                         std::thread::sleep(ahead - PACING_SLACK);
                     }
-                }
-                if o.packet_delay_ns > 0 {
-                    std::thread::sleep(Duration::from_nanos(o.packet_delay_ns as u64));
+                    let mut ns = o.packet_delay_ns as u64;
+                    if let Some(rate) = o.throughput {
+                        let wire = (buf.len() + gvsp::IP_UDP_LEN) as u64 + ETHERNET_FRAMING;
+                        ns += wire * 1_000_000_000 / rate;
+                    }
+                    link_free += Duration::from_nanos(ns);
                 }
                 if data && dropped(seed, o.k, id, drop_p) {
                     sh.stats.dropped.fetch_add(1, Ordering::Relaxed);

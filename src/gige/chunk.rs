@@ -186,7 +186,7 @@ mod tests {
             sun_azimuth_deg: 200.0,
             sun_elevation_deg: 40.0,
         };
-        let image = vec![1u8; 10];
+        let image = [1u8; 10];
         let mut tail = Vec::new();
         append(&mut tail, image.len(), ALL_MASK, &v);
         assert_eq!(tail.len(), tail_len(ALL_MASK));
