@@ -315,16 +315,24 @@ pub fn run(a: GigeArgs) -> anyhow::Result<()> {
     STOP.store(true, Ordering::SeqCst);
     shared.wake.notify_all();
     let mut failure = None;
-    for t in threads {
-        if let Ok(Err(e)) = t.join() {
+    let mut join = |t: std::thread::JoinHandle<Result<()>>| match t.join() {
+        Ok(Ok(())) => {}
+        Ok(Err(e)) => {
             failure.get_or_insert(e);
         }
+        Err(_) => {
+            failure.get_or_insert(Error::io(
+                "psns gige",
+                std::io::Error::other("a thread panicked"),
+            ));
+        }
+    };
+    for t in threads {
+        join(t);
     }
     // the render thread may be waiting for a trajectory line on stdin: it is not waited for
     if render.is_finished() {
-        if let Ok(Err(e)) = render.join() {
-            failure.get_or_insert(e);
-        }
+        join(render);
     }
     let s = &shared.stats;
     eprintln!(
