@@ -312,25 +312,45 @@ impl<I: AsRef<[u8]>> Block<I> {
     /// Writes packet `id` (0 leader, 1..=n data, n + 1 trailer) into `out`; false for an id
     /// past the trailer.
     pub fn packet(&self, id: u32, out: &mut Vec<u8>) -> bool {
+        match self.packet_parts(id, out) {
+            Some([a, b]) => {
+                out.extend_from_slice(a);
+                out.extend_from_slice(b);
+                true
+            }
+            None => false,
+        }
+    }
+
+    /// Packet `id` in parts, for a sender that gathers them without copying the payload: its
+    /// head written into `head` (the whole leader or trailer, or a data packet's 8-byte header)
+    /// and the payload bytes that follow as two slices of the block (image, then chunks; either
+    /// may be empty). `None` past the trailer.
+    pub fn packet_parts(&self, id: u32, head: &mut Vec<u8>) -> Option<[&[u8]; 2]> {
         let trailer = self.layout.trailer_id();
         if id == 0 {
-            leader_packet(self.block_id, &self.leader, out);
+            leader_packet(self.block_id, &self.leader, head);
         } else if id < trailer {
+            head.clear();
+            header(head, 0, self.block_id, FORMAT_PAYLOAD, id);
             let image: &[u8] = self.image.as_ref();
-            self.layout
-                .data_packet(self.block_id, id, &[image, &self.tail], out);
+            let r = self.layout.range(id);
+            let n = image.len();
+            let a = &image[r.start.min(n)..r.end.min(n)];
+            let b = &self.tail[r.start.max(n) - n..r.end.max(n) - n];
+            return Some([a, b]);
         } else if id == trailer {
             trailer_packet(
                 self.block_id,
                 id,
                 self.leader.payload_type,
                 self.leader.height,
-                out,
+                head,
             );
         } else {
-            return false;
+            return None;
         }
-        true
+        Some([&[], &[]])
     }
 
     /// Payload bytes held.
@@ -484,6 +504,15 @@ mod tests {
             Content::Trailer { .. }
         ));
         assert!(!b.packet(3, &mut out));
+        // a block whose data packets straddle the image and the chunks
+        let b = Block::new(5, Leader::default(), vec![1u8; 50], vec![2u8; 30], 36 + 16);
+        let mut joined = Vec::new();
+        for id in 1..=b.layout.data_packets() {
+            assert!(b.packet(id, &mut out));
+            b.layout
+                .data_packet(5, id, &[&[1u8; 50], &[2u8; 30]], &mut joined);
+            assert_eq!(out, joined, "packet {id}");
+        }
     }
 
     #[test]
