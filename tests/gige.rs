@@ -339,6 +339,36 @@ fn genicam_xml_validates_against_the_genapi_schema() {
     s.stop();
 }
 
+/// Aravis's own test suite for cameras: the GenICam data, properties, acquisitions (multiple,
+/// single, software trigger), chunks, GigE Vision specifics.
+#[test]
+fn arv_test_passes() {
+    require_tools();
+    let serial = format!("arvt-{}", std::process::id());
+    let s = Server::start(&["--width", "256", "--height", "128", "--serial", &serial]);
+    let o = bounded(
+        600,
+        "arv-test-0.8",
+        &["-n", &format!("psns-IMX250MZR-sky-{serial}")],
+    );
+    let t = text(&o);
+    s.stop();
+    let passed = t.lines().filter(|l| l.contains(" SUCCESS")).count();
+    assert!(passed >= 15, "{passed} tests passed:\n{t}");
+    assert!(!t.contains("FAILURE"), "{t}");
+    for test in [
+        "MultipleAcquisitionA:BufferCheck",
+        "SoftwareTrigger:BufferCheck",
+        "Chunks:BufferCheck",
+    ] {
+        assert!(
+            t.lines()
+                .any(|l| l.starts_with(test) && l.contains("SUCCESS")),
+            "{test}:\n{t}"
+        );
+    }
+}
+
 #[test]
 fn discovery_finds_the_device() {
     require_tools();
@@ -851,6 +881,16 @@ fn chunks_decoded_by_aravis_equal_the_truth_file() {
             row["timestamp_ns"]
         );
         assert_eq!(c["ChunkFrameIndex"].as_u64().unwrap(), block - 1);
+        for (chunk, col) in [
+            ("ChunkOffsetX", "offset_x"),
+            ("ChunkOffsetY", "offset_y"),
+            ("ChunkWidth", "width"),
+            ("ChunkHeight", "height"),
+        ] {
+            assert_eq!(c[chunk].as_u64().unwrap().to_string(), row[col], "{chunk}");
+        }
+        assert_eq!(c["ChunkPixelFormat"].as_u64(), Some(0x0110_0007));
+        assert_eq!(row["pixel_format"], "Mono16");
         assert_eq!(
             f["timestamp"].as_u64().unwrap().to_string(),
             row["timestamp_ns"]

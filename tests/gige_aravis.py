@@ -32,7 +32,15 @@ CHUNK_FLOATS = [
     "ChunkSunAzimuth",
     "ChunkSunElevation",
 ]
-CHUNK_INTS = ["ChunkTimestamp", "ChunkFrameIndex"]
+CHUNK_INTS = [
+    "ChunkTimestamp",
+    "ChunkFrameIndex",
+    "ChunkOffsetX",
+    "ChunkOffsetY",
+    "ChunkWidth",
+    "ChunkHeight",
+    "ChunkPixelFormat",
+]
 STATS = [
     "n_completed_buffers",
     "n_failures",
@@ -111,7 +119,8 @@ def grab(args):
     parser = None
     if args.chunks:
         cam.set_chunks(
-            "ExposureTime,Gain,Timestamp,FrameIndex,Attitude,SunPosition"
+            "ExposureTime,Gain,Timestamp,FrameIndex,Attitude,SunPosition,"
+            "OffsetX,OffsetY,Width,Height,PixelFormat"
         )
         parser = cam.create_chunk_parser()
     # exactly --frames blocks, with a buffer for each: none is lost to a slow reader

@@ -187,7 +187,9 @@ proptest! {
                          e in -1e9f64..1e9, g in -1e3f64..1e3, ts in any::<u64>(), k in any::<u64>(),
                          q in prop::array::uniform4(-1f64..1.0), az in 0f64..360.0, el in -90f64..90.0) {
         let v = ChunkValues { exposure_us: e, gain_db: g, timestamp: ts, frame_index: k,
-                              attitude_wxyz: q, sun_azimuth_deg: az, sun_elevation_deg: el };
+                              attitude_wxyz: q, sun_azimuth_deg: az, sun_elevation_deg: el,
+                              region: [k as u32, ts as u32, e as u32, g as u32],
+                              pixel_format: GevPixelFormat::ALL[(k % 8) as usize].code() };
         let mut tail = Vec::new();
         chunk::append(&mut tail, image.len(), mask, &v);
         prop_assert_eq!(tail.len(), chunk::tail_len(mask));
@@ -638,7 +640,13 @@ fn payload_size_follows_region_format_and_chunks() {
         Ok(640 * 480 * 3 / 2 + all - 40)
     );
     assert_eq!(
-        write(&mut dev, a, addr::CHUNK_SELECTOR, 6, 0),
+        write(
+            &mut dev,
+            a,
+            addr::CHUNK_SELECTOR,
+            ChunkKind::ALL.len() as u32,
+            0
+        ),
         Status::InvalidParameter as u16
     );
 }

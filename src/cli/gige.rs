@@ -878,6 +878,8 @@ impl Renderer {
             attitude_wxyz: camera_to_enu_quaternion(&m),
             sun_azimuth_deg: sun.azimuth_deg,
             sun_elevation_deg: sun.elevation_deg(),
+            region: [s.offset_x, s.offset_y, s.width, s.height],
+            pixel_format: s.pixel_format.code(),
         };
         let mut tail = Vec::new();
         if s.chunk_mode {

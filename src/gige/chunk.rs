@@ -14,6 +14,11 @@
 //! | FrameIndex | 0x50534E04 | u64 | ChunkFrameIndex (psns's frame index) |
 //! | Attitude | 0x50534E05 | 4 × f64: w, x, y, z | ChunkAttitudeW/X/Y/Z (camera → ENU) |
 //! | SunPosition | 0x50534E06 | 2 × f64: azimuth, elevation, ° | ChunkSunAzimuth, ChunkSunElevation |
+//! | OffsetX | 0x50534E07 | u32 | ChunkOffsetX |
+//! | OffsetY | 0x50534E08 | u32 | ChunkOffsetY |
+//! | Width | 0x50534E09 | u32 | ChunkWidth |
+//! | Height | 0x50534E0A | u32 | ChunkHeight |
+//! | PixelFormat | 0x50534E0B | u32, the format's code | ChunkPixelFormat |
 //!
 //! ```
 //! use psns::gige::chunk::{append, chunks, ChunkKind, ChunkValues, IMAGE_CHUNK_ID};
@@ -48,17 +53,32 @@ pub enum ChunkKind {
     Attitude = 4,
     /// Sun azimuth and elevation at mid-exposure, degrees.
     SunPosition = 5,
+    /// First column of the region.
+    OffsetX = 6,
+    /// First row of the region.
+    OffsetY = 7,
+    /// Width of the region.
+    Width = 8,
+    /// Height of the region.
+    Height = 9,
+    /// Pixel format code.
+    PixelFormat = 10,
 }
 
 impl ChunkKind {
     /// Every chunk, in selector (and block) order.
-    pub const ALL: [ChunkKind; 6] = [
+    pub const ALL: [ChunkKind; 11] = [
         ChunkKind::ExposureTime,
         ChunkKind::Gain,
         ChunkKind::Timestamp,
         ChunkKind::FrameIndex,
         ChunkKind::Attitude,
         ChunkKind::SunPosition,
+        ChunkKind::OffsetX,
+        ChunkKind::OffsetY,
+        ChunkKind::Width,
+        ChunkKind::Height,
+        ChunkKind::PixelFormat,
     ];
 
     /// The ChunkSelector entry's name.
@@ -70,6 +90,11 @@ impl ChunkKind {
             ChunkKind::FrameIndex => "FrameIndex",
             ChunkKind::Attitude => "Attitude",
             ChunkKind::SunPosition => "SunPosition",
+            ChunkKind::OffsetX => "OffsetX",
+            ChunkKind::OffsetY => "OffsetY",
+            ChunkKind::Width => "Width",
+            ChunkKind::Height => "Height",
+            ChunkKind::PixelFormat => "PixelFormat",
         }
     }
 
@@ -83,6 +108,11 @@ impl ChunkKind {
         match self {
             ChunkKind::Attitude => 32,
             ChunkKind::SunPosition => 16,
+            ChunkKind::OffsetX
+            | ChunkKind::OffsetY
+            | ChunkKind::Width
+            | ChunkKind::Height
+            | ChunkKind::PixelFormat => 4,
             _ => 8,
         }
     }
@@ -108,6 +138,10 @@ pub struct ChunkValues {
     pub sun_azimuth_deg: f64,
     /// Sun elevation, degrees.
     pub sun_elevation_deg: f64,
+    /// Region: offset x, offset y, width, height.
+    pub region: [u32; 4],
+    /// Pixel format code.
+    pub pixel_format: u32,
 }
 
 /// Bytes the chunks of `mask` add after an image: the image's trailer and each enabled chunk's
@@ -147,6 +181,11 @@ pub fn append(out: &mut Vec<u8>, image_len: usize, mask: u32, v: &ChunkValues) {
                 out.extend(v.sun_azimuth_deg.to_be_bytes());
                 out.extend(v.sun_elevation_deg.to_be_bytes());
             }
+            ChunkKind::OffsetX => out.extend(v.region[0].to_be_bytes()),
+            ChunkKind::OffsetY => out.extend(v.region[1].to_be_bytes()),
+            ChunkKind::Width => out.extend(v.region[2].to_be_bytes()),
+            ChunkKind::Height => out.extend(v.region[3].to_be_bytes()),
+            ChunkKind::PixelFormat => out.extend(v.pixel_format.to_be_bytes()),
         }
         trailer(out, k.id(), k.data_len());
     }
@@ -185,6 +224,8 @@ mod tests {
             attitude_wxyz: [0.5, -0.5, 0.5, -0.5],
             sun_azimuth_deg: 200.0,
             sun_elevation_deg: 40.0,
+            region: [2, 4, 640, 480],
+            pixel_format: 0x0108_0001,
         };
         let image = [1u8; 10];
         let mut tail = Vec::new();
@@ -192,8 +233,18 @@ mod tests {
         assert_eq!(tail.len(), tail_len(ALL_MASK));
         let block = [&image[..], &tail].concat();
         let c = chunks(&block).unwrap();
-        assert_eq!(c.len(), 7);
-        assert_eq!(c[6], (IMAGE_CHUNK_ID, &image[..]));
+        assert_eq!(c.len(), 12);
+        assert_eq!(c[11], (IMAGE_CHUNK_ID, &image[..]));
+        assert_eq!(
+            c[0],
+            (
+                ChunkKind::PixelFormat.id(),
+                &0x0108_0001u32.to_be_bytes()[..]
+            )
+        );
+        assert_eq!(c[1].1, 480u32.to_be_bytes());
+        assert_eq!(c[4].1, 2u32.to_be_bytes());
+        let c = &c[5..];
         let f = |i: usize, at: usize| f64::from_be_bytes(c[i].1[at..at + 8].try_into().unwrap());
         assert_eq!(c[0].0, ChunkKind::SunPosition.id());
         assert_eq!((f(0, 0), f(0, 8)), (200.0, 40.0));

@@ -378,6 +378,7 @@ fn categories(x: &mut X) {
     );
     let mut chunk_features = vec!["ChunkModeActive", "ChunkSelector", "ChunkEnable"];
     chunk_features.extend(CHUNK_FEATURES.iter().map(|c| c.0));
+    chunk_features.push("ChunkPixelFormat");
     x.category(
         "ChunkDataControl",
         "Per-frame data appended to the image.",
@@ -817,7 +818,7 @@ fn analog(x: &mut X) {
 }
 
 /// Chunk features: (feature, chunk, byte offset in the chunk, float or integer).
-const CHUNK_FEATURES: [(&str, ChunkKind, u32, bool); 10] = [
+const CHUNK_FEATURES: [(&str, ChunkKind, u32, bool); 14] = [
     ("ChunkExposureTime", ChunkKind::ExposureTime, 0, true),
     ("ChunkGain", ChunkKind::Gain, 0, true),
     ("ChunkTimestamp", ChunkKind::Timestamp, 0, false),
@@ -828,6 +829,10 @@ const CHUNK_FEATURES: [(&str, ChunkKind, u32, bool); 10] = [
     ("ChunkAttitudeZ", ChunkKind::Attitude, 24, true),
     ("ChunkSunAzimuth", ChunkKind::SunPosition, 0, true),
     ("ChunkSunElevation", ChunkKind::SunPosition, 8, true),
+    ("ChunkOffsetX", ChunkKind::OffsetX, 0, false),
+    ("ChunkOffsetY", ChunkKind::OffsetY, 0, false),
+    ("ChunkWidth", ChunkKind::Width, 0, false),
+    ("ChunkHeight", ChunkKind::Height, 0, false),
 ];
 
 fn chunks(x: &mut X) {
@@ -889,7 +894,7 @@ fn chunks(x: &mut X) {
         );
         x.head(chunk_tip(name), false);
         x.el(2, "Address", &format!("0x{offset:X}"));
-        x.el(2, "Length", "8");
+        x.el(2, "Length", if k.data_len() == 4 { "4" } else { "8" });
         x.el(2, "AccessMode", "RO");
         x.el(2, "pPort", &port);
         x.el(2, "Cachable", "NoCache");
@@ -898,6 +903,28 @@ fn chunks(x: &mut X) {
         }
         x.close(kind);
     }
+    // the pixel format chunk, as an enumeration of the formats
+    let entries: Vec<(&str, u32, &str)> = GevPixelFormat::ALL
+        .iter()
+        .map(|f| (f.name(), f.code(), "A pixel format."))
+        .collect();
+    x.enumeration(
+        "ChunkPixelFormat",
+        "Pixel format of the frame.",
+        false,
+        "ChunkPixelFormatReg",
+        &entries,
+    );
+    x.register(
+        "IntReg",
+        "ChunkPixelFormatReg",
+        0,
+        4,
+        Access::Ro,
+        "ChunkPixelFormatPort",
+        None,
+        &[("Sign", "Unsigned"), ("Endianess", "BigEndian")],
+    );
 }
 
 fn chunk_tip(name: &str) -> &'static str {
@@ -910,6 +937,7 @@ fn chunk_tip(name: &str) -> &'static str {
             "Attitude quaternion of the camera, camera to ENU (w, x, y, z)."
         }
         "ChunkSunAzimuth" => "Sun azimuth at mid-exposure, degrees from north.",
+        "ChunkOffsetX" | "ChunkOffsetY" | "ChunkWidth" | "ChunkHeight" => "Region of the frame.",
         _ => "Sun elevation at mid-exposure, degrees.",
     }
 }
