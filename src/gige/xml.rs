@@ -1,5 +1,5 @@
 //! The device's GenICam description (GenApi schema 1.1), served from device memory at
-//! [`addr::XML`](super::registers::addr::XML): every feature mapped onto the registers of
+//! [`addr::XML`]: every feature mapped onto the registers of
 //! [`super::registers`], with the SFNC names a client expects.
 //!
 //! ```
