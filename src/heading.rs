@@ -19,8 +19,11 @@
 //! tests); the yaw is ill-conditioned with the sun near the zenith (confidence says so).
 
 use crate::camera::{rot_x, rot_y, Intrinsics};
+use crate::demosaic::superpixel::superpixel_sampled;
+use crate::demosaic::{demosaic_codes, Method, PolarImages};
 use crate::error::{check_range, Error, Result};
 use crate::image::Image;
+use crate::sensor::mosaic::MosaicLayout;
 use crate::sensor::optics::RelativeIllumination;
 use crate::sun::SunPosition;
 use glam::{DMat3, DVec3};
@@ -1363,6 +1366,107 @@ pub fn mask_saturated_sampled(
                 .count()
         })
         .sum()
+}
+
+/// Demosaics one mosaic (codes minus the black level) and masks the pixels next to a code at
+/// full scale of `bits` (DoLP = NaN); returns the images and the number of masked pixels.
+pub fn polar_from_codes(
+    codes: &Image<u16>,
+    black_level: f64,
+    layout: MosaicLayout,
+    bits: u8,
+    demosaic: Method,
+) -> Result<(PolarImages, usize)> {
+    crate::demosaic::check_raw(codes)?;
+    let full = ((1u32 << bits) - 1).min(65535) as u16;
+    let mut p = demosaic_codes(codes, black_level, layout, demosaic)?;
+    let saturated = mask_saturated(&mut p.dolp, codes, full);
+    Ok((p, saturated))
+}
+
+/// [`polar_from_codes`] for what the estimators read: with no `--demosaic` and a frame large
+/// enough ([`superpixel_step`]), every k-th superpixel only, with the intrinsics of that sampled
+/// view ([`sampled_intrinsics`]) in the returned setup; otherwise the whole frame.
+pub fn polar_for_estimate(
+    codes: &Image<u16>,
+    black_level: f64,
+    layout: MosaicLayout,
+    bits: u8,
+    demosaic: Option<Method>,
+    setup: &HeadingSetup,
+) -> Result<(PolarImages, usize, HeadingSetup)> {
+    let k = superpixel_step(codes.width, codes.height);
+    match (demosaic, k) {
+        (None, Some(k)) => {
+            let full = ((1u32 << bits) - 1).min(65535) as u16;
+            let mut p = superpixel_sampled(codes, layout, k, black_level as f32)?;
+            let saturated = mask_saturated_sampled(&mut p.dolp, codes, full, k);
+            let mut s = *setup;
+            s.intrinsics = sampled_intrinsics(&setup.intrinsics, k);
+            s.step = 1;
+            Ok((p, saturated, s))
+        }
+        (d, _) => {
+            let (p, saturated) = polar_from_codes(
+                codes,
+                black_level,
+                layout,
+                bits,
+                d.unwrap_or(Method::Bilinear),
+            )?;
+            Ok((p, saturated, *setup))
+        }
+    }
+}
+
+/// The estimate from one mosaic: demosaic (see [`polar_for_estimate`]), mask clipped pixels,
+/// estimate. Without enough usable pixels there is no estimate and [`CodesEstimate::reason`]
+/// says why.
+pub fn estimate_codes(
+    codes: &Image<u16>,
+    black_level: f64,
+    layout: MosaicLayout,
+    bits: u8,
+    demosaic: Option<Method>,
+    method: HeadingMethod,
+    setup: &HeadingSetup,
+) -> Result<CodesEstimate> {
+    let (p, saturated, setup) =
+        polar_for_estimate(codes, black_level, layout, bits, demosaic, setup)?;
+    let view = PolarView {
+        aolp_deg: &p.aolp_deg,
+        dolp: &p.dolp,
+        s0: Some(&p.stokes.s0),
+    };
+    match estimate_heading_info(method, &view, &setup) {
+        Ok((e, info)) => Ok(CodesEstimate {
+            estimate: Some(e),
+            saturated,
+            info,
+            reason: None,
+        }),
+        // too few usable pixels (saturated, unpolarized): no heading, zero confidence
+        Err(Error::Invalid(m)) if m.starts_with("heading: only") => Ok(CodesEstimate {
+            estimate: None,
+            saturated,
+            info: None,
+            reason: Some(m),
+        }),
+        Err(e) => Err(e),
+    }
+}
+
+/// The estimate from one mosaic ([`estimate_codes`]).
+#[derive(Clone, Debug)]
+pub struct CodesEstimate {
+    /// The estimate; `None` when too few pixels are usable.
+    pub estimate: Option<HeadingEstimate>,
+    /// Pixels masked as within one pixel of a code at full scale.
+    pub saturated: usize,
+    /// The model fit's details (`--method model-fit`).
+    pub info: Option<ModelFitInfo>,
+    /// Why there is no estimate.
+    pub reason: Option<String>,
 }
 
 #[cfg(test)]

@@ -4,6 +4,7 @@
 
 use crate::error::{Error, Result};
 use crate::image::Image;
+use crate::sensor::mosaic::MosaicLayout;
 use std::fs::File;
 use std::io::{BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
@@ -315,6 +316,110 @@ pub fn write_tiff_u16(path: &Path, img: &Image<u16>) -> Result<()> {
             &img.data,
         )
         .map_err(terr)
+    })
+}
+
+/// Creates a directory and its parents.
+pub fn create_dir(dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir).map_err(|e| Error::io(format!("creating {}", dir.display()), e))
+}
+
+/// Writes a text file atomically.
+pub fn write_text(path: &Path, text: &str) -> Result<()> {
+    write_atomic(path, |w| {
+        w.write_all(text.as_bytes())
+            .map_err(|e| Error::io(format!("writing {}", path.display()), e))
+    })
+}
+
+/// Opens a file, or stdin for `-`.
+/// Send + Sync, so a reader kept across calls (the Python package's stream iterator) can hold
+/// it; stdin is locked per read, which its large buffered reads make negligible.
+pub fn open_input(path: &Path) -> Result<Box<dyn Read + Send + Sync>> {
+    if path.as_os_str() == "-" {
+        Ok(Box::new(std::io::stdin()))
+    } else {
+        let f = File::open(path).map_err(|e| Error::input(path, e))?;
+        if f.metadata().is_ok_and(|m| m.is_dir()) {
+            return Err(Error::Invalid(format!("{} is a directory", path.display())));
+        }
+        Ok(Box::new(std::io::BufReader::with_capacity(1 << 20, f)))
+    }
+}
+
+/// A raw mosaic loaded from a file or a stream.
+#[derive(Clone, Debug)]
+pub struct LoadedRaw {
+    /// Codes.
+    pub codes: Image<u16>,
+    /// Layout (the stream's header, else the caller's).
+    pub layout: MosaicLayout,
+    /// Black level in code units (stream metadata; 0 for PNG/TIFF).
+    pub black_level: f64,
+    /// Significant bits (stream header; 8 or 16 for PNG/TIFF).
+    pub bits: u8,
+    /// Frame index for stream input.
+    pub frame: Option<u64>,
+}
+
+/// Reads a raw PNG/TIFF or a psns frame stream (recognised by its magic bytes).
+pub fn load_raw(input: &Path, layout: MosaicLayout, frame: Option<u64>) -> Result<LoadedRaw> {
+    // a FIFO (or other non-file) can be read only once: it is taken as a stream, unpeeked
+    if std::fs::metadata(input).is_ok_and(|m| !m.is_file() && !m.is_dir()) {
+        return load_stream(input, frame);
+    }
+    let mut head = [0u8; 8];
+    {
+        let mut f = File::open(input).map_err(|e| Error::input(input, e))?;
+        let n = f.read(&mut head).map_err(|e| Error::input(input, e))?;
+        if n < 8 {
+            return Err(Error::Format(format!(
+                "{}: too short for a raw image or stream ({n} bytes)",
+                input.display()
+            )));
+        }
+    }
+    if head == crate::stream::FILE_MAGIC {
+        return load_stream(input, frame);
+    }
+    let is_image =
+        head.starts_with(b"\x89PNG") || head.starts_with(b"II*\0") || head.starts_with(b"MM\0*");
+    if !is_image {
+        return Err(Error::Format(format!(
+            "{}: not a PNG, TIFF or psns stream",
+            input.display()
+        )));
+    }
+    let g = read_gray(input)?;
+    if frame.is_some() {
+        return Err(Error::Invalid(
+            "--frame applies to stream input only".into(),
+        ));
+    }
+    Ok(LoadedRaw {
+        codes: g.image,
+        layout,
+        black_level: 0.0,
+        bits: g.bits,
+        frame: None,
+    })
+}
+
+fn load_stream(input: &Path, frame: Option<u64>) -> Result<LoadedRaw> {
+    let ex = crate::stream::find_frame(open_input(input)?, frame)?;
+    let h = &ex.header;
+    // the black level is in DN of the payload; MSB-aligned payloads are unpacked to LSB
+    let black = if h.msb_aligned {
+        ex.meta.black_level / 2f64.powi(16 - h.bits_valid as i32)
+    } else {
+        ex.meta.black_level
+    };
+    Ok(LoadedRaw {
+        codes: Image::from_vec(h.width as usize, h.height as usize, ex.codes),
+        layout: h.layout,
+        black_level: black,
+        bits: h.bits_valid,
+        frame: Some(ex.meta.index),
     })
 }
 

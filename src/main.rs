@@ -21,9 +21,9 @@ struct Cli {
 #[derive(Subcommand)]
 enum Cmd {
     /// Render a scene: ideal LI/DOP/AOP images, polarizer images and visualisations.
-    Render(cli::render::RenderArgs),
+    Render(psns::options::RenderArgs),
     /// Sky values for directions read as CSV on stdin (header `zenith_deg,azimuth_deg`).
-    Sky(cli::sky::SkyArgs),
+    Sky(psns::options::SkyArgs),
     /// Sun position (SPA) for a UTC time and place, as CSV `zenith_deg,azimuth_deg`.
     Sun(cli::sun::SunArgs),
     /// Stream raw frames driven by a trajectory to a file, FIFO or stdout (hardware in the loop).
@@ -35,13 +35,13 @@ enum Cmd {
     /// Write one frame of a stream as PNG and TIFF plus its metadata as JSON.
     Extract(cli::verify::ExtractArgs),
     /// Demosaic a raw mosaic (PNG/TIFF) or a stream frame into S0, S1, S2, DoLP, AoLP.
-    Demosaic(cli::demosaic::DemosaicArgs),
+    Demosaic(psns::options::DemosaicArgs),
     /// The camera's yaw from one raw frame's polarization (sun-vector estimator), as CSV.
-    Heading(cli::heading::HeadingArgs),
+    Heading(psns::options::HeadingArgs),
     /// Datasets like PSNS: build (sharded, resumable), verify, merge shard manifests.
     Dataset {
         #[command(subcommand)]
-        what: cli::dataset::DatasetCmd,
+        what: psns::options::DatasetCmd,
     },
     /// Benchmarks that chart speed against accuracy.
     Bench {
@@ -70,7 +70,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
 }
 
 fn main() -> ExitCode {
-    let matches = cli::negative_numbers(Cli::command()).get_matches();
+    let matches = psns::options::negative_numbers(Cli::command()).get_matches();
     // usage errors exit with code 2
     let cli = Cli::from_arg_matches(&matches).unwrap_or_else(|e| e.exit());
     cli::exit_code(run(cli))
@@ -83,6 +83,6 @@ mod tests {
     #[test]
     fn command_line_is_consistent() {
         use clap::CommandFactory;
-        crate::cli::negative_numbers(super::Cli::command()).debug_assert();
+        psns::options::negative_numbers(super::Cli::command()).debug_assert();
     }
 }

@@ -11,6 +11,8 @@ const LAYERS: &[(&str, u32)] = &[
     ("rng", 0),
     ("simd", 0),
     ("vmath", 0),
+    ("memory", 0),
+    ("progress", 0),
     ("sun", 1),
     ("sky", 2),
     ("camera", 3),
@@ -26,6 +28,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("io", 9),
     ("pipeline", 10),
     ("dataset", 11),
+    ("options", 12),
 ];
 
 fn rust_files(dir: &Path, out: &mut Vec<std::path::PathBuf>) {

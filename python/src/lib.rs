@@ -3,16 +3,12 @@
 //! Rust and nothing else.
 //!
 //! Keyword arguments are the CLI's long options with underscores (`sun_zenith=50` is
-//! `--sun-zenith 50`). They are parsed by the very option structs of the binary (`src/cli`,
-//! compiled into this extension), so both front-ends accept the same values and refuse the rest
-//! with the same message; the Python package raises it as `ValueError`.
+//! `--sun-zenith 50`). They are parsed by the library's option structs ([`psns::options`]), the
+//! binary's too, so both front-ends accept the same values and refuse the rest with the same
+//! message; the Python package raises it as `ValueError`.
 //!
 //! Arrays come back as numpy arrays that take over the Rust buffer (no copy); inputs are read in
 //! place when they are C-contiguous of the right dtype. Long calls release the GIL.
-
-#[path = "../../src/cli/mod.rs"]
-#[allow(dead_code, unused_imports)]
-mod cli;
 
 use clap::{ArgAction, Args, Command, FromArgMatches, Subcommand};
 use numpy::ndarray::Array2;
@@ -38,22 +34,78 @@ fn lib_err(e: psns::Error) -> PyErr {
     }
 }
 
-fn any_err(e: anyhow::Error) -> PyErr {
-    match e.downcast::<psns::Error>() {
-        Ok(l) => lib_err(l),
-        Err(e) => match e.downcast::<cli::dataset::Damaged>() {
-            Ok(d) => PyRuntimeError::new_err(d.to_string()),
-            Err(e) => PyRuntimeError::new_err(format!("{e:#}")),
-        },
-    }
-}
-
 /// clap's message without the "error: " prefix and the usage lines: the first line of what the
 /// CLI prints for the same option.
 fn clap_err(e: clap::Error) -> PyErr {
     let text = e.render().to_string();
     let line = text.lines().next().unwrap_or("bad arguments").trim();
     PyValueError::new_err(line.strip_prefix("error: ").unwrap_or(line).to_string())
+}
+
+// ---------------------------------------------------------------------------------------------
+// progress
+
+/// The library's progress as plain lines on stderr, by the rules the CLI uses in a log
+/// ([`psns::progress::Schedule`]); `PSNS_PROGRESS=off` silences them.
+struct PlainLines;
+
+struct PlainProgress {
+    prefix: String,
+    unit: psns::progress::Unit,
+    total: Option<u64>,
+    done: u64,
+    msg: String,
+    schedule: Option<psns::progress::Schedule>,
+    start: std::time::Instant,
+}
+
+impl psns::progress::Reporter for PlainLines {
+    fn start(
+        &self,
+        prefix: &str,
+        unit: psns::progress::Unit,
+        total: Option<u64>,
+        long: bool,
+    ) -> Box<dyn psns::progress::Progress> {
+        use psns::progress::{mode, period, Mode, Schedule, DEFAULT_PERIOD, ENV_MODE, ENV_PERIOD};
+        let off = mode(false, std::env::var(ENV_MODE).ok().as_deref()) == Mode::Off;
+        let p = period(std::env::var(ENV_PERIOD).ok().as_deref()).unwrap_or(DEFAULT_PERIOD);
+        Box::new(PlainProgress {
+            prefix: prefix.to_string(),
+            unit,
+            total,
+            done: 0,
+            msg: String::new(),
+            schedule: (!off).then(|| Schedule::new(p, long)),
+            start: std::time::Instant::now(),
+        })
+    }
+}
+
+impl psns::progress::Progress for PlainProgress {
+    fn set_message(&mut self, msg: &str) {
+        self.msg = msg.to_string();
+    }
+    fn inc(&mut self, n: u64) {
+        self.done += n;
+        let elapsed = self.start.elapsed();
+        if let Some(s) = &mut self.schedule {
+            if s.due(elapsed, self.done, self.total) {
+                let line = psns::progress::plain_line(
+                    &self.prefix,
+                    self.unit,
+                    self.done,
+                    self.total,
+                    elapsed,
+                    &self.msg,
+                );
+                eprintln!("{line}");
+            }
+        }
+    }
+    fn println(&mut self, line: &str) {
+        eprintln!("{line}");
+    }
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -121,7 +173,7 @@ fn parse<A: Args + FromArgMatches>(
     positional: &[&str],
     kwargs: Option<&Bound<'_, PyDict>>,
 ) -> PyResult<A> {
-    let cmd = cli::negative_numbers(A::augment_args(Command::new(name)));
+    let cmd = psns::options::negative_numbers(A::augment_args(Command::new(name)));
     let mut words = vec![name.to_string()];
     words.extend(positional.iter().map(|s| s.to_string()));
     words.extend(argv(&cmd, kwargs)?);
@@ -130,9 +182,12 @@ fn parse<A: Args + FromArgMatches>(
 }
 
 /// A scene (and sensor) from `psns render` options; `raw` adds `--raw`.
-fn render_args(kwargs: Option<&Bound<'_, PyDict>>, raw: bool) -> PyResult<cli::render::RenderArgs> {
+fn render_args(
+    kwargs: Option<&Bound<'_, PyDict>>,
+    raw: bool,
+) -> PyResult<psns::options::RenderArgs> {
     let flag: &[&str] = if raw { &["--raw"] } else { &[] };
-    parse::<cli::render::RenderArgs>("render", flag, kwargs)
+    parse::<psns::options::RenderArgs>("render", flag, kwargs)
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -256,7 +311,7 @@ fn demosaic<'py>(
     opts: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let m = format!("--method={method}");
-    let a = parse::<cli::demosaic::DemosaicArgs>("demosaic", &["<array>", &m], opts)?;
+    let a = parse::<psns::options::DemosaicArgs>("demosaic", &["<array>", &m], opts)?;
     if a.frame.is_some() {
         return Err(PyValueError::new_err(
             "--frame applies to stream input only",
@@ -270,7 +325,7 @@ fn demosaic<'py>(
             psns::error::check_range("dolp-debias", sigma, 0.0, 1e6)?;
         }
         psns::demosaic::check_raw(&codes)?;
-        let p = cli::demosaic::demosaic_codes(&codes, black, a.layout, a.method)?;
+        let p = psns::demosaic::demosaic_codes(&codes, black, a.layout, a.method)?;
         let deb = a
             .dolp_debias
             .map(|s| psns::stokes::debiased_dolp_image(&p.stokes, s as f32));
@@ -297,16 +352,16 @@ fn heading<'py>(
     raw: &Bound<'py, PyAny>,
     sun_and_tilt: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let a = parse::<cli::heading::HeadingArgs>("heading", &["<array>"], sun_and_tilt)?;
+    let a = parse::<psns::options::HeadingArgs>("heading", &["<array>"], sun_and_tilt)?;
     if a.index.is_some() {
         // the CLI's image path refuses it while reading the file, which an array skips
         return Err(PyValueError::new_err(
             "--index applies to stream input only",
         ));
     }
-    cli::heading::check_image_options(&a).map_err(lib_err)?;
+    a.check_image_options().map_err(lib_err)?;
     let (codes, bits) = codes_in(raw)?;
-    let loaded = cli::demosaic::LoadedRaw {
+    let loaded = psns::io::LoadedRaw {
         codes,
         layout: Default::default(),
         black_level: 0.0,
@@ -314,12 +369,16 @@ fn heading<'py>(
         frame: None,
     };
     let r = py.detach(|| -> psns::Result<_> {
-        let setup = cli::heading::image_setup(&a)?;
-        cli::heading::estimate_loaded(&a, &setup, &loaded, "the array")
+        let setup = a.image_setup()?;
+        a.estimate_image(&setup, &loaded, "the array")
     });
-    let (e, saturated) = r.map_err(lib_err)?;
+    let r = r.map_err(lib_err)?;
+    if let Some(m) = &r.reason {
+        eprintln!("psns: {m}");
+    }
+    let saturated = r.saturated;
     let d = PyDict::new(py);
-    match e {
+    match r.estimate {
         Some(e) => {
             d.set_item("yaw_deg", e.yaw_deg)?;
             d.set_item("confidence", e.confidence)?;
@@ -344,7 +403,7 @@ fn sky<'py>(
     azimuth: &Bound<'py, PyAny>,
     sky: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let a = parse::<cli::sky::SkyArgs>("sky", &[], sky)?;
+    let a = parse::<psns::options::SkyArgs>("sky", &[], sky)?;
     if a.stability {
         return Err(PyValueError::new_err(
             "--stability writes files: run `psns sky --stability` instead",
@@ -380,7 +439,16 @@ fn sky<'py>(
         let rows: Vec<[f64; 5]> = zv
             .par_iter()
             .zip(av.par_iter())
-            .map(|(&z, &a)| cli::sky::sky_values(&s, z, a))
+            .map(|(&z, &a)| {
+                let v = s.values(z, a);
+                [
+                    v.gamma_deg,
+                    v.radiance,
+                    v.dop,
+                    v.aop_meridian_deg,
+                    v.aop_north_deg,
+                ]
+            })
             .collect();
         Ok((0..5)
             .map(|k| rows.iter().map(|r| r[k]).collect::<Vec<f64>>())
@@ -430,12 +498,18 @@ fn dataset_build(
     if let Some(j) = jobs {
         words.push(format!("--jobs={j}"));
     }
-    let cmd = cli::negative_numbers(cli::dataset::DatasetCmd::augment_subcommands(Command::new(
-        "dataset",
-    )));
+    let cmd = psns::options::negative_numbers(psns::options::DatasetCmd::augment_subcommands(
+        Command::new("dataset"),
+    ));
     let m = cmd.try_get_matches_from(words).map_err(clap_err)?;
-    let what = cli::dataset::DatasetCmd::from_arg_matches(&m).map_err(clap_err)?;
-    py.detach(|| cli::dataset::run(what)).map_err(any_err)
+    let psns::options::DatasetCmd::Build(a) =
+        psns::options::DatasetCmd::from_arg_matches(&m).map_err(clap_err)?
+    else {
+        unreachable!("the words name the build subcommand");
+    };
+    let summary = py.detach(|| a.run(&PlainLines)).map_err(lib_err)?;
+    eprintln!("{summary}");
+    Ok(())
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -577,8 +651,9 @@ struct StreamIter {
 
 #[pyfunction]
 fn open_stream(py: Python<'_>, path: PathBuf) -> PyResult<StreamIter> {
-    let r = py
-        .detach(|| -> psns::Result<_> { psns::stream::StreamReader::new(cli::open_input(&path)?) });
+    let r = py.detach(|| -> psns::Result<_> {
+        psns::stream::StreamReader::new(psns::io::open_input(&path)?)
+    });
     let reader = r.map_err(lib_err)?;
     let tally = psns::stream::VerifyTally::new(reader.header().clone(), None);
     Ok(StreamIter {

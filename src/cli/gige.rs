@@ -14,7 +14,7 @@
 //!
 //! SIGINT or SIGTERM ends it with exit code 0.
 
-use super::args::{finite, RawArgs, SceneArgs};
+use psns::options::{finite, RawArgs, SceneArgs};
 use super::poses::{open_trajectory, Poses};
 use super::progress::{Progress, Unit};
 use psns::camera::camera_to_enu_quaternion;
@@ -161,7 +161,7 @@ impl Shared {
 
 /// Runs `psns gige`.
 pub fn run(a: GigeArgs) -> anyhow::Result<()> {
-    if let Some(o) = super::args::first_given(&[
+    if let Some(o) = psns::options::first_given(&[
         ("bit-depth", a.raw.bit_depth.is_some()),
         ("pixel-format", a.raw.pixel_format.is_some()),
     ]) {

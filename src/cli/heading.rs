@@ -7,18 +7,13 @@
 //! attitude: from a stream it takes the sun (azimuth, elevation) and, with `--imu-tilt`, the pitch
 //! and roll, as an IMU would supply them.
 
-use super::args::SceneArgs;
-use super::demosaic::{demosaic_codes, load_raw, LoadedRaw};
-use clap::Args;
-use psns::camera::{Attitude, Intrinsics, Lens, Projection};
-use psns::demosaic::superpixel::superpixel_sampled;
-use psns::demosaic::Method;
+use psns::camera::{Intrinsics, Lens, Projection};
 use psns::heading::{
-    attitude_tilt_deg, attitude_yaw_deg, error_stats, estimate_heading_info, mask_saturated,
-    mask_saturated_sampled, sampled_intrinsics, superpixel_step, wrap180, HeadingEstimate,
-    HeadingMethod, HeadingSetup, ModelFitInfo, PolarView,
+    attitude_tilt_deg, attitude_yaw_deg, error_stats, estimate_codes, wrap180, HeadingSetup,
 };
 use psns::image::Image;
+use psns::io::{load_raw, open_input};
+use psns::options::{first_given, HeadingArgs};
 use psns::sensor::mosaic::MosaicLayout;
 use psns::sensor::optics::RelativeIllumination;
 use psns::sensor::{Preset, SensorConfig};
@@ -26,130 +21,20 @@ use psns::stream::{Event, StreamReader};
 use psns::sun::SunPosition;
 use psns::{Error, Result};
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
-
-/// Options of `psns heading`.
-#[derive(Args)]
-pub struct HeadingArgs {
-    /// Raw PNG/TIFF mosaic (codes), or a psns frame stream (file, FIFO, or - for stdin).
-    pub(crate) input: PathBuf,
-    /// Sun position (--sun-zenith/--sun-azimuth or --time/--lat/--lon), intrinsics
-    /// (--width/--height/--focal-length/--pixel-pitch) and the known tilt (--pitch/--roll, ENU).
-    /// A stream gives the sun per frame and the intrinsics in its header (options override them).
-    #[command(flatten)]
-    pub(crate) scene: SceneArgs,
-    /// Demosaic method (the whole frame). Default: bilinear; a frame of more than about 640 000
-    /// pixels (the full 2448 x 2048 sensor) is instead read as every k-th 2 x 2 superpixel only
-    /// (k even, about 40 000 samples: what the estimators read), the rest never demosaicked.
-    #[arg(long, value_parser = |s: &str| s.parse::<Method>().map_err(|e| e.to_string()))]
-    pub(crate) demosaic: Option<Method>,
-    /// Estimator: model-fit (Berry field fitted from the eigenvector answer; default, the most
-    /// accurate), eigen (sun vector), hough (solar meridian).
-    #[arg(long, default_value = "model-fit", value_parser = |s: &str| s.parse::<HeadingMethod>().map_err(|e| e.to_string()))]
-    pub(crate) method: HeadingMethod,
-    /// Model fit: also fit the sun's elevation (one neutral-point distance), starting from the
-    /// given or the stream's sun; for a sun position known only roughly.
-    #[arg(long)]
-    pub(crate) fit_sun_elevation: bool,
-    /// Significant bits of the codes in a PNG/TIFF (saturation is the top code); a stream says.
-    #[arg(long, value_parser = super::args::whole)]
-    pub(crate) bits: Option<u64>,
-    /// Stream input: only the frame with this index (`--frame` is the attitude frame of the
-    /// scene options).
-    #[arg(long, value_parser = super::args::whole, value_name = "N")]
-    pub(crate) index: Option<u64>,
-    /// Stream input: take each frame's pitch and roll (never its yaw) from the frame's attitude,
-    /// as an IMU would supply them; otherwise --pitch/--roll (default level).
-    #[arg(long, conflicts_with_all = ["pitch", "roll"])]
-    pub(crate) imu_tilt: bool,
-    /// Stream input, for a consumer slower than the camera: always estimate the newest complete
-    /// frame. A reader thread keeps draining the stream (so a slow estimate never blocks the
-    /// producer's writes) and keeps only the latest frame; frames replaced before the estimator
-    /// took them are skipped, counted in the summary and missing from the rows (frame_index
-    /// shows the gaps).
-    #[arg(long)]
-    pub(crate) latest: bool,
-    /// Stream input, model fit: start each frame's neutral-point distances from the previous
-    /// frame's fit (when its confidence was at least 0.5) and set the robust weights from the
-    /// first residuals; the yaw still starts from the frame's own eigenvector answer.
-    #[arg(long)]
-    pub(crate) warm_start: bool,
-    /// Image input: the sensor preset the frame was made with (camera, nfpi, gniipi, gniicpi), as
-    /// in `psns render --raw`: its lens is the default of --lens and its relative illumination the
-    /// flat-field law. A stream's header records both.
-    #[arg(long, value_parser = super::args::parse_preset)]
-    pub(crate) preset: Option<Preset>,
-    /// Flat-field law of the intensity vote (the 180° decision with the sun within 8° of the
-    /// horizon): the frames' relative illumination is cos^N of the field angle (0 = none).
-    /// Default: an image's --preset (camera cos^1.5, gniipi/gniicpi cos^4, nfpi none); a
-    /// stream's recorded optics (or its preset).
-    #[arg(long, value_name = "N")]
-    pub(crate) vignetting_cos_power: Option<f64>,
-}
-
-/// The relative illumination to flat-field S0 by: `--vignetting-cos-power`, else `default`.
-fn flat_field(a: &HeadingArgs, default: RelativeIllumination) -> Result<RelativeIllumination> {
-    Ok(match a.vignetting_cos_power {
-        Some(n) => {
-            let ri = if n == 0.0 {
-                RelativeIllumination::None
-            } else {
-                RelativeIllumination::CosPower { n }
-            };
-            ri.validate()
-                .map_err(|_| Error::range("vignetting-cos-power", n, "0..8"))?;
-            ri
-        }
-        None => default,
-    })
-}
 
 /// Runs `psns heading`: one row `yaw_deg,confidence,pixels,saturated_pixels` for an image, or a
 /// row per frame of a stream (see [`STREAM_HEADER`]) and a summary on stderr.
 pub fn run(a: HeadingArgs) -> anyhow::Result<()> {
-    check_method_options(&a)?;
+    a.check_method_options()?;
     if is_stream(&a.input)? {
         return Ok(run_stream(&a)?);
     }
-    check_image_options(&a)?;
+    a.check_image_options()?;
     let row = heading_row(&a)?;
     let mut out = std::io::stdout().lock();
     writeln!(out, "yaw_deg,confidence,pixels,saturated_pixels\n{row}")?;
-    Ok(())
-}
-
-/// Options that need a particular `--method`.
-fn check_method_options(a: &HeadingArgs) -> Result<()> {
-    if a.fit_sun_elevation && a.method != HeadingMethod::ModelFit {
-        return Err(Error::Invalid(format!(
-            "--fit-sun-elevation applies to --method model-fit, not {}",
-            a.method
-        )));
-    }
-    if a.warm_start && a.method != HeadingMethod::ModelFit {
-        return Err(Error::Invalid(format!(
-            "--warm-start applies to --method model-fit, not {}",
-            a.method
-        )));
-    }
-    Ok(())
-}
-
-/// The option checks of one image (not a stream), shared with `psns.heading` in Python.
-pub(crate) fn check_image_options(a: &HeadingArgs) -> Result<()> {
-    check_method_options(a)?;
-    for (name, given) in [
-        ("imu-tilt", a.imu_tilt),
-        ("latest", a.latest),
-        ("warm-start", a.warm_start),
-    ] {
-        if given {
-            return Err(Error::Invalid(format!(
-                "--{name} applies to stream input only"
-            )));
-        }
-    }
     Ok(())
 }
 
@@ -178,177 +63,21 @@ fn is_stream(input: &Path) -> Result<bool> {
     Ok(n == 8 && head == psns::stream::FILE_MAGIC)
 }
 
-/// The tilt given as --pitch/--roll (ENU Euler attitude), refusing a yaw or a quaternion.
-fn given_tilt(a: &HeadingArgs) -> Result<(f64, f64)> {
-    if a.scene.yaw.is_some() || a.scene.quaternion.is_some() {
-        return Err(Error::Invalid(
-            "psns heading estimates the yaw: give only the tilt (--pitch, --roll)".into(),
-        ));
-    }
-    match a.scene.scene()?.camera.attitude {
-        Attitude::Euler {
-            pitch_deg,
-            roll_deg,
-            ..
-        } => Ok((pitch_deg, roll_deg)),
-        Attitude::Quaternion { .. } => Err(Error::Invalid(
-            "psns heading takes the tilt as --pitch/--roll, not a quaternion".into(),
-        )),
-    }
-}
-
-/// Demosaics one mosaic (codes minus the black level) and masks the pixels next to a code at
-/// full scale of `bits` (DoLP = NaN); returns the images and the number of masked pixels.
-pub fn polar_from_codes(
-    codes: &Image<u16>,
-    black_level: f64,
-    layout: MosaicLayout,
-    bits: u8,
-    demosaic: Method,
-) -> Result<(psns::demosaic::PolarImages, usize)> {
-    psns::demosaic::check_raw(codes)?;
-    let full = ((1u32 << bits) - 1).min(65535) as u16;
-    let mut p = demosaic_codes(codes, black_level, layout, demosaic)?;
-    let saturated = mask_saturated(&mut p.dolp, codes, full);
-    Ok((p, saturated))
-}
-
-/// [`polar_from_codes`] for what the estimators read: with no `--demosaic` and a frame large
-/// enough ([`superpixel_step`]), every k-th superpixel only, with the intrinsics of that sampled
-/// view ([`sampled_intrinsics`]) in the returned setup; otherwise the whole frame.
-fn polar_for_estimate(
-    codes: &Image<u16>,
-    black_level: f64,
-    layout: MosaicLayout,
-    bits: u8,
-    demosaic: Option<Method>,
-    setup: &HeadingSetup,
-) -> Result<(psns::demosaic::PolarImages, usize, HeadingSetup)> {
-    let k = superpixel_step(codes.width, codes.height);
-    match (demosaic, k) {
-        (None, Some(k)) => {
-            let full = ((1u32 << bits) - 1).min(65535) as u16;
-            let mut p = superpixel_sampled(codes, layout, k, black_level as f32)?;
-            let saturated = mask_saturated_sampled(&mut p.dolp, codes, full, k);
-            let mut s = *setup;
-            s.intrinsics = sampled_intrinsics(&setup.intrinsics, k);
-            s.step = 1;
-            Ok((p, saturated, s))
-        }
-        (d, _) => {
-            let (p, saturated) = polar_from_codes(
-                codes,
-                black_level,
-                layout,
-                bits,
-                d.unwrap_or(Method::Bilinear),
-            )?;
-            Ok((p, saturated, *setup))
-        }
-    }
-}
-
-/// The estimate from one mosaic: demosaic, mask clipped pixels, estimate. `Ok(None)` when too few
-/// pixels are usable (the reason on stderr); also returns the number of masked pixels.
-fn estimate_codes(
-    codes: &Image<u16>,
-    black_level: f64,
-    layout: MosaicLayout,
-    bits: u8,
-    demosaic: Option<Method>,
-    method: HeadingMethod,
-    setup: &HeadingSetup,
-) -> Result<(Option<HeadingEstimate>, usize, Option<ModelFitInfo>)> {
-    let (p, saturated, setup) =
-        polar_for_estimate(codes, black_level, layout, bits, demosaic, setup)?;
-    let view = PolarView {
-        aolp_deg: &p.aolp_deg,
-        dolp: &p.dolp,
-        s0: Some(&p.stokes.s0),
-    };
-    match estimate_heading_info(method, &view, &setup) {
-        Ok((e, info)) => Ok((Some(e), saturated, info)),
-        // too few usable pixels (saturated, unpolarized): no heading, zero confidence
-        Err(Error::Invalid(m)) if m.starts_with("heading: only") => {
-            eprintln!("psns: {m}");
-            Ok((None, saturated, None))
-        }
-        Err(e) => Err(e),
-    }
-}
-
 fn heading_row(a: &HeadingArgs) -> Result<String> {
-    let setup = image_setup(a)?; // option problems before reading the file
+    let setup = a.image_setup()?; // option problems before reading the file
     let raw = load_raw(&a.input, MosaicLayout::default(), a.index)?;
-    let (e, saturated) = estimate_loaded(a, &setup, &raw, &a.input.display().to_string())?;
-    Ok(match e {
+    let r = a.estimate_image(&setup, &raw, &a.input.display().to_string())?;
+    if let Some(m) = &r.reason {
+        eprintln!("psns: {m}");
+    }
+    let saturated = r.saturated;
+    Ok(match r.estimate {
         Some(e) => format!(
             "{:.4},{:.4},{},{saturated}",
             e.yaw_deg, e.confidence, e.pixels
         ),
         None => format!("nan,0,0,{saturated}"),
     })
-}
-
-/// The estimator's setup for one image: the options' sun (up), intrinsics and tilt.
-pub(crate) fn image_setup(a: &HeadingArgs) -> Result<HeadingSetup> {
-    let (pitch, roll) = given_tilt(a)?;
-    let mut cfg = a.scene.scene()?;
-    if let Some(p) = a.preset {
-        cfg.raw.preset = p;
-    }
-    let sun = cfg.sun.resolve()?;
-    cfg.sun.check_up(sun)?;
-    // lens: --lens, or the camera preset's (as psns render)
-    let mut setup = HeadingSetup::new(cfg.intrinsics(), sun);
-    setup.pitch_deg = pitch;
-    setup.roll_deg = roll;
-    setup.fit_elevation = a.fit_sun_elevation;
-    // the falloff of the preset's (or the configured) sensor, as psns render makes it
-    let sensor = cfg
-        .raw
-        .sensor
-        .clone()
-        .unwrap_or_else(|| SensorConfig::preset(cfg.raw.preset));
-    setup.relative_illumination = flat_field(a, sensor.effective_ri())?;
-    Ok(setup)
-}
-
-/// The estimate from one mosaic (not a stream) with the [`image_setup`] of the options, and the
-/// number of masked pixels; `name` names the input in messages. The image path of
-/// `psns heading`, and `psns.heading` in Python.
-pub(crate) fn estimate_loaded(
-    a: &HeadingArgs,
-    setup: &HeadingSetup,
-    raw: &LoadedRaw,
-    name: &str,
-) -> Result<(Option<HeadingEstimate>, usize)> {
-    let i = setup.intrinsics;
-    if (raw.codes.width, raw.codes.height) != (i.width, i.height) {
-        return Err(Error::Invalid(format!(
-            "{name} is {} x {} pixels but the intrinsics say {} x {}: give --width/--height (and --pixel-pitch, --focal-length) of the camera",
-            raw.codes.width,
-            raw.codes.height,
-            i.width,
-            i.height
-        )));
-    }
-    let bits = match a.bits {
-        Some(b) if (8..=16).contains(&b) => b as u8,
-        Some(b) => return Err(Error::range("bits", b as f64, "8..16")),
-        None if raw.bits == 8 => 8,
-        None => 12, // the IMX250MZR's deepest mode, in a 16-bit file
-    };
-    estimate_codes(
-        &raw.codes,
-        raw.black_level,
-        raw.layout,
-        bits,
-        a.demosaic,
-        a.method,
-        setup,
-    )
-    .map(|(e, sat, _)| (e, sat))
 }
 
 /// Columns of the per-frame CSV of a stream.
@@ -384,7 +113,7 @@ fn stream_optics(
             .map(|p| SensorConfig::preset(p).effective_ri())
             .unwrap_or_default()
     };
-    let ri = flat_field(a, recorded_ri.or_else(sensor_ri).unwrap_or_else(preset_ri))?;
+    let ri = a.flat_field(recorded_ri.or_else(sensor_ri).unwrap_or_else(preset_ri))?;
     let recorded = |key: &str| -> Option<String> {
         optics
             .as_ref()
@@ -430,7 +159,7 @@ fn stream_optics(
 
 fn run_stream(a: &HeadingArgs) -> Result<()> {
     let s = &a.scene;
-    if let Some(name) = super::args::first_given(&[
+    if let Some(name) = first_given(&[
         ("sun-zenith", s.sun_zenith.is_some()),
         ("sun-altitude", s.sun_altitude.is_some()),
         ("sun-azimuth", s.sun_azimuth.is_some()),
@@ -450,9 +179,9 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
             "--preset: a stream's header records its preset and optics (--lens, --projection and --vignetting-cos-power override them)".into(),
         ));
     }
-    let (pitch, roll) = given_tilt(a)?;
+    let (pitch, roll) = a.given_tilt()?;
     keep_heap();
-    let reader = StreamReader::new(super::open_input(&a.input)?)?;
+    let reader = StreamReader::new(open_input(&a.input)?)?;
     let (mut intr, mut ri) = stream_optics(a, reader.header())?;
     let mut out = std::io::stdout().lock();
     let w = |out: &mut std::io::StdoutLock, line: &str| -> Result<()> {
@@ -510,7 +239,7 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
             );
             (None, 0, None)
         } else {
-            estimate_codes(
+            let r = estimate_codes(
                 &codes,
                 black,
                 h.layout,
@@ -518,7 +247,11 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
                 a.demosaic,
                 a.method,
                 &setup,
-            )?
+            )?;
+            if let Some(m) = &r.reason {
+                eprintln!("psns: {m}");
+            }
+            (r.estimate, r.saturated, r.info)
         };
         let ms = t0.elapsed().as_secs_f64() * 1e3;
         codes_buf = codes.data;

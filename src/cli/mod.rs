@@ -1,8 +1,7 @@
-//! The front-end of the `psns` binary: one module per command (its options and its body), the
-//! options several commands share ([`args`]), and the file, terminal and chart code around the
-//! library. Nothing here is physics: every formula is in the `psns` library.
+//! The front-end of the `psns` binary: one module per command, and the file, terminal and chart
+//! code around the library. The options it parses are the library's ([`psns::options`], shared
+//! with the Python package); nothing here is physics.
 
-pub mod args;
 pub mod bench;
 pub mod dataset;
 pub mod demosaic;
@@ -19,42 +18,8 @@ pub mod sun;
 pub mod verify;
 pub mod vis;
 
-use psns::{Error, Result};
-use std::path::Path;
+use psns::Error;
 use std::process::ExitCode;
-
-/// Lets every option that takes a value accept a negative number, so `--frames -1` gets a
-/// message about the value instead of clap's "unexpected argument '-1'".
-pub fn negative_numbers(cmd: clap::Command) -> clap::Command {
-    cmd.mut_args(|a| {
-        if a.get_action().takes_values() && !a.is_positional() {
-            a.allow_negative_numbers(true)
-        } else {
-            a
-        }
-    })
-    .mut_subcommands(negative_numbers)
-}
-
-/// Creates a directory and its parents.
-pub fn create_dir(dir: &Path) -> Result<()> {
-    std::fs::create_dir_all(dir).map_err(|e| Error::io(format!("creating {}", dir.display()), e))
-}
-
-/// Opens a file, or stdin for `-`.
-/// Send + Sync, so a reader kept across calls (the Python package's stream iterator) can hold
-/// it; stdin is locked per read, which its large buffered reads make negligible.
-pub fn open_input(path: &Path) -> Result<Box<dyn std::io::Read + Send + Sync>> {
-    if path.as_os_str() == "-" {
-        Ok(Box::new(std::io::stdin()))
-    } else {
-        let f = std::fs::File::open(path).map_err(|e| Error::input(path, e))?;
-        if f.metadata().is_ok_and(|m| m.is_dir()) {
-            return Err(Error::Invalid(format!("{} is a directory", path.display())));
-        }
-        Ok(Box::new(std::io::BufReader::with_capacity(1 << 20, f)))
-    }
-}
 
 /// `psns verify` found damage: exit code 1 with the report already printed.
 #[derive(Debug)]
@@ -103,13 +68,4 @@ pub fn exit_code(r: anyhow::Result<()>) -> ExitCode {
     } else {
         ExitCode::from(1)
     }
-}
-
-/// Writes a text file atomically.
-pub fn write_text(path: &Path, text: &str) -> Result<()> {
-    use std::io::Write;
-    psns::io::write_atomic(path, |w| {
-        w.write_all(text.as_bytes())
-            .map_err(|e| Error::io(format!("writing {}", path.display()), e))
-    })
 }

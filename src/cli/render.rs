@@ -1,33 +1,17 @@
 //! `psns render`: ideal images of a scene (LI/DOP/AOP, polarizer images, visualisations) and,
 //! with `--raw`, the IMX250MZR raw frame with its ground truth, written into a directory.
 
-use super::args::{RawArgs, SceneArgs};
-use super::output::{check_memory, memory_available, memory_need, OutDir, RENDER_FILES};
+use super::output::{OutDir, RENDER_FILES};
 use super::progress::{Progress, Unit};
 use super::vis;
-use clap::Args;
 use psns::config::{Derived, SceneConfig, SceneKind};
 use psns::image::Image;
+use psns::memory::{check_memory, memory_available, memory_need};
+use psns::options::RenderArgs;
 use psns::{io, render, Error, Result};
 use std::io::Write;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 use std::time::Instant;
-
-/// Options of `psns render`.
-#[derive(Args)]
-pub struct RenderArgs {
-    #[command(flatten)]
-    pub(crate) scene: SceneArgs,
-    #[command(flatten)]
-    pub(crate) raw: RawArgs,
-    /// Also emulate the sensor: raw.png, raw.tiff, raw.bin, truth_*.npy.
-    #[arg(long = "raw")]
-    pub(crate) raw_frame: bool,
-    /// Output directory: new, empty, or a previous psns run's (replaced whole when this run
-    /// has written everything; a failed or killed run leaves it as it was).
-    #[arg(long, default_value = "out")]
-    out: PathBuf,
-}
 
 /// Runs `psns render`.
 pub fn run(a: RenderArgs) -> anyhow::Result<()> {
@@ -57,32 +41,6 @@ pub fn run(a: RenderArgs) -> anyhow::Result<()> {
         out.display()
     );
     Ok(())
-}
-
-impl RenderArgs {
-    /// The scene these options describe, checked as `psns render` checks it, and whether a raw
-    /// frame is asked for (`--raw`, or a flat-field scene). The Python package parses its keyword
-    /// arguments into these options too, so both front-ends accept and refuse the same things.
-    pub(crate) fn config(&self) -> Result<(SceneConfig, bool)> {
-        let mut cfg = self.scene.scene()?;
-        self.raw.apply(&mut cfg)?;
-        // the lens in force (the preset's unless --lens), so scene.json records it
-        cfg.camera.intrinsics = cfg.intrinsics();
-        let raw = self.raw_frame || cfg.raw.scene == SceneKind::Flat;
-        if let (false, Some(opt)) = (raw, self.raw.first_given()) {
-            return Err(Error::Invalid(format!(
-                "--{opt} applies to the raw frame: add --raw (without it psns render writes the ideal images only)"
-            )));
-        }
-        if cfg.sun.time.is_none() {
-            if let Some(opt) = self.scene.place_given() {
-                return Err(Error::Invalid(format!(
-                    "--{opt} places the observer for --time; the sun is given directly here, so it would be ignored (add --time, or leave --{opt} out)"
-                )));
-            }
-        }
-        Ok((cfg, raw))
-    }
 }
 
 #[derive(Clone, Debug)]

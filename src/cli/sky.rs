@@ -1,37 +1,21 @@
 //! `psns sky`: sky values (radiance, DOP, AOP) for directions read as CSV on stdin; with
 //! `--stability`, the DOP stability map of both DOP models instead.
 
-use super::args::SceneArgs;
 use super::progress::{Progress, Unit};
-use clap::Args;
 use psns::config::SceneConfig;
+use psns::options::{first_given, SkyArgs};
 use psns::sky::stability::{stability_map, Grid, MapCell, MAX_JUMP};
-use psns::sky::{aop_chart_deg, aop_meridian_deg, direction, DopModel, SkyParams};
+use psns::sky::{DopModel, SkyParams};
 use psns::{Error, Result};
 use std::io::{BufRead, Write};
 use std::path::{Path, PathBuf};
-
-/// Options of `psns sky`.
-#[derive(Args)]
-pub struct SkyArgs {
-    #[command(flatten)]
-    pub(crate) scene: SceneArgs,
-    /// Instead of reading directions: write the DOP stability map of both DOP models
-    /// (dop_stability.csv, .svg and a small .png) over turbidity 1..10 x sun zenith 0..90 x
-    /// wavelength 380..720 nm; the scene's other sky settings (albedo, neutral points, norm) apply.
-    #[arg(long)]
-    pub(crate) stability: bool,
-    /// Output directory of --stability (regenerate the docs' map with `--out docs/img`).
-    #[arg(long, requires = "stability", value_name = "DIR")]
-    out: Option<PathBuf>,
-}
 
 /// Runs `psns sky`.
 pub fn run(a: SkyArgs) -> anyhow::Result<()> {
     let cfg = a.scene.scene()?;
     if a.stability {
         let sc = &a.scene;
-        let swept = super::args::first_given(&[
+        let swept = first_given(&[
             ("sun-zenith", sc.sun_zenith.is_some()),
             ("sun-altitude", sc.sun_altitude.is_some()),
             ("sun-azimuth", sc.sun_azimuth.is_some()),
@@ -120,31 +104,17 @@ pub fn sky_csv(cfg: &SceneConfig, input: impl BufRead, mut output: impl Write) -
                 "line {ln}: zenith_deg = {z} is out of range (allowed 0..180)"
             )));
         }
-        let [g, rad, dop, am, an] = sky_values(&sky, z, a);
-        writeln!(output, "{z},{a},{g:.9},{rad:.9e},{dop:.9},{am:.6},{an:.6}").map_err(werr)?;
+        let v = sky.values(z, a);
+        writeln!(
+            output,
+            "{z},{a},{:.9},{:.9e},{:.9},{:.6},{:.6}",
+            v.gamma_deg, v.radiance, v.dop, v.aop_meridian_deg, v.aop_north_deg
+        )
+        .map_err(werr)?;
         n += 1;
     }
     output.flush().map_err(werr)?;
     Ok(n)
-}
-
-/// The values `psns sky` prints for a direction (zenith, compass azimuth, degrees): angle from
-/// the sun, radiance, DOP, AOP from the meridian and from north (degrees); zero below the horizon
-/// and where the sky is unpolarized. Shared with `psns.sky` in Python.
-pub fn sky_values(sky: &psns::sky::Sky, zenith_deg: f64, azimuth_deg: f64) -> [f64; 5] {
-    let v = direction(zenith_deg, azimuth_deg);
-    let s = sky.sample(v);
-    let (am, an) = if s.valid && s.dop > 0.0 {
-        (aop_meridian_deg(v, s.e), aop_chart_deg(v, s.e))
-    } else {
-        (0.0, 0.0)
-    };
-    let gamma = v
-        .dot(sky.sun().vector())
-        .clamp(-1.0, 1.0)
-        .acos()
-        .to_degrees();
-    [gamma, s.radiance, s.dop, am, an]
 }
 
 /// Turbidities of the stability map: 1..10 every 0.5, plus 1.7 (the bounded model's lowest).
@@ -195,7 +165,7 @@ pub fn write_stability(base: &SkyParams, dir: &Path) -> Result<Vec<String>> {
         }
         maps.push((m, rows));
     }
-    super::create_dir(dir)?;
+    psns::io::create_dir(dir)?;
     let mut csv = String::from(
         "dop_model,turbidity,sun_zenith_deg,wavelength_nm,status,directions,mid_directions,pinned_low,pinned_high,max_jump,jumps,max_dop\n",
     );

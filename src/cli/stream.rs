@@ -20,13 +20,13 @@
 //! Concurrency: a render thread turns pose k+1 into a packed payload while the calling thread
 //! writes frame k (`sync_channel(1)`); the order and bytes do not depend on the timing.
 
-use super::args::{finite, RawArgs, SceneArgs};
 use super::poses::{open_trajectory, Trajectory};
 use super::progress::{Progress, Unit};
 use glam::DMat3;
 use psns::camera::camera_to_enu_quaternion;
 use psns::config::SceneConfig;
 use psns::error::{Error, Result};
+use psns::options::{finite, whole, RawArgs, SceneArgs};
 use psns::pipeline::{seconds_to_ns, RawPipeline, SceneClock};
 use psns::sensor::packing::{self, PixelFormat};
 use psns::sensor::Exposure;
@@ -57,7 +57,7 @@ pub struct StreamArgs {
     #[arg(long, default_value = "-", value_name = "PATH|-")]
     out: PathBuf,
     /// Stop after N frames.
-    #[arg(long, value_name = "N", value_parser = super::args::whole)]
+    #[arg(long, value_name = "N", value_parser = whole)]
     frames: Option<u64>,
     /// Pace output in real time at FPS against the trajectory clock (default: unpaced).
     #[arg(long, value_parser = finite, value_name = "FPS")]

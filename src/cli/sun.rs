@@ -1,8 +1,8 @@
 //! `psns sun`: the SPA sun position for a UTC time and place, as CSV `zenith_deg,azimuth_deg`.
 
-use super::args::{finite, SpaArgs};
 use anyhow::Context;
 use clap::Args;
+use psns::options::{finite, SpaArgs};
 use psns::sun::Place;
 use std::io::Write;
 

@@ -1,10 +1,11 @@
 //! `psns verify` (check a frame stream; exit 0 only if clean) and `psns extract` (one frame of a
 //! stream as PNG, TIFF and JSON).
 
-use super::args::parse_pixel_format;
-use super::{create_dir, open_input, NotClean, Unfinished};
+use super::{NotClean, Unfinished};
 use clap::Args;
 use psns::image::Image;
+use psns::io::{create_dir, open_input};
+use psns::options::parsed;
 use psns::sensor::packing::PixelFormat;
 use psns::stream::{FindOptions, RecoverHint, VerifyStatus};
 use psns::{io, Error, Result};
@@ -26,7 +27,7 @@ pub struct RecoverArgs {
     #[arg(long, requires = "recover", value_parser = clap::value_parser!(u32).range(1..=65535))]
     height: Option<u32>,
     /// With --recover: payload pixel format (mono8, mono12p, mono12packed, mono16).
-    #[arg(long, requires = "recover", value_parser = parse_pixel_format)]
+    #[arg(long, requires = "recover", value_parser = parsed::<PixelFormat>)]
     pixel_format: Option<PixelFormat>,
 }
 

@@ -307,6 +307,28 @@ pub fn full_chain<T: RawPixel>(
     }
 }
 
+/// [`full_chain`] of codes minus a black level (the codes as u16 directly when the black
+/// level is 0): what `psns demosaic`, `psns heading` and Python's `psns.demosaic` run on a raw
+/// frame.
+pub fn demosaic_codes(
+    codes: &Image<u16>,
+    black_level: f64,
+    layout: MosaicLayout,
+    method: Method,
+) -> Result<PolarImages> {
+    if black_level == 0.0 {
+        full_chain(codes, layout, method)
+    } else {
+        let b = black_level as f32;
+        let f = Image::from_vec(
+            codes.width,
+            codes.height,
+            codes.data.par_iter().map(|&v| v as f32 - b).collect(),
+        );
+        full_chain(&f, layout, method)
+    }
+}
+
 /// [`full_chain`] into caller-owned images (resized when their size differs), so a frame
 /// stream does not pay for fresh allocations and page faults on every frame. Superpixel,
 /// bilinear and bicubic write in place; the other methods compute and move their results in.

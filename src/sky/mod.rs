@@ -30,12 +30,14 @@ pub mod dop;
 pub mod hosek;
 pub mod rayleigh;
 pub mod stability;
+pub mod values;
 
 use crate::error::{check_range, Result};
 pub use crate::sun::SunPosition;
 use crate::vmath;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
+pub use values::SkyValues;
 
 /// Which polarization model to use.
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]

@@ -19,14 +19,15 @@
 //! spread at p > 0 (theory 20.3°/(p√N)).
 
 use crate::cli::bench::scenes::{self, Scene, SceneFrame};
-use crate::cli::demosaic::demosaic_codes;
 use crate::cli::progress::{Progress, Unit};
-use crate::cli::{create_dir, vis, write_text};
+use crate::cli::vis;
 use psns::angle::SensorAngle;
+use psns::demosaic::demosaic_codes;
 use psns::demosaic::{full_chain, full_chain_into, Method, PolarImages, RawPixel};
 use psns::error::{Error, Result};
 use psns::image::{Image, StokesImage};
 use psns::io;
+use psns::io::{create_dir, write_text};
 use psns::sensor::mosaic::MosaicLayout;
 use psns::sensor::{self, Exposure, RawFrame, Sensor, SensorConfig, Stages};
 use rayon::prelude::*;

@@ -7,7 +7,7 @@
 //! buffers. The CPU time of the device and of the receiver over the run (from /proc and wait4)
 //! say where the time goes.
 
-use crate::cli::create_dir;
+use psns::io::create_dir;
 use psns::error::{Error, Result};
 use psns::gige::gvsp::{self, BlockLayout};
 use std::io::{BufRead, BufReader, Read, Write};

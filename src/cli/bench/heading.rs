@@ -4,15 +4,15 @@
 //! as CSV and SVG charts.
 
 use super::demosaic::inside_docs;
-use crate::cli::create_dir;
-use crate::cli::heading::polar_from_codes;
 use psns::camera::{Attitude, Intrinsics};
 use psns::config::SceneConfig;
 use psns::demosaic::Method;
+use psns::heading::polar_from_codes;
 use psns::heading::{
     error_stats, estimate_heading, wrap180, HeadingMethod, HeadingSetup, PolarView,
 };
 use psns::image::StokesImage;
+use psns::io::create_dir;
 use psns::sensor::{Exposure, SensorConfig};
 use psns::sky::clouds::SoftClouds;
 use psns::sky::PolarizationModel;
@@ -654,7 +654,7 @@ pub fn bench_heading(opts: &HeadingBenchOptions) -> Result<Vec<String>> {
     let mut written = Vec::new();
     let mut put = |name: &str, text: &str| -> Result<()> {
         let p: &Path = &opts.out.join(name);
-        crate::cli::write_text(p, text)?;
+        psns::io::write_text(p, text)?;
         written.push(p.display().to_string());
         Ok(())
     };

@@ -10,8 +10,8 @@ pub mod stream;
 #[cfg(test)]
 mod tests;
 
-use super::args::SceneArgs;
 use clap::Subcommand;
+use psns::options::SceneArgs;
 use std::path::PathBuf;
 
 /// `psns bench` subcommands.
@@ -24,7 +24,7 @@ pub enum BenchCmd {
         #[arg(long, default_value = "out-bench")]
         out: PathBuf,
         /// Timed runs per method (median reported).
-        #[arg(long, default_value_t = 7, value_parser = crate::cli::args::runs)]
+        #[arg(long, default_value_t = 7, value_parser = psns::options::runs)]
         runs: usize,
         /// Small frames and few runs (a quick look; refused with an --out inside docs/).
         #[arg(long)]
@@ -52,7 +52,7 @@ pub enum BenchCmd {
         #[arg(long, default_value_t = 12, value_parser = clap::value_parser!(u32).range(4..=600))]
         duration: u32,
         /// Runs per case (median reported, with the slowest and fastest).
-        #[arg(long, default_value_t = 3, value_parser = crate::cli::args::runs)]
+        #[arg(long, default_value_t = 3, value_parser = psns::options::runs)]
         runs: usize,
     },
     /// Exact vs coarse-grid sky evaluation: time per full frame and error (writes sky_grid.csv).
@@ -63,7 +63,7 @@ pub enum BenchCmd {
         #[arg(long, default_value = "out-bench")]
         out: PathBuf,
         /// Timed runs per setting (median reported).
-        #[arg(long, default_value_t = 5, value_parser = crate::cli::args::runs)]
+        #[arg(long, default_value_t = 5, value_parser = psns::options::runs)]
         runs: usize,
     },
     /// Stream frames/s per stage (sky, sensor, packing, write) and end to end, fast path against
@@ -76,13 +76,13 @@ pub enum BenchCmd {
         #[arg(long, default_value = "out-bench")]
         out: PathBuf,
         /// Frames per stage measurement (median reported).
-        #[arg(long, default_value_t = 20, value_parser = crate::cli::args::runs)]
+        #[arg(long, default_value_t = 20, value_parser = psns::options::runs)]
         frames: usize,
         /// Frames per end-to-end run of `psns stream` (a third of them with --exact).
-        #[arg(long, default_value_t = 300, value_parser = crate::cli::args::runs)]
+        #[arg(long, default_value_t = 300, value_parser = psns::options::runs)]
         e2e_frames: usize,
         /// End-to-end runs per command (median reported, with the slowest and fastest run).
-        #[arg(long, default_value_t = 3, value_parser = crate::cli::args::runs)]
+        #[arg(long, default_value_t = 3, value_parser = psns::options::runs)]
         runs: usize,
         /// Sky grid steps of the fast path to time.
         #[arg(long, value_delimiter = ',', default_values_t = vec![8usize, 16, 32])]

@@ -1,9 +1,9 @@
 //! `psns bench sky`: the exact per-pixel sky against the coarse-grid sky of raw frames, time per
 //! full frame and error.
 
-use crate::cli::create_dir;
 use crate::cli::progress::{Progress, Unit};
 use psns::config::SceneConfig;
+use psns::io::create_dir;
 use psns::{io, render, Error, Result};
 use std::io::Write;
 use std::path::Path;

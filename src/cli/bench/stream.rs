@@ -1,9 +1,9 @@
 //! `psns bench stream`: frames/s of the stream per stage (sky, sensor, packing, write) and end
 //! to end, fast path against `--exact`, and the fast path's error for several sky grids.
 
-use crate::cli::create_dir;
 use psns::camera::{Attitude, Camera};
 use psns::config::SceneConfig;
+use psns::io::create_dir;
 use psns::pipeline::RawPipeline;
 use psns::render::{self, SkyGrid, StokesOptions};
 use psns::sensor::{packing, FastSink};

@@ -5,9 +5,10 @@ pub mod sensor;
 pub mod sky;
 
 use super::progress::{Progress, Unit};
-use super::{create_dir, vis};
+use super::vis;
 use clap::Args;
 use psns::config::SceneConfig;
+use psns::io::create_dir;
 use psns::{io, render, Result};
 use std::path::{Path, PathBuf};
 

@@ -1,16 +1,19 @@
-//! Dataset planning (`psns dataset`, issue 11): the description of a PSNS-style dataset, the
-//! deterministic parameters of every sample, its file names and its label row.
+//! PSNS-style datasets (`psns dataset`): the description of a dataset, the deterministic
+//! parameters of every sample, its file names and its label row (this file, pure); the build into
+//! a directory ([`build`]) and its manifest ([`manifest`]).
 //!
-//! Everything here is pure: sample `i` of split `s` gets parameters drawn from seeded streams
-//! keyed by the dataset seed, the sample's frame index and the parameter
-//! ([`crate::rng::dataset_rng`]), so a sample never depends on threads, shards, jobs or restarts.
-//! Files, manifests and progress are the front-end's (`src/cli/dataset.rs`).
+//! Sample `i` of split `s` gets parameters drawn from seeded streams keyed by the dataset seed,
+//! the sample's frame index and the parameter ([`crate::rng::dataset_rng`]), so a sample never
+//! depends on threads, shards, jobs or restarts.
 //!
 //! Layout (`docs/dataset.md`): six folders, NFPI, GNIIPI, GNIICPI (training) and TNFPI, TGNIIPI,
 //! TGNIICPI (test), rendered with the presets nfpi / gniipi / gniicpi. Sample `n` (1-based) of the
 //! split with id `s` (0..5 in that order) is frame `s · 10⁹ + n` of the dataset's camera (seed
 //! `seed`), so splits never share noise and the counts of one split never change another's
 //! samples.
+
+pub mod build;
+pub mod manifest;
 
 use crate::camera::{Attitude, AttitudeFrame, Intrinsics};
 use crate::config::{SceneConfig, SunConfig};

@@ -1,0 +1,203 @@
+//! Options of `psns heading` (and `psns.heading` in Python), and the estimator's setup they
+//! describe for one image.
+
+use super::{parsed, whole, SceneArgs};
+use crate::camera::Attitude;
+use crate::demosaic::Method;
+use crate::heading::{estimate_codes, CodesEstimate, HeadingMethod, HeadingSetup};
+use crate::io::LoadedRaw;
+use crate::sensor::optics::RelativeIllumination;
+use crate::sensor::{Preset, SensorConfig};
+use crate::{Error, Result};
+use clap::Args;
+use std::path::PathBuf;
+
+/// Options of `psns heading`.
+#[derive(Args)]
+pub struct HeadingArgs {
+    /// Raw PNG/TIFF mosaic (codes), or a psns frame stream (file, FIFO, or - for stdin).
+    pub input: PathBuf,
+    /// Sun position (--sun-zenith/--sun-azimuth or --time/--lat/--lon), intrinsics
+    /// (--width/--height/--focal-length/--pixel-pitch) and the known tilt (--pitch/--roll, ENU).
+    /// A stream gives the sun per frame and the intrinsics in its header (options override them).
+    #[command(flatten)]
+    pub scene: SceneArgs,
+    /// Demosaic method (the whole frame). Default: bilinear; a frame of more than about 640 000
+    /// pixels (the full 2448 x 2048 sensor) is instead read as every k-th 2 x 2 superpixel only
+    /// (k even, about 40 000 samples: what the estimators read), the rest never demosaicked.
+    #[arg(long, value_parser = parsed::<Method>)]
+    pub demosaic: Option<Method>,
+    /// Estimator: model-fit (Berry field fitted from the eigenvector answer; default, the most
+    /// accurate), eigen (sun vector), hough (solar meridian).
+    #[arg(long, default_value = "model-fit", value_parser = parsed::<HeadingMethod>)]
+    pub method: HeadingMethod,
+    /// Model fit: also fit the sun's elevation (one neutral-point distance), starting from the
+    /// given or the stream's sun; for a sun position known only roughly.
+    #[arg(long)]
+    pub fit_sun_elevation: bool,
+    /// Significant bits of the codes in a PNG/TIFF (saturation is the top code); a stream says.
+    #[arg(long, value_parser = whole)]
+    pub bits: Option<u64>,
+    /// Stream input: only the frame with this index (`--frame` is the attitude frame of the
+    /// scene options).
+    #[arg(long, value_parser = whole, value_name = "N")]
+    pub index: Option<u64>,
+    /// Stream input: take each frame's pitch and roll (never its yaw) from the frame's attitude,
+    /// as an IMU would supply them; otherwise --pitch/--roll (default level).
+    #[arg(long, conflicts_with_all = ["pitch", "roll"])]
+    pub imu_tilt: bool,
+    /// Stream input, for a consumer slower than the camera: always estimate the newest complete
+    /// frame. A reader thread keeps draining the stream (so a slow estimate never blocks the
+    /// producer's writes) and keeps only the latest frame; frames replaced before the estimator
+    /// took them are skipped, counted in the summary and missing from the rows (frame_index
+    /// shows the gaps).
+    #[arg(long)]
+    pub latest: bool,
+    /// Stream input, model fit: start each frame's neutral-point distances from the previous
+    /// frame's fit (when its confidence was at least 0.5) and set the robust weights from the
+    /// first residuals; the yaw still starts from the frame's own eigenvector answer.
+    #[arg(long)]
+    pub warm_start: bool,
+    /// Image input: the sensor preset the frame was made with (camera, nfpi, gniipi, gniicpi), as
+    /// in `psns render --raw`: its lens is the default of --lens and its relative illumination the
+    /// flat-field law. A stream's header records both.
+    #[arg(long, value_parser = parsed::<Preset>)]
+    pub preset: Option<Preset>,
+    /// Flat-field law of the intensity vote (the 180° decision with the sun within 8° of the
+    /// horizon): the frames' relative illumination is cos^N of the field angle (0 = none).
+    /// Default: an image's --preset (camera cos^1.5, gniipi/gniicpi cos^4, nfpi none); a
+    /// stream's recorded optics (or its preset).
+    #[arg(long, value_name = "N")]
+    pub vignetting_cos_power: Option<f64>,
+}
+
+impl HeadingArgs {
+    /// The relative illumination to flat-field S0 by: `--vignetting-cos-power`, else `default`.
+    pub fn flat_field(&self, default: RelativeIllumination) -> Result<RelativeIllumination> {
+        Ok(match self.vignetting_cos_power {
+            Some(n) => {
+                let ri = if n == 0.0 {
+                    RelativeIllumination::None
+                } else {
+                    RelativeIllumination::CosPower { n }
+                };
+                ri.validate()
+                    .map_err(|_| Error::range("vignetting-cos-power", n, "0..8"))?;
+                ri
+            }
+            None => default,
+        })
+    }
+
+    /// Options that need a particular `--method`.
+    pub fn check_method_options(&self) -> Result<()> {
+        if self.fit_sun_elevation && self.method != HeadingMethod::ModelFit {
+            return Err(Error::Invalid(format!(
+                "--fit-sun-elevation applies to --method model-fit, not {}",
+                self.method
+            )));
+        }
+        if self.warm_start && self.method != HeadingMethod::ModelFit {
+            return Err(Error::Invalid(format!(
+                "--warm-start applies to --method model-fit, not {}",
+                self.method
+            )));
+        }
+        Ok(())
+    }
+
+    /// The option checks of one image (not a stream).
+    pub fn check_image_options(&self) -> Result<()> {
+        self.check_method_options()?;
+        for (name, given) in [
+            ("imu-tilt", self.imu_tilt),
+            ("latest", self.latest),
+            ("warm-start", self.warm_start),
+        ] {
+            if given {
+                return Err(Error::Invalid(format!(
+                    "--{name} applies to stream input only"
+                )));
+            }
+        }
+        Ok(())
+    }
+
+    /// The tilt given as --pitch/--roll (ENU Euler attitude), refusing a yaw or a quaternion.
+    pub fn given_tilt(&self) -> Result<(f64, f64)> {
+        if self.scene.yaw.is_some() || self.scene.quaternion.is_some() {
+            return Err(Error::Invalid(
+                "psns heading estimates the yaw: give only the tilt (--pitch, --roll)".into(),
+            ));
+        }
+        match self.scene.scene()?.camera.attitude {
+            Attitude::Euler {
+                pitch_deg,
+                roll_deg,
+                ..
+            } => Ok((pitch_deg, roll_deg)),
+            Attitude::Quaternion { .. } => Err(Error::Invalid(
+                "psns heading takes the tilt as --pitch/--roll, not a quaternion".into(),
+            )),
+        }
+    }
+
+    /// The estimator's setup for one image: the options' sun (up), intrinsics and tilt.
+    pub fn image_setup(&self) -> Result<HeadingSetup> {
+        let (pitch, roll) = self.given_tilt()?;
+        let mut cfg = self.scene.scene()?;
+        if let Some(p) = self.preset {
+            cfg.raw.preset = p;
+        }
+        let sun = cfg.sun.resolve()?;
+        cfg.sun.check_up(sun)?;
+        // lens: --lens, or the camera preset's (as psns render)
+        let mut setup = HeadingSetup::new(cfg.intrinsics(), sun);
+        setup.pitch_deg = pitch;
+        setup.roll_deg = roll;
+        setup.fit_elevation = self.fit_sun_elevation;
+        // the falloff of the preset's (or the configured) sensor, as psns render makes it
+        let sensor = cfg
+            .raw
+            .sensor
+            .clone()
+            .unwrap_or_else(|| SensorConfig::preset(cfg.raw.preset));
+        setup.relative_illumination = self.flat_field(sensor.effective_ri())?;
+        Ok(setup)
+    }
+
+    /// The estimate from one mosaic (not a stream) with the [`image_setup`](Self::image_setup)
+    /// of the options; `name` names the input in messages.
+    pub fn estimate_image(
+        &self,
+        setup: &HeadingSetup,
+        raw: &LoadedRaw,
+        name: &str,
+    ) -> Result<CodesEstimate> {
+        let i = setup.intrinsics;
+        if (raw.codes.width, raw.codes.height) != (i.width, i.height) {
+            return Err(Error::Invalid(format!(
+                "{name} is {} x {} pixels but the intrinsics say {} x {}: give --width/--height (and --pixel-pitch, --focal-length) of the camera",
+                raw.codes.width,
+                raw.codes.height,
+                i.width,
+                i.height
+            )));
+        }
+        let bits = match self.bits {
+            Some(b) if (8..=16).contains(&b) => b as u8,
+            Some(b) => return Err(Error::range("bits", b as f64, "8..16")),
+            None if raw.bits == 8 => 8,
+            None => 12, // the IMX250MZR's deepest mode, in a 16-bit file
+        };
+        estimate_codes(
+            &raw.codes,
+            raw.black_level,
+            raw.layout,
+            bits,
+            self.demosaic,
+            self.method,
+            setup,
+        )
+    }
+}
