@@ -14,7 +14,6 @@
 //!
 //! SIGINT or SIGTERM ends it with exit code 0.
 
-use psns::options::{finite, RawArgs, SceneArgs};
 use super::poses::{open_trajectory, Poses};
 use super::progress::{Progress, Unit};
 use psns::camera::camera_to_enu_quaternion;
@@ -24,6 +23,7 @@ use psns::gige::chunk::{self, ChunkValues};
 use psns::gige::gvcp::{self, Command};
 use psns::gige::gvsp::{self, Block, BlockRing, Leader};
 use psns::gige::registers::{Action, Device, DeviceInfo, FrameOrder, Poll, Settings};
+use psns::options::{finite, RawArgs, SceneArgs};
 use psns::pipeline::{seconds_to_ns, RawPipeline, SceneClock};
 use psns::sensor::{packing, Exposure};
 use psns::trajectory::Pose;
@@ -95,6 +95,28 @@ fn install_signal_handlers() {
         libc::sigaction(libc::SIGINT, &sa, std::ptr::null_mut());
         libc::sigaction(libc::SIGTERM, &sa, std::ptr::null_mut());
     }
+}
+
+/// How much lower the render workers' priority is than the control and stream threads'
+/// (nice increment).
+const RENDER_NICENESS: libc::c_int = 5;
+
+/// Builds the render pool (rayon's global pool, one worker per CPU) with its workers at a lower
+/// priority than the rest of the process: a device that renders with every core still answers
+/// GVCP and sends its packets on time, and a client on the same machine keeps up. Frames do not
+/// depend on it.
+fn lower_render_priority() {
+    let _ = rayon::ThreadPoolBuilder::new()
+        .start_handler(|_| {
+            // SAFETY: gettid has no preconditions; setpriority on this thread's own id raises its
+            // nice value (always permitted) or fails harmlessly
+            unsafe {
+                let tid = libc::gettid();
+                let now = libc::getpriority(libc::PRIO_PROCESS, tid as libc::id_t);
+                libc::setpriority(libc::PRIO_PROCESS, tid as libc::id_t, now + RENDER_NICENESS);
+            }
+        })
+        .build_global();
 }
 
 fn stopping() -> bool {
@@ -257,6 +279,7 @@ pub fn run(a: GigeArgs) -> anyhow::Result<()> {
         stats: Stats::default(),
     });
     install_signal_handlers();
+    lower_render_priority();
     control
         .set_read_timeout(Some(POLL))
         .map_err(|e| Error::io("setting the control socket's timeout", e))?;

@@ -7,9 +7,9 @@
 //! buffers. The CPU time of the device and of the receiver over the run (from /proc and wait4)
 //! say where the time goes.
 
-use psns::io::create_dir;
 use psns::error::{Error, Result};
 use psns::gige::gvsp::{self, BlockLayout};
+use psns::io::create_dir;
 use std::io::{BufRead, BufReader, Read, Write};
 use std::net::Ipv4Addr;
 use std::path::PathBuf;
