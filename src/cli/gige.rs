@@ -194,6 +194,8 @@ pub fn run(a: GigeArgs) -> anyhow::Result<()> {
         .into());
     }
     psns::error::check_range("drop-packets", a.drop_packets, 0.0, 0.999)?;
+    // before anything uses rayon's pool
+    lower_render_priority();
     let mut cfg = a.scene.scene()?;
     a.raw.apply(&mut cfg)?;
     let (w, h) = (cfg.camera.intrinsics.width, cfg.camera.intrinsics.height);
@@ -247,6 +249,14 @@ pub fn run(a: GigeArgs) -> anyhow::Result<()> {
         defaults,
         ..DeviceInfo::default()
     };
+    // sockets
+    let bind = |addr: SocketAddrV4| {
+        UdpSocket::bind(addr).map_err(|e| Error::io(format!("binding {addr}"), e))
+    };
+    let control = bind(SocketAddrV4::new(a.address, a.port))?;
+    let stream = bind(SocketAddrV4::new(a.address, 0))?;
+    let port = control.local_addr().map(|s| s.port()).unwrap_or(a.port);
+    let discovery = broadcast_socket(port);
     let mut truth = match &a.truth_csv {
         Some(p) => {
             let f = std::fs::File::create(p)
@@ -259,14 +269,6 @@ pub fn run(a: GigeArgs) -> anyhow::Result<()> {
         }
         None => None,
     };
-    // sockets
-    let bind = |addr: SocketAddrV4| {
-        UdpSocket::bind(addr).map_err(|e| Error::io(format!("binding {addr}"), e))
-    };
-    let control = bind(SocketAddrV4::new(a.address, a.port))?;
-    let stream = bind(SocketAddrV4::new(a.address, 0))?;
-    let port = control.local_addr().map(|s| s.port()).unwrap_or(a.port);
-    let discovery = broadcast_socket(port);
     let mut device = Device::new(info, psns::gige::xml::genicam_xml());
     device.set_source_port(stream.local_addr().map(|s| s.port()).unwrap_or(0));
     let serial = device.info().serial.clone();
@@ -279,7 +281,6 @@ pub fn run(a: GigeArgs) -> anyhow::Result<()> {
         stats: Stats::default(),
     });
     install_signal_handlers();
-    lower_render_priority();
     control
         .set_read_timeout(Some(POLL))
         .map_err(|e| Error::io("setting the control socket's timeout", e))?;
