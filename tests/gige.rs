@@ -577,7 +577,7 @@ fn raw_gvcp_errors_and_malformed_datagrams() {
 #[test]
 fn arv_camera_test_streams_without_failed_buffers() {
     require_tools();
-    // 127.0.0.1 as the command line has it, unless something else holds it
+    // 127.0.0.1, the address clients use by default, unless something else holds it
     let s = Server::start_at(Ipv4Addr::LOCALHOST, &[]).unwrap_or_else(|| {
         eprintln!("127.0.0.1:3956 is taken: using another loopback address");
         Server::start(&[])
