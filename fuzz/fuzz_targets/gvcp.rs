@@ -6,6 +6,10 @@ use libfuzzer_sys::fuzz_target;
 use psns::gige::gvcp::{decode_command, Ack};
 use psns::gige::registers::{Device, DeviceInfo};
 use std::net::{Ipv4Addr, SocketAddrV4};
+use std::sync::OnceLock;
+
+/// The XML, made once (making it for every input would be most of the run's time).
+static XML: OnceLock<String> = OnceLock::new();
 
 fuzz_target!(|data: &[u8]| {
     let _ = decode_command(data);
@@ -13,7 +17,8 @@ fuzz_target!(|data: &[u8]| {
     let _ = psns::gige::gvsp::decode(data);
     let _ = psns::gige::chunk::chunks(data);
     // the input as a sequence of datagrams: [len, sender, bytes...]*
-    let mut dev = Device::new(DeviceInfo::default(), psns::gige::xml::genicam_xml());
+    let xml = XML.get_or_init(psns::gige::xml::genicam_xml).clone();
+    let mut dev = Device::new(DeviceInfo::default(), xml);
     let mut rest = data;
     let mut now = 0u64;
     while rest.len() >= 2 {
