@@ -19,6 +19,7 @@ pub mod config;
 pub mod dataset;
 pub mod demosaic;
 pub mod error;
+pub mod gige;
 pub mod heading;
 pub mod image;
 pub mod io;

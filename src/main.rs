@@ -30,6 +30,8 @@ enum Cmd {
     Stream(cli::stream::StreamArgs),
     /// Turn a psns frame stream into a ROS 2 bag (rosbag2 directory or MCAP file).
     Convert(cli::convert::ConvertArgs),
+    /// Be a GigE Vision camera: GenICam clients (Aravis) discover, configure and stream it.
+    Gige(cli::gige::GigeArgs),
     /// Check a frame stream: frame count, drops, corrupt and truncated frames. Exit 0 only if clean.
     Verify(cli::verify::VerifyArgs),
     /// Write one frame of a stream as PNG and TIFF plus its metadata as JSON.
@@ -59,6 +61,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Cmd::Sun(a) => cli::sun::run(a),
         Cmd::Stream(a) => cli::stream::run(a),
         Cmd::Convert(a) => cli::convert::run(a),
+        Cmd::Gige(a) => cli::gige::run(a),
         Cmd::Verify(a) => cli::verify::run_verify(a),
         Cmd::Extract(a) => cli::verify::run_extract(a),
         Cmd::Demosaic(a) => cli::demosaic::run(a),

@@ -20,14 +20,14 @@
 //! Concurrency: a render thread turns pose k+1 into a packed payload while the calling thread
 //! writes frame k (`sync_channel(1)`); the order and bytes do not depend on the timing.
 
+use super::poses::{open_trajectory, Trajectory};
 use super::progress::{Progress, Unit};
-use chrono::{DateTime, Utc};
 use glam::DMat3;
 use psns::camera::camera_to_enu_quaternion;
 use psns::config::SceneConfig;
 use psns::error::{Error, Result};
 use psns::options::{finite, whole, RawArgs, SceneArgs};
-use psns::pipeline::RawPipeline;
+use psns::pipeline::{seconds_to_ns, RawPipeline, SceneClock};
 use psns::sensor::packing::{self, PixelFormat};
 use psns::sensor::Exposure;
 use psns::stream::{
@@ -35,9 +35,10 @@ use psns::stream::{
     FLAG_EXPOSURE_CLIPPED, FLAG_GROUND_IN_VIEW, FLAG_LAST, FLAG_SATURATION, FLAG_SKY_INVALID,
     FLAG_SUN_IN_VIEW, JSON_MAX,
 };
-use psns::sun::{self, Place, SunPosition};
-use psns::trajectory::{turning, CsvTrajectory, Pose};
-use std::io::{BufReader, BufWriter, Write};
+#[cfg(test)]
+use psns::sun::SunPosition;
+use psns::trajectory::Pose;
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
 use std::time::{Duration, Instant};
@@ -145,9 +146,6 @@ pub fn run(a: StreamArgs) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// Trajectory start time when neither `--start-time` nor the scene's `sun.time` gives one.
-pub const DEFAULT_START_TIME: &str = "2025-06-21T10:00:00Z";
-
 /// A frame counts as late under `--rate` when it is ready this long after its due time.
 pub const LATE_TOLERANCE: Duration = Duration::from_millis(1);
 
@@ -164,7 +162,7 @@ pub struct StreamOptions {
     /// `t0 + k / rate`, t0 = when frame 0 is ready (after the camera set-up and the first render).
     pub rate_fps: Option<f64>,
     /// Trajectory time zero, ISO 8601 UTC; `None` = the scene's `sun.time`, else
-    /// [`DEFAULT_START_TIME`].
+    /// [`psns::pipeline::DEFAULT_START_TIME`].
     pub start_time: Option<String>,
     /// Built-in generator: yaw rate, degrees per second.
     pub yaw_rate_deg_s: f64,
@@ -231,26 +229,11 @@ impl Payload {
     }
 }
 
-type Poses = Box<dyn Iterator<Item = Result<Pose>> + Send>;
-
-/// Where the sun comes from.
-#[derive(Clone, Copy, Debug)]
-enum SunSource {
-    /// Given directly by the scene: fixed.
-    Fixed(SunPosition),
-    /// SPA at the frame's time, at the pose's place or else this one (None: the pose must carry one).
-    Spa(Option<Place>),
-}
-
 /// Everything the render thread needs besides the pipeline.
 struct FrameMaker {
     pipe: RawPipeline,
-    sun: SunSource,
-    place: Option<Place>,
-    start_ns: i64,
-    start: DateTime<Utc>,
-    delta_t_s: Option<f64>,
-    refraction: Option<sun::Refraction>,
+    /// Pose time to stream time, and the sun of each frame.
+    clock: SceneClock,
     /// Half the fixed exposure, ns (0 for auto-exposure).
     half_exposure_ns: i64,
     fmt: PixelFormat,
@@ -273,16 +256,6 @@ struct FrameMaker {
 /// fresh 10 MB buffer costs its page faults and zeroing every frame).
 const PAYLOAD_BUFFERS: usize = 3;
 
-fn seconds_to_ns(t_s: f64) -> Result<i64> {
-    let ns = (t_s * 1e9).round();
-    if !(ns.is_finite() && ns.abs() < 9.0e18) {
-        return Err(Error::Invalid(format!(
-            "trajectory time {t_s} s does not fit the stream clock"
-        )));
-    }
-    Ok(ns as i64)
-}
-
 impl FrameMaker {
     /// A payload buffer back from the writer; `None` = make a new one (the first
     /// [`PAYLOAD_BUFFERS`] frames, or the writer is gone).
@@ -298,34 +271,11 @@ impl FrameMaker {
         rx.recv().ok()
     }
 
-    fn sun_at(&self, pose: &Pose, mid_ns: i64) -> Result<SunPosition> {
-        // a place in the trajectory always means SPA; otherwise the scene decides
-        let place = match (pose.place, self.sun) {
-            (Some(p), _) => Some(p),
-            (None, SunSource::Fixed(s)) => return Ok(s),
-            (None, SunSource::Spa(p)) => p,
-        };
-        let place = place.ok_or_else(|| {
-            Error::Invalid(
-                "a moving sun needs a place: give --lat/--lon or lat_deg,lon_deg,height_m columns"
-                    .into(),
-            )
-        })?;
-        let t = self.start + chrono::Duration::nanoseconds(mid_ns - self.start_ns);
-        sun::spa(&t, &place, self.delta_t_s, self.refraction)
-    }
-
     fn render(&mut self, index: u64, pose: &Pose, last: bool) -> Result<Rendered> {
-        let t_ns = self
-            .start_ns
-            .checked_add(seconds_to_ns(pose.t_s)?)
-            .ok_or_else(|| {
-                Error::Invalid(format!(
-                    "trajectory time {} s does not fit the stream clock",
-                    pose.t_s
-                ))
-            })?;
-        let sun = self.sun_at(pose, t_ns.saturating_add(self.half_exposure_ns))?;
+        let t_ns = self.clock.exposure_start_ns(pose)?;
+        let sun = self
+            .clock
+            .sun_at(pose, t_ns.saturating_add(self.half_exposure_ns))?;
         // buffers the writer has finished with come back: codes (Mono16) or packed bytes
         let mut bytes = Vec::new();
         if let Some(p) = self.spare_payload() {
@@ -377,7 +327,7 @@ impl FrameMaker {
         if last {
             flags |= FLAG_LAST;
         }
-        let place = pose.place.or(self.place);
+        let place = self.clock.place(pose);
         let exposure_ns = seconds_to_ns(frame.exposure_us * 1e-6)?;
         // payload DN: Mono8 keeps the top 8 of `bit_depth` bits
         let black_scale = 2f64.powi(self.bits_valid as i32 - frame.bit_depth as i32);
@@ -673,49 +623,6 @@ impl Output {
     }
 }
 
-/// An opened trajectory.
-struct Trajectory {
-    poses: Poses,
-    /// Read one pose ahead to flag the last frame: only for a regular file, where it costs no
-    /// latency.
-    lookahead: bool,
-    /// Every pose carries a place.
-    has_place: bool,
-}
-
-fn open_trajectory(opts: &StreamOptions) -> Result<Trajectory> {
-    match &opts.trajectory {
-        None => {
-            psns::error::check_range("frame-interval-ms", opts.frame_interval_ms, 1e-3, 3.6e6)?;
-            psns::error::check_range("yaw-rate", opts.yaw_rate_deg_s, -1e6, 1e6)?;
-            Ok(Trajectory {
-                poses: Box::new(turning(opts.yaw_rate_deg_s, opts.frame_interval_ms * 1e-3)),
-                lookahead: false,
-                has_place: false,
-            })
-        }
-        Some(p) if p.as_os_str() == "-" => {
-            let t = CsvTrajectory::new(BufReader::new(std::io::stdin()))?;
-            Ok(Trajectory {
-                has_place: t.has_place(),
-                poses: Box::new(t),
-                lookahead: false,
-            })
-        }
-        Some(p) => {
-            let f = std::fs::File::open(p)
-                .map_err(|e| Error::io(format!("opening trajectory {}", p.display()), e))?;
-            let regular = f.metadata().map(|m| m.is_file()).unwrap_or(false);
-            let t = CsvTrajectory::new(BufReader::new(f))?;
-            Ok(Trajectory {
-                has_place: t.has_place(),
-                poses: Box::new(t),
-                lookahead: regular,
-            })
-        }
-    }
-}
-
 /// Runs `psns stream`.
 ///
 /// Everything is validated (scene, sensor, options, trajectory header) before the output is
@@ -725,18 +632,11 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
     if let Some(r) = opts.rate_fps {
         psns::error::check_range("rate", r, 1e-6, 1e6)?;
     }
-    let start_s = opts
-        .start_time
-        .clone()
-        .or_else(|| cfg.sun.time.clone())
-        .unwrap_or_else(|| DEFAULT_START_TIME.to_string());
-    let start = sun::parse_time(&start_s)?;
-    let start_ns = start
-        .timestamp_nanos_opt()
-        .ok_or_else(|| Error::Invalid(format!("start time {start_s} is out of range")))?;
+    let start = SceneClock::start_time(cfg, opts.start_time.as_deref())?;
     if let Some(b) = &opts.bag {
         super::bag::check_out(&b.kind, &opts.out)?;
-        psns::ros2::Time::from_unix_ns(start_ns)?;
+        // start_time has checked that the start fits i64 nanoseconds
+        psns::ros2::Time::from_unix_ns(start.timestamp_nanos_opt().unwrap_or_default())?;
     }
     let pipe = RawPipeline::new(cfg)?;
     let sc = pipe.sensor_config().clone();
@@ -744,22 +644,12 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
         poses,
         lookahead,
         has_place,
-    } = open_trajectory(opts)?;
-    let sun_src = if cfg.sun.time.is_some() {
-        // the scene's time and place must be consistent; the trajectory may bring the place
-        let mut check = cfg.sun.clone();
-        if has_place && check.place.is_none() {
-            check.place = Some(Place {
-                lat_deg: 0.0,
-                lon_deg: 0.0,
-                height_m: 0.0,
-            });
-        }
-        check.resolve()?;
-        SunSource::Spa(cfg.sun.place)
-    } else {
-        SunSource::Fixed(cfg.sun.resolve()?)
-    };
+    } = open_trajectory(
+        opts.trajectory.as_deref(),
+        opts.yaw_rate_deg_s,
+        opts.frame_interval_ms,
+    )?;
+    let clock = SceneClock::new(cfg, start, has_place)?;
     let traj_kind = match &opts.trajectory {
         None => serde_json::json!({
             "turning": {"yaw_rate_deg_s": opts.yaw_rate_deg_s, "frame_interval_ms": opts.frame_interval_ms}
@@ -780,12 +670,7 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
         None => header.pixel_format,
     };
     let mut maker = FrameMaker {
-        sun: sun_src,
-        place: cfg.sun.place,
-        start_ns,
-        start,
-        delta_t_s: cfg.sun.delta_t_s,
-        refraction: cfg.sun.refraction,
+        clock,
         half_exposure_ns: match sc.exposure {
             Exposure::Fixed { us } => seconds_to_ns(us * 0.5e-6)?,
             Exposure::Auto { .. } => 0,

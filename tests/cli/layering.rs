@@ -23,6 +23,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("stream", 8),
     ("trajectory", 8),
     ("heading", 8),
+    ("gige", 8),
     ("config", 9),
     ("io", 9),
     ("ros2", 9),

@@ -3,6 +3,9 @@
 // tests set a field or two of a default configuration
 #![allow(clippy::field_reassign_with_default)]
 
+#[path = "../common/mod.rs"]
+mod common;
+
 mod camera_chain;
 mod hosek;
 mod models;

@@ -3,6 +3,7 @@
 
 pub mod budget;
 pub mod demosaic;
+pub mod gige;
 pub mod heading;
 pub mod scenes;
 pub mod sky;
@@ -46,6 +47,20 @@ pub enum BenchCmd {
         /// budget_summary.csv, budget_frames.csv, budget_panfit.csv and budget.svg.
         #[arg(long)]
         budget: bool,
+    },
+    /// Frames/s an Aravis receiver (arv-camera-test-0.8 -f 200 -i 8192) gets from psns gige on
+    /// this machine, Mono8, Mono16 and under DeviceLinkThroughputLimit, against Aravis's fake
+    /// camera, with each side's CPU time (writes gige.csv and gige.md). Needs aravis-tools.
+    Gige {
+        /// Output directory (the docs' table: `--out docs/bench`).
+        #[arg(long, default_value = "out-bench")]
+        out: PathBuf,
+        /// Seconds per receiver run.
+        #[arg(long, default_value_t = 12, value_parser = clap::value_parser!(u32).range(4..=600))]
+        duration: u32,
+        /// Runs per case (median reported, with the slowest and fastest).
+        #[arg(long, default_value_t = 3, value_parser = psns::options::runs)]
+        runs: usize,
     },
     /// Exact vs coarse-grid sky evaluation: time per full frame and error (writes sky_grid.csv).
     Sky {
@@ -108,6 +123,20 @@ pub fn run(what: BenchCmd) -> anyhow::Result<()> {
                 steps,
             };
             for f in stream::bench_stream(&cfg, &opts)? {
+                eprintln!("wrote {f}");
+            }
+        }
+        BenchCmd::Gige {
+            out,
+            duration,
+            runs,
+        } => {
+            let opts = gige::GigeBenchOptions {
+                out,
+                duration_s: duration,
+                runs,
+            };
+            for f in gige::bench_gige(&opts)? {
                 eprintln!("wrote {f}");
             }
         }

@@ -1,0 +1,156 @@
+//! The pixel formats the device offers: the PFNC Mono formats and LUCID's polarized names for
+//! the same bytes (their vendor codes), with the ADC depth each implies.
+//!
+//! | name | code | bytes as | ADC bits |
+//! |---|---|---|---|
+//! | Mono8 | 0x01080001 | Mono8 | 8 |
+//! | Mono12p | 0x010C0047 | Mono12p | 12 |
+//! | Mono12Packed | 0x010C0006 | Mono12Packed | 12 |
+//! | Mono16 | 0x01100007 | Mono16 (12 bits, LSB-aligned) | 12 |
+//! | PolarizeMono8 | 0x81080001 | Mono8 | 8 |
+//! | PolarizeMono12p | 0x810C0047 | Mono12p | 12 |
+//! | PolarizeMono12Packed | 0x810C0006 | Mono12Packed | 12 |
+//! | PolarizeMono16 | 0x81100007 | Mono16 | 12 |
+//!
+//! ```
+//! use psns::gige::pixel::GevPixelFormat;
+//! use psns::sensor::packing::PixelFormat;
+//! let f = GevPixelFormat::from_code(0x8108_0001).unwrap();
+//! assert_eq!(f.name(), "PolarizeMono8");
+//! assert_eq!((f.packing(), f.adc_bits()), (PixelFormat::Mono8, 8));
+//! ```
+
+use crate::sensor::packing::PixelFormat;
+
+/// A pixel format of the device.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum GevPixelFormat {
+    /// PFNC Mono8.
+    Mono8,
+    /// PFNC Mono12p.
+    Mono12p,
+    /// GigE Vision Mono12Packed.
+    Mono12Packed,
+    /// PFNC Mono16.
+    Mono16,
+    /// LUCID PolarizeMono8 (Mono8's bytes).
+    PolarizeMono8,
+    /// LUCID PolarizeMono12p (Mono12p's bytes).
+    PolarizeMono12p,
+    /// LUCID PolarizeMono12Packed (Mono12Packed's bytes).
+    PolarizeMono12Packed,
+    /// LUCID PolarizeMono16 (Mono16's bytes).
+    PolarizeMono16,
+}
+
+impl GevPixelFormat {
+    /// Every format, in the order of the GenICam enumeration.
+    pub const ALL: [GevPixelFormat; 8] = [
+        GevPixelFormat::Mono8,
+        GevPixelFormat::Mono12p,
+        GevPixelFormat::Mono12Packed,
+        GevPixelFormat::Mono16,
+        GevPixelFormat::PolarizeMono8,
+        GevPixelFormat::PolarizeMono12p,
+        GevPixelFormat::PolarizeMono12Packed,
+        GevPixelFormat::PolarizeMono16,
+    ];
+
+    /// The packing of the bytes (the Mono twin).
+    pub fn packing(self) -> PixelFormat {
+        use GevPixelFormat::*;
+        match self {
+            Mono8 | PolarizeMono8 => PixelFormat::Mono8,
+            Mono12p | PolarizeMono12p => PixelFormat::Mono12p,
+            Mono12Packed | PolarizeMono12Packed => PixelFormat::Mono12Packed,
+            Mono16 | PolarizeMono16 => PixelFormat::Mono16,
+        }
+    }
+
+    /// Whether this is one of the polarized (vendor) names.
+    pub fn polarized(self) -> bool {
+        self.code() & 0x8000_0000 != 0
+    }
+
+    /// The code in the PixelFormat register and the stream leader: PFNC for the Mono names,
+    /// LUCID's vendor code (PFNC's with the top bit set) for the polarized ones.
+    pub fn code(self) -> u32 {
+        let pfnc = self.packing().pfnc_code();
+        if matches!(
+            self,
+            GevPixelFormat::PolarizeMono8
+                | GevPixelFormat::PolarizeMono12p
+                | GevPixelFormat::PolarizeMono12Packed
+                | GevPixelFormat::PolarizeMono16
+        ) {
+            pfnc | 0x8000_0000
+        } else {
+            pfnc
+        }
+    }
+
+    /// The GenICam enumeration entry's name.
+    pub fn name(self) -> &'static str {
+        use GevPixelFormat::*;
+        match self {
+            Mono8 => "Mono8",
+            Mono12p => "Mono12p",
+            Mono12Packed => "Mono12Packed",
+            Mono16 => "Mono16",
+            PolarizeMono8 => "PolarizeMono8",
+            PolarizeMono12p => "PolarizeMono12p",
+            PolarizeMono12Packed => "PolarizeMono12Packed",
+            PolarizeMono16 => "PolarizeMono16",
+        }
+    }
+
+    /// The format with this register code.
+    pub fn from_code(code: u32) -> Option<Self> {
+        Self::ALL.into_iter().find(|f| f.code() == code)
+    }
+
+    /// ADC depth in bits on the real camera: 8 for the 8-bit formats, 12 otherwise.
+    pub fn adc_bits(self) -> u8 {
+        if self.packing() == PixelFormat::Mono8 {
+            8
+        } else {
+            12
+        }
+    }
+
+    /// Payload bytes of a `width` x `height` image (`None` on overflow).
+    pub fn image_bytes(self, width: usize, height: usize) -> Option<usize> {
+        crate::sensor::packing::payload_size_checked(self.packing(), width, height)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn lucid_codes() {
+        let c: Vec<u32> = GevPixelFormat::ALL.iter().map(|f| f.code()).collect();
+        assert_eq!(
+            c,
+            [
+                0x0108_0001,
+                0x010C_0047,
+                0x010C_0006,
+                0x0110_0007,
+                0x8108_0001,
+                0x810C_0047,
+                0x810C_0006,
+                0x8110_0007
+            ]
+        );
+        for f in GevPixelFormat::ALL {
+            assert_eq!(GevPixelFormat::from_code(f.code()), Some(f));
+            assert_eq!(f.polarized(), f.name().starts_with("Polarize"));
+        }
+        assert_eq!(
+            GevPixelFormat::Mono12Packed.image_bytes(2448, 2048),
+            Some(7_520_256)
+        );
+    }
+}

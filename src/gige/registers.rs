@@ -1,0 +1,1380 @@
+//! The device: its register map (the GigE Vision bootstrap registers and psns's feature
+//! registers) and its behaviour as a state machine — privilege, heartbeat, acquisition, triggers —
+//! with no sockets and no clock: the caller passes each datagram with its sender and the time.
+//!
+//! Time is the device clock in nanoseconds since the device started; the timestamp counter
+//! ticks at 1 GHz on the same clock.
+//!
+//! ```
+//! use psns::gige::gvcp::{Ack, Command, Request, FLAG_ACK_REQUIRED};
+//! use psns::gige::registers::{addr, Device, DeviceInfo};
+//! use std::net::{Ipv4Addr, SocketAddrV4};
+//! let mut dev = Device::new(DeviceInfo::default(), "<x/>".into());
+//! let app = SocketAddrV4::new(Ipv4Addr::LOCALHOST, 50000);
+//! let take = Request { flags: FLAG_ACK_REQUIRED, req_id: 1,
+//!                      command: Command::WriteReg(vec![(addr::CCP, 2)]) };
+//! let out = dev.handle(app, Ipv4Addr::LOCALHOST, &take.encode(), 0);
+//! assert_eq!(Ack::decode(&out.reply.unwrap()).unwrap().status, 0);
+//! // another application cannot write while the first has control
+//! let other = SocketAddrV4::new(Ipv4Addr::LOCALHOST, 50001);
+//! let w = Request { flags: FLAG_ACK_REQUIRED, req_id: 1,
+//!                   command: Command::WriteReg(vec![(addr::WIDTH, 640)]) };
+//! let out = dev.handle(other, Ipv4Addr::LOCALHOST, &w.encode(), 1);
+//! assert_eq!(Ack::decode(&out.reply.unwrap()).unwrap().status, 0x8006); // access denied
+//! ```
+
+use super::chunk::{self, ChunkKind};
+use super::gvcp::{self, decode_command, Ack, Command, DecodeError, Request, Status};
+use super::gvsp;
+use super::pixel::GevPixelFormat;
+use std::net::{Ipv4Addr, SocketAddrV4};
+
+/// Register addresses.
+pub mod addr {
+    /// GigE Vision version (major << 16 | minor).
+    pub const VERSION: u32 = 0x0000;
+    /// Device mode: big-endian registers, UTF-8 strings.
+    pub const DEVICE_MODE: u32 = 0x0004;
+    /// MAC address, high 16 bits.
+    pub const MAC_HIGH: u32 = 0x0008;
+    /// MAC address, low 32 bits.
+    pub const MAC_LOW: u32 = 0x000C;
+    /// Supported IP configuration.
+    pub const SUPPORTED_IP_CONFIG: u32 = 0x0010;
+    /// Current IP configuration.
+    pub const CURRENT_IP_CONFIG: u32 = 0x0014;
+    /// Current IPv4 address.
+    pub const CURRENT_IP: u32 = 0x0024;
+    /// Current subnet mask.
+    pub const SUBNET_MASK: u32 = 0x0034;
+    /// Current default gateway.
+    pub const GATEWAY: u32 = 0x0044;
+    /// Manufacturer name, 32 bytes.
+    pub const MANUFACTURER: u32 = 0x0048;
+    /// Model name, 32 bytes.
+    pub const MODEL: u32 = 0x0068;
+    /// Device version, 32 bytes.
+    pub const DEVICE_VERSION: u32 = 0x0088;
+    /// Manufacturer information, 48 bytes.
+    pub const MANUFACTURER_INFO: u32 = 0x00A8;
+    /// Serial number, 16 bytes.
+    pub const SERIAL: u32 = 0x00D8;
+    /// User-defined name (DeviceUserID), 16 bytes, writable.
+    pub const USER_NAME: u32 = 0x00E8;
+    /// First URL of the GenICam XML, 512 bytes.
+    pub const XML_URL_0: u32 = 0x0200;
+    /// Second URL of the GenICam XML, 512 bytes (empty).
+    pub const XML_URL_1: u32 = 0x0400;
+    /// Number of network interfaces.
+    pub const NET_INTERFACES: u32 = 0x0600;
+    /// Persistent IP address (not used: 0).
+    pub const PERSISTENT_IP: u32 = 0x064C;
+    /// Persistent subnet mask (0).
+    pub const PERSISTENT_MASK: u32 = 0x065C;
+    /// Persistent gateway (0).
+    pub const PERSISTENT_GATEWAY: u32 = 0x066C;
+    /// Number of message channels (0).
+    pub const MESSAGE_CHANNELS: u32 = 0x0900;
+    /// Number of stream channels (1).
+    pub const STREAM_CHANNELS: u32 = 0x0904;
+    /// GVCP capability flags.
+    pub const GVCP_CAPABILITY: u32 = 0x0934;
+    /// Heartbeat timeout, ms.
+    pub const HEARTBEAT_TIMEOUT: u32 = 0x0938;
+    /// Timestamp tick frequency, high 32 bits.
+    pub const TICK_FREQUENCY_HIGH: u32 = 0x093C;
+    /// Timestamp tick frequency, low 32 bits.
+    pub const TICK_FREQUENCY_LOW: u32 = 0x0940;
+    /// Timestamp control: bit 0 reset, bit 1 latch (write only).
+    pub const TIMESTAMP_CONTROL: u32 = 0x0944;
+    /// Latched timestamp, high 32 bits.
+    pub const TIMESTAMP_LATCH_HIGH: u32 = 0x0948;
+    /// Latched timestamp, low 32 bits.
+    pub const TIMESTAMP_LATCH_LOW: u32 = 0x094C;
+    /// GVCP configuration (stored, no effect).
+    pub const GVCP_CONFIG: u32 = 0x0954;
+    /// Control channel privilege: bit 1 control, bit 0 exclusive.
+    pub const CCP: u32 = 0x0A00;
+    /// Stream channel 0: host port (low 16 bits).
+    pub const SCP: u32 = 0x0D00;
+    /// Stream channel 0: packet size (bits 0..15), bit 30 do not fragment, bit 31 fire a test
+    /// packet.
+    pub const SCPS: u32 = 0x0D04;
+    /// Stream channel 0: delay between packets, timestamp ticks.
+    pub const SCPD: u32 = 0x0D08;
+    /// Stream channel 0: destination IPv4 address.
+    pub const SCDA: u32 = 0x0D18;
+    /// Stream channel 0: source UDP port (read only).
+    pub const SCSP: u32 = 0x0D1C;
+    /// Stream channel 0: capability (0).
+    pub const SCC: u32 = 0x0D20;
+    /// Stream channel 0: configuration (0).
+    pub const SCCFG: u32 = 0x0D24;
+
+    /// First feature register.
+    pub const FEATURES: u32 = 0x0010_0000;
+    /// SensorWidth (RO).
+    pub const SENSOR_WIDTH: u32 = FEATURES;
+    /// SensorHeight (RO).
+    pub const SENSOR_HEIGHT: u32 = FEATURES + 0x04;
+    /// Width.
+    pub const WIDTH: u32 = FEATURES + 0x08;
+    /// Height.
+    pub const HEIGHT: u32 = FEATURES + 0x0C;
+    /// OffsetX.
+    pub const OFFSET_X: u32 = FEATURES + 0x10;
+    /// OffsetY.
+    pub const OFFSET_Y: u32 = FEATURES + 0x14;
+    /// PixelFormat (the format's code).
+    pub const PIXEL_FORMAT: u32 = FEATURES + 0x18;
+    /// PayloadSize (RO).
+    pub const PAYLOAD_SIZE: u32 = FEATURES + 0x1C;
+    /// AcquisitionMode: 0 Continuous, 1 SingleFrame, 2 MultiFrame.
+    pub const ACQUISITION_MODE: u32 = FEATURES + 0x20;
+    /// AcquisitionFrameCount (MultiFrame).
+    pub const ACQUISITION_FRAME_COUNT: u32 = FEATURES + 0x24;
+    /// AcquisitionStart (command, WO).
+    pub const ACQUISITION_START: u32 = FEATURES + 0x28;
+    /// AcquisitionStop (command, WO).
+    pub const ACQUISITION_STOP: u32 = FEATURES + 0x2C;
+    /// AcquisitionFrameRateEnable.
+    pub const FRAME_RATE_ENABLE: u32 = FEATURES + 0x30;
+    /// TriggerSelector: 0 FrameStart.
+    pub const TRIGGER_SELECTOR: u32 = FEATURES + 0x34;
+    /// TriggerMode: 0 Off, 1 On.
+    pub const TRIGGER_MODE: u32 = FEATURES + 0x38;
+    /// TriggerSource: 0 Software.
+    pub const TRIGGER_SOURCE: u32 = FEATURES + 0x3C;
+    /// TriggerSoftware (command, WO).
+    pub const TRIGGER_SOFTWARE: u32 = FEATURES + 0x40;
+    /// ExposureAuto: 0 Off, 2 Continuous.
+    pub const EXPOSURE_AUTO: u32 = FEATURES + 0x44;
+    /// GainAuto: 0 Off.
+    pub const GAIN_AUTO: u32 = FEATURES + 0x48;
+    /// DeviceLinkThroughputLimitMode: 0 Off, 1 On.
+    pub const THROUGHPUT_LIMIT_MODE: u32 = FEATURES + 0x4C;
+    /// ChunkModeActive.
+    pub const CHUNK_MODE_ACTIVE: u32 = FEATURES + 0x50;
+    /// ChunkSelector (index into [`super::ChunkKind::ALL`]).
+    pub const CHUNK_SELECTOR: u32 = FEATURES + 0x54;
+    /// TLParamsLocked.
+    pub const TL_PARAMS_LOCKED: u32 = FEATURES + 0x58;
+    /// ExposureTime, µs (f64).
+    pub const EXPOSURE_TIME: u32 = FEATURES + 0x80;
+    /// Gain, dB (f64).
+    pub const GAIN: u32 = FEATURES + 0x88;
+    /// BlackLevel, DN at 12 bits (f64).
+    pub const BLACK_LEVEL: u32 = FEATURES + 0x90;
+    /// AcquisitionFrameRate, Hz (f64).
+    pub const FRAME_RATE: u32 = FEATURES + 0x98;
+    /// AcquisitionResultingFrameRate, Hz (f64, RO).
+    pub const RESULTING_FRAME_RATE: u32 = FEATURES + 0xA0;
+    /// DeviceLinkThroughputLimit, bytes per second (u64).
+    pub const THROUGHPUT_LIMIT: u32 = FEATURES + 0xA8;
+    /// DeviceTemperature, °C (f64, RO).
+    pub const DEVICE_TEMPERATURE: u32 = FEATURES + 0xB0;
+    /// ChunkEnable of chunk k at `CHUNK_ENABLE + 4 k`.
+    pub const CHUNK_ENABLE: u32 = FEATURES + 0x100;
+    /// The GenICam XML.
+    pub const XML: u32 = 0x0020_0000;
+}
+
+/// Smallest stream packet size (SCPS), bytes with IP and UDP headers.
+pub const PACKET_SIZE_MIN: u32 = 576;
+/// Largest stream packet size: the largest IPv4 datagram, rounded down to 4 bytes.
+pub const PACKET_SIZE_MAX: u32 = 65532;
+/// Default stream packet size.
+pub const PACKET_SIZE_DEFAULT: u32 = 1500;
+/// Largest delay between stream packets, ticks (ns).
+pub const PACKET_DELAY_MAX: u32 = 1_000_000;
+/// Default heartbeat timeout, ms.
+pub const HEARTBEAT_DEFAULT_MS: u32 = 3000;
+/// Smallest heartbeat timeout, ms.
+pub const HEARTBEAT_MIN_MS: u32 = 500;
+/// Largest heartbeat timeout, ms (10 min).
+pub const HEARTBEAT_MAX_MS: u32 = 600_000;
+/// AcquisitionFrameRate range, Hz.
+pub const FRAME_RATE_RANGE: (f64, f64) = (0.1, 1000.0);
+/// Default AcquisitionFrameRate, Hz.
+pub const FRAME_RATE_DEFAULT: f64 = 20.0;
+/// ExposureTime range, µs (the sensor model's).
+pub const EXPOSURE_RANGE: (f64, f64) = (20.0, 10_000_000.0);
+/// Gain range, dB.
+pub const GAIN_RANGE: (f64, f64) = (0.0, 48.0);
+/// BlackLevel range, DN at 12 bits.
+pub const BLACK_LEVEL_RANGE: (f64, f64) = (0.0, 200.0);
+/// DeviceLinkThroughputLimit range, bytes/s.
+pub const THROUGHPUT_RANGE: (u64, u64) = (1_000_000, 10_000_000_000);
+/// Default DeviceLinkThroughputLimit: a 1 GigE link, 125 MB/s.
+pub const THROUGHPUT_DEFAULT: u64 = 125_000_000;
+/// Software triggers waiting for their frame, at most.
+pub const MAX_PENDING_TRIGGERS: u32 = 64;
+/// Timestamp tick frequency, Hz.
+pub const TICK_FREQUENCY: u64 = 1_000_000_000;
+
+const CCP_CONTROL: u32 = 1 << 1;
+const CCP_EXCLUSIVE: u32 = 1 << 0;
+
+/// What the device says about itself (bootstrap strings, sensor size, temperature).
+#[derive(Clone, Debug, PartialEq)]
+pub struct DeviceInfo {
+    /// Manufacturer name (at most 31 bytes).
+    pub vendor: String,
+    /// Model name (at most 31 bytes).
+    pub model: String,
+    /// Device version (at most 31 bytes).
+    pub version: String,
+    /// Manufacturer information (at most 47 bytes).
+    pub manufacturer_info: String,
+    /// Serial number (at most 15 bytes).
+    pub serial: String,
+    /// Initial user-defined name (at most 15 bytes).
+    pub user_id: String,
+    /// MAC address.
+    pub mac: [u8; 6],
+    /// Sensor width, pixels (even).
+    pub sensor_width: u32,
+    /// Sensor height, pixels (even).
+    pub sensor_height: u32,
+    /// Sensor temperature, °C.
+    pub temperature_c: f64,
+    /// The settings at power-up.
+    pub defaults: Settings,
+}
+
+impl Default for DeviceInfo {
+    fn default() -> Self {
+        DeviceInfo {
+            vendor: "psns".into(),
+            model: "IMX250MZR-sky".into(),
+            version: env!("CARGO_PKG_VERSION").into(),
+            manufacturer_info: "psns polarization camera emulator".into(),
+            serial: "PSNS0001".into(),
+            user_id: String::new(),
+            mac: [0x02, 0x50, 0x53, 0x4E, 0x00, 0x01],
+            sensor_width: 2448,
+            sensor_height: 2048,
+            temperature_c: 25.0,
+            defaults: Settings::default(),
+        }
+    }
+}
+
+/// AcquisitionMode.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum AcquisitionMode {
+    /// Frames until AcquisitionStop.
+    Continuous = 0,
+    /// One frame.
+    SingleFrame = 1,
+    /// AcquisitionFrameCount frames.
+    MultiFrame = 2,
+}
+
+/// The client's settings of the image and the acquisition. They persist across control
+/// sessions until the device restarts.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Settings {
+    /// Width of the region, pixels (even).
+    pub width: u32,
+    /// Height of the region, pixels (even).
+    pub height: u32,
+    /// First column of the region (even).
+    pub offset_x: u32,
+    /// First row of the region (even).
+    pub offset_y: u32,
+    /// Pixel format.
+    pub pixel_format: GevPixelFormat,
+    /// Fixed exposure, µs (the value in force when `exposure_auto` is off).
+    pub exposure_us: f64,
+    /// ExposureAuto = Continuous.
+    pub exposure_auto: bool,
+    /// Gain, dB.
+    pub gain_db: f64,
+    /// Black level, DN at 12 bits.
+    pub black_level: f64,
+    /// AcquisitionMode.
+    pub acquisition_mode: AcquisitionMode,
+    /// AcquisitionFrameCount.
+    pub frame_count: u32,
+    /// AcquisitionFrameRateEnable.
+    pub frame_rate_enable: bool,
+    /// AcquisitionFrameRate, Hz.
+    pub frame_rate: f64,
+    /// TriggerMode = On (the source is Software).
+    pub trigger_mode: bool,
+    /// DeviceLinkThroughputLimitMode = On.
+    pub throughput_limit_on: bool,
+    /// DeviceLinkThroughputLimit, bytes/s.
+    pub throughput_limit: u64,
+    /// ChunkModeActive.
+    pub chunk_mode: bool,
+    /// ChunkSelector.
+    pub chunk_selector: u32,
+    /// ChunkEnable per [`ChunkKind`] (bit k).
+    pub chunk_mask: u32,
+    /// TLParamsLocked.
+    pub tl_locked: bool,
+}
+
+impl Default for Settings {
+    fn default() -> Self {
+        Settings {
+            width: 2448,
+            height: 2048,
+            offset_x: 0,
+            offset_y: 0,
+            pixel_format: GevPixelFormat::Mono8,
+            exposure_us: 1000.0,
+            exposure_auto: false,
+            gain_db: 0.0,
+            black_level: 0.0,
+            acquisition_mode: AcquisitionMode::Continuous,
+            frame_count: 1,
+            frame_rate_enable: false,
+            frame_rate: FRAME_RATE_DEFAULT,
+            trigger_mode: false,
+            throughput_limit_on: false,
+            throughput_limit: THROUGHPUT_DEFAULT,
+            chunk_mode: false,
+            chunk_selector: 0,
+            chunk_mask: chunk::ALL_MASK,
+            tl_locked: false,
+        }
+    }
+}
+
+impl Settings {
+    /// Image bytes of one frame.
+    pub fn image_bytes(&self) -> usize {
+        self.pixel_format
+            .image_bytes(self.width as usize, self.height as usize)
+            .unwrap_or(usize::MAX)
+    }
+
+    /// The chunks in force (none when chunk mode is off).
+    pub fn chunks(&self) -> u32 {
+        if self.chunk_mode {
+            self.chunk_mask & chunk::ALL_MASK
+        } else {
+            0
+        }
+    }
+
+    /// Bytes of one block: the image and, in chunk mode, the chunk trailers and data.
+    pub fn payload_size(&self) -> usize {
+        self.image_bytes()
+            + if self.chunk_mode {
+                chunk::tail_len(self.chunks())
+            } else {
+                0
+            }
+    }
+
+    /// The GVSP payload type of the blocks.
+    pub fn payload_type(&self) -> u16 {
+        if self.chunk_mode {
+            gvsp::PAYLOAD_IMAGE_CHUNK
+        } else {
+            gvsp::PAYLOAD_IMAGE
+        }
+    }
+}
+
+/// Stream channel 0.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub struct Channel {
+    /// Host port (0: closed).
+    pub host_port: u16,
+    /// Destination address.
+    pub dest: Ipv4Addr,
+    /// Packet size, bytes with IP and UDP headers.
+    pub packet_size: u32,
+    /// Do-not-fragment bit.
+    pub do_not_fragment: bool,
+    /// Delay between packets, ticks (ns).
+    pub packet_delay: u32,
+    /// The device's source port (set by the front-end once its socket is bound).
+    pub source_port: u16,
+}
+
+impl Channel {
+    /// The destination, when the channel is open.
+    pub fn destination(&self) -> Option<SocketAddrV4> {
+        (self.host_port != 0 && !self.dest.is_unspecified())
+            .then(|| SocketAddrV4::new(self.dest, self.host_port))
+    }
+}
+
+/// A frame the device starts: what to render and where to send it.
+#[derive(Clone, Debug, PartialEq)]
+pub struct FrameOrder {
+    /// Blocks started since the device started, this one included (1, 2, ...).
+    pub k: u64,
+    /// Its block id ([`gvsp::block_id_of`]`(k)`).
+    pub block_id: u16,
+    /// psns's frame index: k − 1.
+    pub frame_index: u64,
+    /// Device timestamp at the start of the frame, ticks.
+    pub timestamp: u64,
+    /// The settings of this frame.
+    pub settings: Settings,
+    /// The stream channel when the frame started.
+    pub channel: Channel,
+}
+
+/// What [`Device::poll_frame`] says.
+#[derive(Clone, Debug, PartialEq)]
+pub enum Poll {
+    /// Start this frame now.
+    Frame(Box<FrameOrder>),
+    /// The next frame is due at this device time (ns).
+    At(u64),
+    /// No frame until a command arrives (acquisition stopped, or waiting for a trigger).
+    Idle,
+}
+
+/// Something the front-end does for a command besides answering it.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub enum Action {
+    /// Send stream packets `first..=last` of a block again.
+    Resend {
+        /// Block id.
+        block_id: u64,
+        /// First packet id.
+        first: u32,
+        /// Last packet id.
+        last: u32,
+    },
+    /// Send one test datagram of `packet_size − 28` bytes to the stream destination.
+    FireTestPacket {
+        /// Where to.
+        dest: SocketAddrV4,
+        /// The packet size (IP and UDP headers included).
+        packet_size: u32,
+        /// Whether the test packet must not be fragmented.
+        do_not_fragment: bool,
+    },
+}
+
+/// What the device does with one datagram.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub struct Outcome {
+    /// The acknowledge to send back to the sender.
+    pub reply: Option<Vec<u8>>,
+    /// Work for the front-end.
+    pub actions: Vec<Action>,
+}
+
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+struct Controller {
+    app: SocketAddrV4,
+    exclusive: bool,
+    last_ns: u64,
+}
+
+#[derive(Clone, Debug, Default)]
+struct Acquisition {
+    running: bool,
+    remaining: Option<u32>,
+    triggers: u32,
+    next_due: Option<u64>,
+    last_start: Option<u64>,
+    /// Mean frames/s over recent consecutive frames (exponential average of 1 / interval).
+    achieved: f64,
+    /// Consecutive frames that started late against the frame rate.
+    late: u32,
+}
+
+/// The device.
+#[derive(Clone, Debug)]
+pub struct Device {
+    info: DeviceInfo,
+    xml: Vec<u8>,
+    xml_len: usize,
+    url: String,
+    user_id: [u8; 16],
+    settings: Settings,
+    channel: Channel,
+    controller: Option<Controller>,
+    heartbeat_ms: u32,
+    gvcp_config: u32,
+    ts_origin: u64,
+    latched: u64,
+    acq: Acquisition,
+    blocks: u64,
+    /// The exposure of the last frame rendered (what ExposureTime reads under ExposureAuto).
+    last_exposure_us: Option<f64>,
+}
+
+fn put_str(out: &mut [u8], s: &str) {
+    let b = s.as_bytes();
+    let n = b.len().min(out.len().saturating_sub(1));
+    out[..n].copy_from_slice(&b[..n]);
+}
+
+fn in_range(v: f64, r: (f64, f64)) -> bool {
+    v.is_finite() && v >= r.0 && v <= r.1
+}
+
+impl Device {
+    /// A device that serves `xml` as its GenICam description.
+    pub fn new(info: DeviceInfo, xml: String) -> Self {
+        let xml_len = xml.len();
+        let mut xml = xml.into_bytes();
+        // reads come in 4-byte words: the last word is padded with zeros
+        xml.resize(xml_len.div_ceil(4) * 4, 0);
+        let url = format!("Local:psns.xml;{:X};{:X}", addr::XML, xml_len);
+        let mut user_id = [0u8; 16];
+        put_str(&mut user_id, &info.user_id);
+        let settings = info.defaults.clone();
+        Device {
+            xml,
+            xml_len,
+            url,
+            user_id,
+            settings,
+            channel: Channel {
+                host_port: 0,
+                dest: Ipv4Addr::UNSPECIFIED,
+                packet_size: PACKET_SIZE_DEFAULT,
+                do_not_fragment: false,
+                packet_delay: 0,
+                source_port: 0,
+            },
+            controller: None,
+            heartbeat_ms: HEARTBEAT_DEFAULT_MS,
+            gvcp_config: 0,
+            ts_origin: 0,
+            latched: 0,
+            acq: Acquisition::default(),
+            blocks: 0,
+            last_exposure_us: None,
+            info,
+        }
+    }
+
+    /// The device information.
+    pub fn info(&self) -> &DeviceInfo {
+        &self.info
+    }
+
+    /// The GenICam XML URL in register 0x200.
+    pub fn xml_url(&self) -> &str {
+        &self.url
+    }
+
+    /// The GenICam XML text.
+    pub fn xml(&self) -> &[u8] {
+        &self.xml[..self.xml_len]
+    }
+
+    /// The current settings.
+    pub fn settings(&self) -> &Settings {
+        &self.settings
+    }
+
+    /// The stream channel.
+    pub fn channel(&self) -> &Channel {
+        &self.channel
+    }
+
+    /// Sets the source port the stream packets leave from (register SCSP).
+    pub fn set_source_port(&mut self, port: u16) {
+        self.channel.source_port = port;
+    }
+
+    /// The application with control, if any.
+    pub fn controller(&self) -> Option<SocketAddrV4> {
+        self.controller.map(|c| c.app)
+    }
+
+    /// Whether an acquisition is running.
+    pub fn acquiring(&self) -> bool {
+        self.acq.running
+    }
+
+    /// Device timestamp (ticks) at device time `now_ns`.
+    pub fn timestamp(&self, now_ns: u64) -> u64 {
+        now_ns.saturating_sub(self.ts_origin)
+    }
+
+    /// Releases control when the controller has been silent longer than the heartbeat
+    /// timeout; returns whether it did.
+    pub fn tick(&mut self, now_ns: u64) -> bool {
+        match self.controller {
+            Some(c) if now_ns.saturating_sub(c.last_ns) > self.heartbeat_ms as u64 * 1_000_000 => {
+                self.release();
+                true
+            }
+            _ => false,
+        }
+    }
+
+    /// When the heartbeat of the current controller expires (device time, ns).
+    pub fn heartbeat_deadline(&self) -> Option<u64> {
+        self.controller
+            .map(|c| c.last_ns + self.heartbeat_ms as u64 * 1_000_000)
+    }
+
+    fn release(&mut self) {
+        self.controller = None;
+        self.stop();
+        self.channel.host_port = 0;
+        self.channel.dest = Ipv4Addr::UNSPECIFIED;
+    }
+
+    fn stop(&mut self) {
+        self.acq.running = false;
+        self.acq.triggers = 0;
+        self.acq.next_due = None;
+        self.acq.last_start = None;
+        self.acq.late = 0;
+    }
+
+    fn start(&mut self) {
+        if self.acq.running {
+            return;
+        }
+        self.acq = Acquisition {
+            running: true,
+            remaining: match self.settings.acquisition_mode {
+                AcquisitionMode::Continuous => None,
+                AcquisitionMode::SingleFrame => Some(1),
+                AcquisitionMode::MultiFrame => Some(self.settings.frame_count.max(1)),
+            },
+            achieved: self.acq.achieved,
+            ..Default::default()
+        };
+    }
+
+    /// Whether a frame should start at `now_ns`, and if so which (the device counts it as
+    /// started). Software triggers, the frame rate and the acquisition mode decide.
+    pub fn poll_frame(&mut self, now_ns: u64) -> Poll {
+        if !self.acq.running {
+            return Poll::Idle;
+        }
+        if self.settings.trigger_mode {
+            if self.acq.triggers == 0 {
+                return Poll::Idle;
+            }
+            self.acq.triggers -= 1;
+        } else if self.settings.frame_rate_enable {
+            let period = (1e9 / self.settings.frame_rate) as u64;
+            match self.acq.next_due {
+                Some(due) if now_ns < due => return Poll::At(due),
+                Some(due) => {
+                    let late = now_ns - due;
+                    self.acq.late = if late > period / 10 {
+                        self.acq.late + 1
+                    } else {
+                        0
+                    };
+                    // a device that fell behind does not burst to catch up
+                    self.acq.next_due = Some(if late > period {
+                        now_ns + period
+                    } else {
+                        due + period
+                    });
+                }
+                None => self.acq.next_due = Some(now_ns + period),
+            }
+        }
+        if let Some(last) = self.acq.last_start {
+            let dt = now_ns.saturating_sub(last).max(1) as f64 * 1e-9;
+            let fps = 1.0 / dt;
+            self.acq.achieved = if self.acq.achieved > 0.0 {
+                0.8 * self.acq.achieved + 0.2 * fps
+            } else {
+                fps
+            };
+        }
+        self.acq.last_start = Some(now_ns);
+        if let Some(n) = &mut self.acq.remaining {
+            *n -= 1;
+            if *n == 0 {
+                self.acq.running = false;
+            }
+        }
+        self.blocks += 1;
+        Poll::Frame(Box::new(FrameOrder {
+            k: self.blocks,
+            block_id: gvsp::block_id_of(self.blocks),
+            frame_index: self.blocks - 1,
+            timestamp: self.timestamp(now_ns),
+            settings: self.settings.clone(),
+            channel: self.channel,
+        }))
+    }
+
+    /// The front-end rendered a frame with this exposure (what ExposureTime reads while
+    /// ExposureAuto is Continuous).
+    pub fn frame_rendered(&mut self, exposure_us: f64) {
+        self.last_exposure_us = Some(exposure_us);
+    }
+
+    /// The frame rate AcquisitionFrameRate reads: the one asked for, or, when the device cannot
+    /// keep up with it, the rate it delivers.
+    pub fn frame_rate_reading(&self) -> f64 {
+        if self.settings.frame_rate_enable && self.acq.late >= 3 && self.acq.achieved > 0.0 {
+            self.acq.achieved.min(self.settings.frame_rate)
+        } else {
+            self.settings.frame_rate
+        }
+    }
+
+    /// AcquisitionResultingFrameRate: the rate of recent frames while acquiring, else the rate
+    /// asked for (0 when free running and idle).
+    pub fn resulting_frame_rate(&self) -> f64 {
+        if self.acq.running && self.acq.achieved > 0.0 {
+            self.acq.achieved
+        } else if self.settings.frame_rate_enable {
+            self.settings.frame_rate
+        } else {
+            0.0
+        }
+    }
+
+    /// Handles one datagram from `from` received at device time `now_ns`; `local_ip` is the
+    /// device's address as the sender reaches it (reported in discovery and CurrentIP).
+    /// Anything malformed is answered with a status or dropped; nothing panics.
+    pub fn handle(
+        &mut self,
+        from: SocketAddrV4,
+        local_ip: Ipv4Addr,
+        datagram: &[u8],
+        now_ns: u64,
+    ) -> Outcome {
+        let req = match decode_command(datagram) {
+            Ok(r) => r,
+            Err(DecodeError::NotGvcp) => return Outcome::default(),
+            Err(DecodeError::Reject {
+                command,
+                req_id,
+                status,
+            }) => {
+                let ack_required = datagram
+                    .get(1)
+                    .is_some_and(|f| f & gvcp::FLAG_ACK_REQUIRED != 0);
+                return Outcome {
+                    reply: ack_required
+                        .then(|| Ack::new(command, req_id, status, Vec::new()).encode()),
+                    actions: Vec::new(),
+                };
+            }
+        };
+        if let Some(c) = &mut self.controller {
+            if c.app == from {
+                c.last_ns = now_ns;
+            }
+        }
+        let Request {
+            flags,
+            req_id,
+            command,
+        } = req;
+        let code = command.code();
+        let mut actions = Vec::new();
+        let (status, body) = match command {
+            Command::Discovery => {
+                // discovery answers whoever asks, even while another application has exclusive
+                // access
+                let mut b = Vec::with_capacity(gvcp::DISCOVERY_ACK_LEN);
+                for a in (0..gvcp::DISCOVERY_ACK_LEN as u32).step_by(4) {
+                    b.extend(
+                        self.word(from, local_ip, a, now_ns)
+                            .unwrap_or(0)
+                            .to_be_bytes(),
+                    );
+                }
+                (Status::Success, b)
+            }
+            Command::Bye => {
+                if self.controller.is_some_and(|c| c.app == from) {
+                    self.release();
+                }
+                (Status::Success, Vec::new())
+            }
+            Command::PacketResend {
+                block_id,
+                first,
+                last,
+                ..
+            } => {
+                actions.push(Action::Resend {
+                    block_id,
+                    first,
+                    last,
+                });
+                return Outcome {
+                    reply: None,
+                    actions,
+                };
+            }
+            Command::ReadReg(addrs) => {
+                let mut body = Vec::with_capacity(4 * addrs.len());
+                let mut status = Status::Success;
+                for a in addrs {
+                    match self.read_register(from, local_ip, a, now_ns) {
+                        Ok(v) => body.extend(v.to_be_bytes()),
+                        Err(s) => {
+                            status = s;
+                            break;
+                        }
+                    }
+                }
+                (status, body)
+            }
+            Command::WriteReg(pairs) => {
+                let mut n = 0u16;
+                let mut status = Status::Success;
+                for (a, v) in pairs {
+                    match self.write_register(from, a, v, now_ns, &mut actions) {
+                        Ok(()) => n += 1,
+                        Err(s) => {
+                            status = s;
+                            break;
+                        }
+                    }
+                }
+                (status, gvcp::index_body(n))
+            }
+            Command::ReadMem { address, count } => {
+                let count = count as usize;
+                if !address.is_multiple_of(4) || !count.is_multiple_of(4) {
+                    (Status::BadAlignment, Vec::new())
+                } else if count == 0 || count > gvcp::MEM_MAX {
+                    (Status::InvalidParameter, Vec::new())
+                } else {
+                    let mut data = vec![0u8; count];
+                    match self.read_bytes(from, local_ip, address, &mut data, now_ns) {
+                        Ok(()) => {
+                            let mut body = address.to_be_bytes().to_vec();
+                            body.extend(data);
+                            (Status::Success, body)
+                        }
+                        Err(s) => (s, Vec::new()),
+                    }
+                }
+            }
+            Command::WriteMem { address, data } => {
+                if !address.is_multiple_of(4) || !data.len().is_multiple_of(4) {
+                    (Status::BadAlignment, gvcp::index_body(0))
+                } else {
+                    let (n, status) = self.write_bytes(from, address, &data, now_ns, &mut actions);
+                    (status, gvcp::index_body(n as u16))
+                }
+            }
+        };
+        let reply = (flags & gvcp::FLAG_ACK_REQUIRED != 0 || code == gvcp::code::DISCOVERY)
+            .then(|| Ack::new(code, req_id, status, body).encode());
+        Outcome { reply, actions }
+    }
+
+    fn may_read(&self, from: SocketAddrV4) -> bool {
+        match self.controller {
+            Some(c) => !c.exclusive || c.app == from,
+            None => true,
+        }
+    }
+
+    fn read_bytes(
+        &self,
+        from: SocketAddrV4,
+        local_ip: Ipv4Addr,
+        address: u32,
+        out: &mut [u8],
+        now_ns: u64,
+    ) -> Result<(), Status> {
+        for (i, w) in out.chunks_mut(4).enumerate() {
+            let v = self.read_register(from, local_ip, address + 4 * i as u32, now_ns)?;
+            w.copy_from_slice(&v.to_be_bytes()[..w.len()]);
+        }
+        Ok(())
+    }
+
+    /// Reads the 32-bit register at `a` (a multiple of 4) as `from` sees it.
+    pub fn read_register(
+        &self,
+        from: SocketAddrV4,
+        local_ip: Ipv4Addr,
+        a: u32,
+        now_ns: u64,
+    ) -> Result<u32, Status> {
+        if !a.is_multiple_of(4) {
+            return Err(Status::BadAlignment);
+        }
+        if !self.may_read(from) {
+            return Err(Status::AccessDenied);
+        }
+        self.word(from, local_ip, a, now_ns)
+    }
+
+    /// The register at `a` (a multiple of 4) as `from` sees it, whatever `from` may access.
+    fn word(
+        &self,
+        from: SocketAddrV4,
+        local_ip: Ipv4Addr,
+        a: u32,
+        now_ns: u64,
+    ) -> Result<u32, Status> {
+        let s = &self.settings;
+        let f64_word = |v: f64, at: u32| -> u32 {
+            let b = v.to_bits();
+            if a == at {
+                (b >> 32) as u32
+            } else {
+                b as u32
+            }
+        };
+        let text = |base: u32, len: usize, s: &str| -> u32 {
+            let mut buf = vec![0u8; len];
+            put_str(&mut buf, s);
+            let o = (a - base) as usize;
+            u32::from_be_bytes(buf[o..o + 4].try_into().expect("4 bytes"))
+        };
+        let _ = now_ns;
+        use addr::*;
+        Ok(match a {
+            VERSION => 0x0002_0000,
+            // big-endian registers, UTF-8 strings
+            DEVICE_MODE => 0x8000_0001,
+            MAC_HIGH => u16::from_be_bytes([self.info.mac[0], self.info.mac[1]]) as u32,
+            MAC_LOW => u32::from_be_bytes(self.info.mac[2..6].try_into().expect("4 bytes")),
+            SUPPORTED_IP_CONFIG => 0x0000_0007,
+            CURRENT_IP_CONFIG => 0x0000_0004,
+            CURRENT_IP => u32::from(local_ip),
+            SUBNET_MASK => {
+                if local_ip.is_loopback() {
+                    0xFF00_0000
+                } else {
+                    0xFFFF_FF00
+                }
+            }
+            GATEWAY => 0,
+            x if (MANUFACTURER..MANUFACTURER + 32).contains(&x) => {
+                text(MANUFACTURER, 32, &self.info.vendor)
+            }
+            x if (MODEL..MODEL + 32).contains(&x) => text(MODEL, 32, &self.info.model),
+            x if (DEVICE_VERSION..DEVICE_VERSION + 32).contains(&x) => {
+                text(DEVICE_VERSION, 32, &self.info.version)
+            }
+            x if (MANUFACTURER_INFO..MANUFACTURER_INFO + 48).contains(&x) => {
+                text(MANUFACTURER_INFO, 48, &self.info.manufacturer_info)
+            }
+            x if (SERIAL..SERIAL + 16).contains(&x) => text(SERIAL, 16, &self.info.serial),
+            x if (USER_NAME..USER_NAME + 16).contains(&x) => {
+                let o = (x - USER_NAME) as usize;
+                u32::from_be_bytes(self.user_id[o..o + 4].try_into().expect("4 bytes"))
+            }
+            x if (0xF8..XML_URL_0).contains(&x) => 0,
+            x if (XML_URL_0..XML_URL_0 + 512).contains(&x) => text(XML_URL_0, 512, &self.url),
+            x if (XML_URL_1..XML_URL_1 + 512).contains(&x) => 0,
+            NET_INTERFACES => 1,
+            PERSISTENT_IP | PERSISTENT_MASK | PERSISTENT_GATEWAY => 0,
+            MESSAGE_CHANNELS => 0,
+            STREAM_CHANNELS => 1,
+            // user-defined name, serial number, packet resend, WRITEMEM, concatenation
+            GVCP_CAPABILITY => (1 << 31) | (1 << 30) | (1 << 2) | (1 << 1) | 1,
+            HEARTBEAT_TIMEOUT => self.heartbeat_ms,
+            TICK_FREQUENCY_HIGH => (TICK_FREQUENCY >> 32) as u32,
+            TICK_FREQUENCY_LOW => TICK_FREQUENCY as u32,
+            TIMESTAMP_CONTROL => 0,
+            TIMESTAMP_LATCH_HIGH => (self.latched >> 32) as u32,
+            TIMESTAMP_LATCH_LOW => self.latched as u32,
+            GVCP_CONFIG => self.gvcp_config,
+            CCP => match self.controller {
+                Some(c) if c.app == from => {
+                    CCP_CONTROL | if c.exclusive { CCP_EXCLUSIVE } else { 0 }
+                }
+                _ => 0,
+            },
+            SCP => self.channel.host_port as u32,
+            SCPS => {
+                self.channel.packet_size
+                    | if self.channel.do_not_fragment {
+                        1 << 30
+                    } else {
+                        0
+                    }
+            }
+            SCPD => self.channel.packet_delay,
+            SCDA => u32::from(self.channel.dest),
+            SCSP => self.channel.source_port as u32,
+            SCC | SCCFG => 0,
+            SENSOR_WIDTH => self.info.sensor_width,
+            SENSOR_HEIGHT => self.info.sensor_height,
+            WIDTH => s.width,
+            HEIGHT => s.height,
+            OFFSET_X => s.offset_x,
+            OFFSET_Y => s.offset_y,
+            PIXEL_FORMAT => s.pixel_format.code(),
+            PAYLOAD_SIZE => s.payload_size().min(u32::MAX as usize) as u32,
+            ACQUISITION_MODE => s.acquisition_mode as u32,
+            ACQUISITION_FRAME_COUNT => s.frame_count,
+            ACQUISITION_START | ACQUISITION_STOP | TRIGGER_SOFTWARE => 0,
+            FRAME_RATE_ENABLE => s.frame_rate_enable as u32,
+            TRIGGER_SELECTOR => 0,
+            TRIGGER_MODE => s.trigger_mode as u32,
+            TRIGGER_SOURCE => 0,
+            EXPOSURE_AUTO => {
+                if s.exposure_auto {
+                    2
+                } else {
+                    0
+                }
+            }
+            GAIN_AUTO => 0,
+            THROUGHPUT_LIMIT_MODE => s.throughput_limit_on as u32,
+            CHUNK_MODE_ACTIVE => s.chunk_mode as u32,
+            CHUNK_SELECTOR => s.chunk_selector,
+            TL_PARAMS_LOCKED => s.tl_locked as u32,
+            x if x == EXPOSURE_TIME || x == EXPOSURE_TIME + 4 => {
+                let e = match (s.exposure_auto, self.last_exposure_us) {
+                    (true, Some(e)) => e,
+                    _ => s.exposure_us,
+                };
+                f64_word(e, EXPOSURE_TIME)
+            }
+            x if x == GAIN || x == GAIN + 4 => f64_word(s.gain_db, GAIN),
+            x if x == BLACK_LEVEL || x == BLACK_LEVEL + 4 => f64_word(s.black_level, BLACK_LEVEL),
+            x if x == FRAME_RATE || x == FRAME_RATE + 4 => {
+                f64_word(self.frame_rate_reading(), FRAME_RATE)
+            }
+            x if x == RESULTING_FRAME_RATE || x == RESULTING_FRAME_RATE + 4 => {
+                f64_word(self.resulting_frame_rate(), RESULTING_FRAME_RATE)
+            }
+            THROUGHPUT_LIMIT => (s.throughput_limit >> 32) as u32,
+            x if x == THROUGHPUT_LIMIT + 4 => s.throughput_limit as u32,
+            x if x == DEVICE_TEMPERATURE || x == DEVICE_TEMPERATURE + 4 => {
+                f64_word(self.info.temperature_c, DEVICE_TEMPERATURE)
+            }
+            x if (CHUNK_ENABLE..CHUNK_ENABLE + 4 * ChunkKind::ALL.len() as u32).contains(&x) => {
+                (s.chunk_mask >> ((x - CHUNK_ENABLE) / 4)) & 1
+            }
+            x if (XML..XML + self.xml.len() as u32).contains(&x) => {
+                let o = (x - XML) as usize;
+                u32::from_be_bytes(self.xml[o..o + 4].try_into().expect("4 bytes"))
+            }
+            _ => return Err(Status::InvalidAddress),
+        })
+    }
+
+    fn write_bytes(
+        &mut self,
+        from: SocketAddrV4,
+        address: u32,
+        data: &[u8],
+        now_ns: u64,
+        actions: &mut Vec<Action>,
+    ) -> (usize, Status) {
+        let mut i = 0;
+        while i < data.len() {
+            let a = address.wrapping_add(i as u32);
+            // an 8-byte register written whole is one write (a double is never half updated)
+            let r = if is_wide(a) && data.len() - i >= 8 {
+                let v = u64::from_be_bytes(data[i..i + 8].try_into().expect("8 bytes"));
+                self.write_wide(from, a, v).map(|()| 8)
+            } else {
+                let v = u32::from_be_bytes(data[i..i + 4].try_into().expect("4 bytes"));
+                self.write_register(from, a, v, now_ns, actions).map(|()| 4)
+            };
+            match r {
+                Ok(n) => i += n,
+                Err(s) => return (i, s),
+            }
+        }
+        (i, Status::Success)
+    }
+
+    fn check_writer(&self, from: SocketAddrV4) -> Result<(), Status> {
+        match self.controller {
+            Some(c) if c.app == from => Ok(()),
+            _ => Err(Status::AccessDenied),
+        }
+    }
+
+    fn unlocked(&self) -> Result<(), Status> {
+        if self.acq.running {
+            Err(Status::Busy)
+        } else {
+            Ok(())
+        }
+    }
+
+    fn write_wide(&mut self, from: SocketAddrV4, a: u32, v: u64) -> Result<(), Status> {
+        self.check_writer(from)?;
+        use addr::*;
+        let f = f64::from_bits(v);
+        let s = &mut self.settings;
+        match a {
+            EXPOSURE_TIME if in_range(f, EXPOSURE_RANGE) => s.exposure_us = f,
+            GAIN if in_range(f, GAIN_RANGE) => s.gain_db = f,
+            BLACK_LEVEL if in_range(f, BLACK_LEVEL_RANGE) => s.black_level = f,
+            FRAME_RATE if in_range(f, FRAME_RATE_RANGE) => {
+                s.frame_rate = f;
+                self.acq.late = 0;
+            }
+            THROUGHPUT_LIMIT if (THROUGHPUT_RANGE.0..=THROUGHPUT_RANGE.1).contains(&v) => {
+                s.throughput_limit = v
+            }
+            EXPOSURE_TIME | GAIN | BLACK_LEVEL | FRAME_RATE | THROUGHPUT_LIMIT => {
+                return Err(Status::InvalidParameter)
+            }
+            RESULTING_FRAME_RATE | DEVICE_TEMPERATURE | TIMESTAMP_LATCH_HIGH => {
+                return Err(Status::WriteProtect)
+            }
+            _ => return Err(Status::InvalidAddress),
+        }
+        Ok(())
+    }
+
+    /// Writes the 32-bit register at `a` as `from`; any work for the front-end is pushed to
+    /// `actions`.
+    pub fn write_register(
+        &mut self,
+        from: SocketAddrV4,
+        a: u32,
+        v: u32,
+        now_ns: u64,
+        actions: &mut Vec<Action>,
+    ) -> Result<(), Status> {
+        use addr::*;
+        if !a.is_multiple_of(4) {
+            return Err(Status::BadAlignment);
+        }
+        if a == CCP {
+            return self.write_ccp(from, v, now_ns);
+        }
+        // a register that does not exist is an address error whoever asks
+        self.word(from, Ipv4Addr::UNSPECIFIED, a, now_ns)?;
+        self.check_writer(from)?;
+        let sensor_w = self.info.sensor_width;
+        let sensor_h = self.info.sensor_height;
+        let bad = Err(Status::InvalidParameter);
+        // the halves of an 8-byte register: write the whole value with this half replaced
+        if let Some(base) = wide_base(a) {
+            let hi = self.word(from, Ipv4Addr::UNSPECIFIED, base, now_ns)?;
+            let lo = self.word(from, Ipv4Addr::UNSPECIFIED, base + 4, now_ns)?;
+            let (hi, lo) = if a == base { (v, lo) } else { (hi, v) };
+            return self.write_wide(from, base, ((hi as u64) << 32) | lo as u64);
+        }
+        let s = &mut self.settings;
+        match a {
+            x if (USER_NAME..USER_NAME + 16).contains(&x) => {
+                let o = (x - USER_NAME) as usize;
+                self.user_id[o..o + 4].copy_from_slice(&v.to_be_bytes());
+                self.user_id[15] = 0;
+            }
+            HEARTBEAT_TIMEOUT => {
+                if !(HEARTBEAT_MIN_MS..=HEARTBEAT_MAX_MS).contains(&v) {
+                    return bad;
+                }
+                self.heartbeat_ms = v;
+            }
+            GVCP_CONFIG => self.gvcp_config = v,
+            TIMESTAMP_CONTROL => {
+                if v & 1 != 0 {
+                    self.ts_origin = now_ns;
+                }
+                if v & 2 != 0 {
+                    self.latched = self.timestamp(now_ns);
+                }
+            }
+            SCP => self.channel.host_port = (v & 0xFFFF) as u16,
+            SCPS => {
+                let size = (v & 0xFFFF) & !3;
+                if !(PACKET_SIZE_MIN..=PACKET_SIZE_MAX).contains(&size) {
+                    return bad;
+                }
+                if size != self.channel.packet_size {
+                    self.unlocked()?;
+                }
+                self.channel.packet_size = size;
+                self.channel.do_not_fragment = v & (1 << 30) != 0;
+                if v & (1 << 31) != 0 {
+                    if let Some(dest) = self.channel.destination() {
+                        actions.push(Action::FireTestPacket {
+                            dest,
+                            packet_size: size,
+                            do_not_fragment: self.channel.do_not_fragment,
+                        });
+                    }
+                }
+            }
+            SCPD => {
+                if v > PACKET_DELAY_MAX {
+                    return bad;
+                }
+                self.channel.packet_delay = v;
+            }
+            SCDA => self.channel.dest = Ipv4Addr::from(v),
+            WIDTH | HEIGHT | OFFSET_X | OFFSET_Y => {
+                let (size, off, full) = match a {
+                    WIDTH | OFFSET_X => (&mut s.width, &mut s.offset_x, sensor_w),
+                    _ => (&mut s.height, &mut s.offset_y, sensor_h),
+                };
+                let (new_size, new_off) = if a == WIDTH || a == HEIGHT {
+                    (v, *off)
+                } else {
+                    (*size, v)
+                };
+                if !v.is_multiple_of(2)
+                    || new_size < 2
+                    || new_size.checked_add(new_off).is_none_or(|e| e > full)
+                {
+                    return bad;
+                }
+                if (new_size, new_off) != (*size, *off) {
+                    if self.acq.running {
+                        return Err(Status::Busy);
+                    }
+                    *size = new_size;
+                    *off = new_off;
+                }
+            }
+            PIXEL_FORMAT => {
+                let f = GevPixelFormat::from_code(v).ok_or(Status::InvalidParameter)?;
+                if f != s.pixel_format {
+                    if self.acq.running {
+                        return Err(Status::Busy);
+                    }
+                    s.pixel_format = f;
+                }
+            }
+            ACQUISITION_MODE => {
+                s.acquisition_mode = match v {
+                    0 => AcquisitionMode::Continuous,
+                    1 => AcquisitionMode::SingleFrame,
+                    2 => AcquisitionMode::MultiFrame,
+                    _ => return bad,
+                }
+            }
+            ACQUISITION_FRAME_COUNT => {
+                if !(1..=65535).contains(&v) {
+                    return bad;
+                }
+                s.frame_count = v;
+            }
+            ACQUISITION_START => {
+                if v != 0 {
+                    self.start();
+                }
+            }
+            ACQUISITION_STOP => {
+                if v != 0 {
+                    self.stop();
+                }
+            }
+            FRAME_RATE_ENABLE if v <= 1 => {
+                s.frame_rate_enable = v == 1;
+                self.acq.next_due = None;
+                self.acq.late = 0;
+            }
+            TRIGGER_SELECTOR | TRIGGER_SOURCE if v == 0 => {}
+            TRIGGER_MODE if v <= 1 => s.trigger_mode = v == 1,
+            TRIGGER_SOFTWARE => {
+                if v != 0 && self.acq.running && s.trigger_mode {
+                    self.acq.triggers = (self.acq.triggers + 1).min(MAX_PENDING_TRIGGERS);
+                }
+            }
+            EXPOSURE_AUTO if v == 0 || v == 2 => s.exposure_auto = v == 2,
+            GAIN_AUTO if v == 0 => {}
+            THROUGHPUT_LIMIT_MODE if v <= 1 => s.throughput_limit_on = v == 1,
+            CHUNK_MODE_ACTIVE if v <= 1 => {
+                if s.chunk_mode != (v == 1) {
+                    if self.acq.running {
+                        return Err(Status::Busy);
+                    }
+                    s.chunk_mode = v == 1;
+                }
+            }
+            CHUNK_SELECTOR => {
+                if v as usize >= ChunkKind::ALL.len() {
+                    return bad;
+                }
+                s.chunk_selector = v;
+            }
+            TL_PARAMS_LOCKED if v <= 1 => s.tl_locked = v == 1,
+            x if (CHUNK_ENABLE..CHUNK_ENABLE + 4 * ChunkKind::ALL.len() as u32).contains(&x) => {
+                if v > 1 {
+                    return bad;
+                }
+                let bit = 1 << ((x - CHUNK_ENABLE) / 4);
+                let mask = if v == 1 {
+                    s.chunk_mask | bit
+                } else {
+                    s.chunk_mask & !bit
+                };
+                if mask != s.chunk_mask {
+                    if self.acq.running && s.chunk_mode {
+                        return Err(Status::Busy);
+                    }
+                    s.chunk_mask = mask;
+                }
+            }
+            FRAME_RATE_ENABLE
+            | TRIGGER_SELECTOR
+            | TRIGGER_SOURCE
+            | TRIGGER_MODE
+            | EXPOSURE_AUTO
+            | GAIN_AUTO
+            | THROUGHPUT_LIMIT_MODE
+            | CHUNK_MODE_ACTIVE
+            | TL_PARAMS_LOCKED => return bad,
+            _ => return Err(Status::WriteProtect),
+        }
+        Ok(())
+    }
+
+    fn write_ccp(&mut self, from: SocketAddrV4, v: u32, now_ns: u64) -> Result<(), Status> {
+        let bits = v & (CCP_CONTROL | CCP_EXCLUSIVE);
+        match self.controller {
+            Some(c) if c.app != from => Err(Status::AccessDenied),
+            Some(_) if bits == 0 => {
+                self.release();
+                Ok(())
+            }
+            Some(c) => {
+                self.controller = Some(Controller {
+                    exclusive: bits & CCP_EXCLUSIVE != 0,
+                    last_ns: now_ns,
+                    ..c
+                });
+                Ok(())
+            }
+            None => {
+                if bits != 0 {
+                    self.controller = Some(Controller {
+                        app: from,
+                        exclusive: bits & CCP_EXCLUSIVE != 0,
+                        last_ns: now_ns,
+                    });
+                }
+                Ok(())
+            }
+        }
+    }
+}
+
+/// The registers that hold 8 bytes (doubles and 64-bit integers).
+const WIDE: [u32; 8] = [
+    addr::EXPOSURE_TIME,
+    addr::GAIN,
+    addr::BLACK_LEVEL,
+    addr::FRAME_RATE,
+    addr::RESULTING_FRAME_RATE,
+    addr::THROUGHPUT_LIMIT,
+    addr::DEVICE_TEMPERATURE,
+    addr::TIMESTAMP_LATCH_HIGH,
+];
+
+fn is_wide(a: u32) -> bool {
+    WIDE.contains(&a)
+}
+
+fn wide_base(a: u32) -> Option<u32> {
+    WIDE.iter()
+        .copied()
+        .find(|&b| b != addr::TIMESTAMP_LATCH_HIGH && (a == b || a == b + 4))
+}

@@ -1,0 +1,5 @@
+//! `psns gige`: the GigE Vision protocol module without sockets, and the device against Aravis,
+//! a GenICam client nobody here wrote.
+
+mod codecs;
+mod device;
