@@ -123,7 +123,7 @@ fn ideal_polarizer_superpixel_returns_input() {
                 .frame(
                     Radiance::Planes(&flat_field(w, h, 0.1, 1.0, aolp).unwrap()),
                     0,
-                    FrameOptions::exact(),
+                    FrameOptions::exact().with_truth(),
                 )
                 .unwrap();
             let an = f.analog.unwrap();
