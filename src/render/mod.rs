@@ -19,6 +19,14 @@ use crate::sky::{Lane, Sky, SkyLanes, LANES};
 use glam::DVec3;
 use rayon::prelude::*;
 
+mod grid;
+mod ideal;
+#[cfg(test)]
+mod tests;
+
+pub use grid::*;
+pub use ideal::*;
+
 /// The sky as seen by one pixel, in the sensor frame.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]
 pub struct PixelSky {
@@ -284,11 +292,3 @@ fn sky_chunk(sky: &Sky, cam: &Camera, row: f64, l: &mut ChunkLanes, out: &mut [P
         out[idx[i]] = px(i);
     }
 }
-
-mod grid;
-mod ideal;
-#[cfg(test)]
-mod tests;
-
-pub use grid::*;
-pub use ideal::*;
