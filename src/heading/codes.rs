@@ -198,7 +198,7 @@ pub fn estimate_codes(
             reason: None,
         }),
         // too few usable pixels (saturated, unpolarized): no heading, zero confidence
-        Err(Error::Invalid(m)) if m.starts_with("heading: only") => Ok(CodesEstimate {
+        Err(Error::TooFewPixels(m)) => Ok(CodesEstimate {
             estimate: None,
             saturated,
             info: None,

@@ -105,7 +105,7 @@ pub fn eigenvector_heading(
         }
     }
     if samples.len() < 10 {
-        return Err(Error::Invalid(format!(
+        return Err(Error::TooFewPixels(format!(
             "heading: only {} pixels with DoLP >= {} (need 10)",
             samples.len(),
             setup.min_dolp

@@ -75,7 +75,7 @@ pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEs
         }
     }
     if votes.len() < 10 {
-        return Err(Error::Invalid(format!(
+        return Err(Error::TooFewPixels(format!(
             "heading: only {} pixels on the solar meridian of {usable} usable (need 10)",
             votes.len()
         )));

@@ -366,7 +366,7 @@ pub fn model_fit_heading(
     let i = &setup.intrinsics;
     let samples = fit_samples(aolp_deg, dolp, setup, model_fit_step(setup));
     if samples.len() < 10 {
-        return Err(Error::Invalid(format!(
+        return Err(Error::TooFewPixels(format!(
             "heading: only {} pixels with DoLP >= {} (need 10)",
             samples.len(),
             setup.min_dolp

@@ -129,11 +129,6 @@ fn find(hay: &[u8], needle: &[u8]) -> Option<usize> {
 /// degraded mode ([`StreamReader::new_recovering`]).
 pub const HEADER_DAMAGED: &str = "stream file header damaged";
 
-/// True for the error of a damaged first file header (see [`HEADER_DAMAGED`]).
-pub fn header_damaged(e: &Error) -> bool {
-    matches!(e, Error::Format(m) if m.starts_with(HEADER_DAMAGED))
-}
-
 fn hex(b: &[u8]) -> String {
     b.iter()
         .map(|c| format!("{c:02x}"))
@@ -157,7 +152,7 @@ fn decode_first_header(a: &[u8]) -> Result<FileHeader> {
         let frame_follows = a.len() >= FILE_HEADER_SIZE + 8
             && a[FILE_HEADER_SIZE..FILE_HEADER_SIZE + 8] == FRAME_MAGIC;
         if n == 8 && (diff == 1 || frame_follows) {
-            return Err(Error::Format(format!(
+            return Err(Error::HeaderDamaged(format!(
                 "{HEADER_DAMAGED} (magic {}, expected {})",
                 hex(&a[..8]),
                 hex(&FILE_MAGIC)
@@ -177,7 +172,9 @@ fn decode_first_header(a: &[u8]) -> Result<FileHeader> {
                     .expect("4"),
             )
     {
-        return Err(Error::Format(format!("{HEADER_DAMAGED} (CRC mismatch)")));
+        return Err(Error::HeaderDamaged(format!(
+            "{HEADER_DAMAGED} (CRC mismatch)"
+        )));
     }
     FileHeader::decode(a)
 }
@@ -626,7 +623,7 @@ impl<R: Read> StreamReader<R> {
     }
 
     /// Degraded mode: like [`new`](Self::new), but if the file header is damaged
-    /// ([`header_damaged`]) its geometry is inferred from the frames (the stride between two
+    /// ([`Error::HeaderDamaged`]) its geometry is inferred from the frames (the stride between two
     /// frame headers with valid CRCs, the payload length whose CRC matches a frame's payload CRC,
     /// and the header fields that still agree) or taken from `hint`; reading then starts at byte
     /// 4096 (or at the first frame header, if earlier). The header's frame count is not trusted
@@ -641,7 +638,7 @@ impl<R: Read> StreamReader<R> {
                 r.consume(FILE_HEADER_SIZE);
                 return Ok((r, None));
             }
-            Err(e) if header_damaged(&e) => e.to_string(),
+            Err(e @ Error::HeaderDamaged(_)) => e.to_string(),
             Err(Error::Format(m)) if r.avail().len() >= FILE_HEADER_SIZE => {
                 format!("{HEADER_DAMAGED} ({m})")
             }
