@@ -21,6 +21,12 @@ pub enum Error {
     Invalid(String),
     /// A damaged or unreadable data stream / file format.
     Format(String),
+    /// A stream's first file header is damaged; its frames may still be readable in degraded
+    /// mode (`StreamReader::new_recovering`). The message starts with
+    /// `stream::HEADER_DAMAGED`.
+    HeaderDamaged(String),
+    /// Too few usable pixels (saturated, unpolarized, off the sky) for a heading estimate.
+    TooFewPixels(String),
     /// An I/O error, with what was being done.
     Io {
         /// What the library was doing, e.g. `writing out/li.npy`.
@@ -71,7 +77,11 @@ impl Error {
     pub fn is_usage(&self) -> bool {
         matches!(
             self,
-            Error::OutOfRange { .. } | Error::Invalid(_) | Error::Format(_)
+            Error::OutOfRange { .. }
+                | Error::Invalid(_)
+                | Error::Format(_)
+                | Error::HeaderDamaged(_)
+                | Error::TooFewPixels(_)
         )
     }
 
@@ -90,7 +100,9 @@ impl fmt::Display for Error {
                 allowed,
             } => write!(f, "{name} = {value} is out of range (allowed {allowed})"),
             Error::Invalid(m) => write!(f, "{m}"),
-            Error::Format(m) => write!(f, "{m}"),
+            Error::Format(m) | Error::HeaderDamaged(m) | Error::TooFewPixels(m) => {
+                write!(f, "{m}")
+            }
             Error::Io { context, source } => write!(f, "{context}: {source}"),
         }
     }

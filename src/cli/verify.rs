@@ -83,7 +83,7 @@ pub struct ExtractArgs {
 
 /// Adds the hint to use `--recover` to the error of a damaged file header.
 fn hint_recover(e: Error, cmd: &str) -> anyhow::Error {
-    if psns::stream::header_damaged(&e) {
+    if matches!(e, Error::HeaderDamaged(_)) {
         anyhow::anyhow!(
             "{e}; its frames may still be readable in degraded mode: psns {cmd} --recover \
              (see docs/stream-format.md)"

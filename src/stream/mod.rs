@@ -13,9 +13,9 @@ mod reader;
 mod writer;
 
 pub use reader::{
-    extract_frame, find_frame, find_frame_with, header_damaged, verify, verify_with, Damage, Event,
-    Extracted, FindOptions, Frame, FrameLocation, RecoverHint, Recovery, StreamReader,
-    VerifyReport, VerifyStatus, VerifyTally, HEADER_DAMAGED,
+    extract_frame, find_frame, find_frame_with, verify, verify_with, Damage, Event, Extracted,
+    FindOptions, Frame, FrameLocation, RecoverHint, Recovery, StreamReader, VerifyReport,
+    VerifyStatus, VerifyTally, HEADER_DAMAGED,
 };
 pub use writer::{FileStreamWriter, StreamWriter};
 

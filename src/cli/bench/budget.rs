@@ -527,9 +527,7 @@ pub fn run_budget(
                         wrap180(est.yaw_deg - yaw),
                         info.map(|i| (i.babinet_deg, i.brewster_deg)),
                     ),
-                    Err(Error::Invalid(msg)) if msg.starts_with("heading: only") => {
-                        (f64::NAN, None)
-                    }
+                    Err(Error::TooFewPixels(_)) => (f64::NAN, None),
                     Err(e) => return Err(e),
                 };
                 let contribution = match sc.reference {

@@ -355,7 +355,7 @@ pub fn run_sweep(
                     let ms = demosaic_ms + t1.elapsed().as_secs_f64() * 1e3;
                     let (error, confidence) = match e {
                         Ok(e) => (wrap180(e.yaw_deg - yaw), e.confidence),
-                        Err(Error::Invalid(m)) if m.starts_with("heading: only") => (f64::NAN, 0.0),
+                        Err(Error::TooFewPixels(_)) => (f64::NAN, 0.0),
                         Err(e) => return Err(e),
                     };
                     cell.push(FrameRow {

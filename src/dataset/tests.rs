@@ -1,0 +1,244 @@
+use super::*;
+
+fn tiny() -> DatasetConfig {
+    DatasetConfig::from_toml(
+        "seed = 7\nwidth = 64\nheight = 48\n[splits]\nNFPI = 3\nTGNIICPI = 2\n",
+        "test",
+    )
+    .unwrap()
+}
+
+/// The `projection` and `lens` keys reach every sample's scene (and so its render); absent,
+/// the projection is rectilinear and the lens each preset's; a bad name is refused by name.
+#[test]
+fn projection_and_lens_keys_reach_the_samples() {
+    use crate::camera::{Lens, Projection};
+    let t = tiny();
+    let s = t.sample(Split::Nfpi, 1).unwrap().scene(Preset::Nfpi);
+    assert_eq!(s.camera.intrinsics.projection, Projection::Rectilinear);
+    assert_eq!(s.intrinsics().lens, Some(Lens::Pinhole));
+    let d = DatasetConfig::from_toml(
+        "seed = 7\nwidth = 64\nheight = 48\nprojection = \"equisolid\"\nlens = \"ideal\"\n[splits]\nNFPI = 1\n",
+        "test",
+    )
+    .unwrap();
+    let s = d.sample(Split::Nfpi, 1).unwrap().scene(Preset::Nfpi);
+    assert_eq!(s.camera.intrinsics.projection, Projection::Equisolid);
+    assert_eq!(s.intrinsics().lens, Some(Lens::Ideal));
+    let back = DatasetConfig::from_toml(&d.to_toml(), "round trip").unwrap();
+    assert_eq!(back, d);
+    let e = DatasetConfig::from_toml("projection = \"fish\"\n", "bad")
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("fish") && e.contains("equisolid"), "{e}");
+}
+
+#[test]
+fn default_is_psns_at_full_size_and_round_trips() {
+    let d = DatasetConfig::default();
+    d.validate().unwrap();
+    assert_eq!(d.total(), 138_000);
+    assert_eq!((d.width, d.height), (2448, 2048));
+    assert_eq!(d.split_counts().len(), 6);
+    let back = DatasetConfig::from_toml(&d.to_toml(), "round trip").unwrap();
+    assert_eq!(back, d);
+    let t = tiny();
+    assert_eq!(DatasetConfig::from_toml(&t.to_toml(), "x").unwrap(), t);
+}
+
+#[test]
+fn draws_depend_on_seed_and_index_only() {
+    let c = tiny();
+    let all: Vec<Sample> = c.plan().unwrap();
+    assert_eq!(all.len(), 5);
+    // the same sample drawn alone, in another order, equals the one in the full list
+    assert_eq!(c.sample(Split::Tgniicpi, 2).unwrap(), all[4]);
+    assert_eq!(all[4].frame_index, 5 * SPLIT_STRIDE + 2);
+    // another split's count does not move this split's samples
+    let mut c2 = c.clone();
+    c2.splits.insert("NFPI".into(), 100);
+    assert_eq!(c2.sample(Split::Tgniicpi, 2).unwrap(), all[4]);
+    // another seed does
+    let mut c3 = c.clone();
+    c3.seed = 8;
+    assert_ne!(c3.sample(Split::Tgniicpi, 2).unwrap(), all[4]);
+    // golden: the draw derivation is part of the dataset format
+    assert_eq!(all[0].stem(), GOLDEN_STEM, "{}", all[0].stem());
+    for s in &all {
+        assert!((0.0..=359.9).contains(&s.yaw_deg));
+        assert_eq!(s.yaw_deg, round_decimal(s.yaw_deg, 1));
+        assert_eq!(s.albedo, round_decimal(s.albedo, 2));
+        assert!((1.7..=10.0).contains(&s.turbidity));
+    }
+}
+const GOLDEN_STEM: &str = "N1_172.8_0_0_4_16.4_8.8_392_0.2";
+
+#[test]
+fn grid_draws_cover_the_grid_and_print_as_decimals() {
+    let d = uniform(1.7, 10.0, 0.1);
+    let mut seen = std::collections::BTreeSet::new();
+    for i in 0..20_000 {
+        let mut r = crate::rng::dataset_rng(1, i, 7);
+        let v = d.draw(&mut r, 0.5);
+        assert!((1.7..=10.0).contains(&v), "{v}");
+        let s = format!("{v}");
+        assert!(decimals(v) <= 1 && !s.contains('e'), "{s}");
+        seen.insert(s);
+    }
+    assert_eq!(seen.len(), 84); // 1.7, 1.8, ..., 10
+    assert!(seen.contains("10") && seen.contains("1.7"));
+    // a grid through zero from below never prints "-0"
+    let d = uniform(-0.3, 0.3, 0.1);
+    let mut seen = std::collections::BTreeSet::new();
+    for i in 0..500 {
+        let mut r = crate::rng::dataset_rng(1, i, 2);
+        seen.insert(format!("{}", d.draw(&mut r, 0.1)));
+    }
+    assert_eq!(seen.len(), 7, "{seen:?}");
+    assert!(seen.contains("0") && !seen.contains("-0"), "{seen:?}");
+    assert_eq!(format!("{}", round_decimal(-1e-17, 1)), "0");
+    let c = Dist::Choice(vec![400.0, 550.0]);
+    let mut r = crate::rng::dataset_rng(1, 0, 8);
+    assert!([400.0, 550.0].contains(&c.draw(&mut r, 1.0)));
+}
+
+#[test]
+fn bad_descriptions_name_the_key_and_range() {
+    let cases = [
+        ("turbidty = 3\n", "turbidty"),
+        (
+            "[turbidity]\nmin = 1\nmax = 5\n",
+            "turbidity.min = 1 is out of range (allowed 1.7..10)",
+        ),
+        (
+            "[albedo]\nmin = 0.5\nmax = 0.2\n",
+            "albedo.max = 0.2 is out of range (allowed 0.5..1)",
+        ),
+        ("[albedo]\nmin = 0\nmax = 1\nstp = 0.1\n", "stp"),
+        (
+            "wavelength_nm = 300\n",
+            "wavelength_nm = 300 is out of range (allowed 380..720)",
+        ),
+        (
+            "width = 66\n",
+            "width = 66 is out of range (allowed a non-zero multiple of 4)",
+        ),
+        ("[splits]\nNFP = 3\n", "splits = NFP is out of range"),
+        (
+            "[splits]\nNFPI = 0\n",
+            "splits.NFPI = 0 is out of range (allowed 1..999999999)",
+        ),
+        ("sky_grid = 0\n", "sky_grid = 0"),
+        ("[outputs]\nraw = true\n", "raw"),
+        ("[yaw_deg]\nvalues = []\n", "yaw_deg.values is empty"),
+        ("[yaw_deg]\nmin = 1\n", "max"),
+        ("frame = \"ned\"\n", "ned"),
+        ("[outputs]\nraw12_exposure_us = 500\n", "add raw12 = true"),
+        (
+            "soft_clouds = 1.5\n",
+            "soft_clouds = 1.5 is out of range (allowed 0..1)",
+        ),
+        (
+            "[outputs]\nraw12 = true\nraw12_exposure_us = 5\n",
+            "outputs.raw12_exposure_us = 5 is out of range (allowed 20..10000000)",
+        ),
+    ];
+    for (text, want) in cases {
+        let e = DatasetConfig::from_toml(text, "c.toml").unwrap_err();
+        assert!(e.is_usage(), "{text}: {e}");
+        assert!(e.to_string().contains(want), "{text}: {e}");
+    }
+}
+
+#[test]
+fn shard_parsing_and_partition() {
+    assert_eq!("2/3".parse::<Shard>().unwrap(), Shard { k: 2, n: 3 });
+    for bad in ["0/3", "4/3", "3", "a/b", "1/0", "-1/3", "1/2000000"] {
+        let e = bad.parse::<Shard>().unwrap_err();
+        assert!(
+            e.is_usage() && e.to_string().contains("1 <= K <= N"),
+            "{bad}: {e}"
+        );
+    }
+    // every position in exactly one of N shards
+    for j in 0..30 {
+        let owners = (1..=4).filter(|&k| Shard { k, n: 4 }.contains(j)).count();
+        assert_eq!(owners, 1);
+    }
+}
+
+#[test]
+fn label_row_has_every_column_and_the_scene_matches() {
+    let c = tiny();
+    let s = c.sample(Split::Nfpi, 1).unwrap();
+    let row = s.label_row();
+    assert_eq!(row.split(',').count(), LABEL_HEADER.split(',').count());
+    assert!(row.starts_with(&format!("NFPI,NFPI/{}.png,", s.stem())));
+    let v = s.sun_camera();
+    assert!((v.length() - 1.0).abs() < 1e-12);
+    let scene = s.scene(Preset::Nfpi);
+    assert_eq!(scene.sun.resolve().unwrap(), s.sun());
+    assert_eq!(scene.raw.frame_index, s.frame_index);
+}
+
+#[test]
+fn sun_from_times_and_places() {
+    let text = "width = 64\nheight = 48\n[splits]\nNFPI = 20\n[sun_time]\nstart = \"2024-06-01T00:00:00Z\"\nend = \"2024-06-30T23:59:59Z\"\nlat_deg = 45\nlon_deg = { min = 0, max = 10 }\nmin_altitude_deg = 20\n";
+    let c = DatasetConfig::from_toml(text, "t").unwrap();
+    assert_eq!(DatasetConfig::from_toml(&c.to_toml(), "again").unwrap(), c);
+    let plan = c.plan().unwrap();
+    for s in &plan {
+        let w = s.when.as_ref().unwrap();
+        assert!(s.sun_altitude_deg >= 20.0 && s.sun_altitude_deg <= 90.0);
+        assert_eq!(s.sun_altitude_deg, round_decimal(s.sun_altitude_deg, 3));
+        // the label's sun is SPA's for the label's time and place, to 0.001 degree
+        let t = crate::sun::parse_time(&w.time_utc).unwrap();
+        let place = crate::sun::Place {
+            lat_deg: w.lat_deg,
+            lon_deg: w.lon_deg,
+            height_m: 0.0,
+        };
+        let sun = crate::sun::spa(&t, &place, None, None).unwrap();
+        assert!((90.0 - sun.zenith_deg - s.sun_altitude_deg).abs() <= 0.0005);
+        assert!((sun.azimuth_deg - s.sun_azimuth_deg).abs() <= 0.0005);
+        assert_eq!(w.lat_deg, 45.0);
+        assert!(w.time_utc.starts_with("2024-06-"), "{}", w.time_utc);
+        let row = s.label_row();
+        assert!(
+            row.ends_with(&format!(",{},45,{},,0", w.time_utc, w.lon_deg)),
+            "{row}"
+        );
+    }
+    // a polar night never has the sun up: refused, naming the key
+    let polar = text.replace("lat_deg = 45", "lat_deg = -85");
+    let c = DatasetConfig::from_toml(&polar, "t").unwrap();
+    let e = c.plan().unwrap_err().to_string();
+    assert!(
+        e.contains("NFPI sample 1: sun_time: the sun was below min_altitude_deg = 20"),
+        "{e}"
+    );
+    // both ways of giving the sun, a bad time, an end before the start
+    let both = format!("sun_altitude_deg = 30\n{text}");
+    let e = DatasetConfig::from_toml(&both, "t")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("either by sun_time or by sun_altitude_deg"),
+        "{e}"
+    );
+    let bad = text.replace("2024-06-01T00:00:00Z", "June 1st");
+    let e = DatasetConfig::from_toml(&bad, "t").unwrap_err().to_string();
+    assert!(e.contains("sun_time.start: time 'June 1st'"), "{e}");
+    let back = text.replace("2024-06-30T23:59:59Z", "2024-05-30T23:59:59Z");
+    let e = DatasetConfig::from_toml(&back, "t")
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("sun_time.end = 2024-05-30T23:59:59Z is out of range"),
+        "{e}"
+    );
+    let e = DatasetConfig::from_toml(&text.replace("= 45", "= 95"), "t").unwrap_err();
+    assert!(e
+        .to_string()
+        .contains("sun_time.lat_deg = 95 is out of range (allowed -90..90)"));
+}

@@ -1,0 +1,222 @@
+//! From raw codes to an estimate: saturation masks, sampled demosaics, and the entry points the
+//! front-ends call.
+
+use super::*;
+
+/// Marks as unusable (DoLP = NaN) every pixel within one pixel of a raw code at `full_scale`:
+/// a clipped channel gives a false, structured AoLP that the estimator cannot tell from sky, and
+/// interpolating demosaics spread it to the neighbours. Returns how many pixels were masked.
+pub fn mask_saturated(dolp: &mut Image<f32>, codes: &Image<u16>, full_scale: u16) -> usize {
+    let (w, h) = (codes.width, codes.height);
+    let mut masked = 0;
+    let mut bad = vec![false; w * h];
+    for r in 0..h {
+        for c in 0..w {
+            if codes.data[r * w + c] >= full_scale {
+                for rr in r.saturating_sub(1)..(r + 2).min(h) {
+                    for cc in c.saturating_sub(1)..(c + 2).min(w) {
+                        bad[rr * w + cc] = true;
+                    }
+                }
+            }
+        }
+    }
+    for (d, b) in dolp.data.iter_mut().zip(bad) {
+        if b {
+            *d = f32::NAN;
+            masked += 1;
+        }
+    }
+    masked
+}
+
+/// The intrinsics of a frame read as every `k`-th 2 × 2 superpixel
+/// ([`crate::demosaic::superpixel::superpixel_sampled`]): (width / k) × (height / k) pixels of
+/// k times the pitch, output pixel (j, i) centred on mosaic position (k j + ½, k i + ½), so the
+/// principal point moves to ((c₀ − ½)/k, (r₀ − ½)/k). Same focal length, projection and lens.
+pub fn sampled_intrinsics(i: &Intrinsics, k: usize) -> Intrinsics {
+    let (c0, r0) = i.principal();
+    let kf = k as f64;
+    Intrinsics {
+        width: i.width / k,
+        height: i.height / k,
+        pixel_pitch_um: i.pixel_pitch_um * kf,
+        principal_point: Some([(c0 - 0.5) / kf, (r0 - 0.5) / kf]),
+        ..*i
+    }
+}
+
+/// The superpixel sampling step for a frame of `width` × `height`: the largest even k with
+/// (width / k)(height / k) ≥ [`EIGEN_SAMPLES`], or `None` when that is below 4 (frames under
+/// about 640 000 pixels, which the estimators read at every 4th pixel or closer anyway).
+pub fn superpixel_step(width: usize, height: usize) -> Option<usize> {
+    let s = ((width * height) as f64 / EIGEN_SAMPLES).sqrt().floor() as usize;
+    let k = s - s % 2;
+    (k >= 4).then_some(k)
+}
+
+/// [`mask_saturated`] for a superpixel-sampled view (`k` as in
+/// [`crate::demosaic::superpixel::superpixel_sampled`]): a sample is unusable when a code at
+/// `full_scale` lies in its 2 × 2 block or one pixel around it. Returns how many pixels of the
+/// whole frame are within one pixel of a code at full scale (what [`mask_saturated`] would mask).
+pub fn mask_saturated_sampled(
+    dolp: &mut Image<f32>,
+    codes: &Image<u16>,
+    full_scale: u16,
+    k: usize,
+) -> usize {
+    let (w, h) = (codes.width, codes.height);
+    // whether a code in rows r0..r1, columns c0..c1 (clamped to the frame) reads full scale
+    let any_full = |r0: usize, r1: usize, c0: usize, c1: usize| {
+        let (r1, c1) = (r1.min(h), c1.min(w));
+        (r0..r1).any(|r| {
+            codes.row(r)[c0.min(c1)..c1]
+                .iter()
+                .any(|&v| v >= full_scale)
+        })
+    };
+    // which rows hold a code at full scale, by a maximum per row the compiler vectorises (an
+    // early-exit search per code does not): most frames have none, and a sun disc a few rows
+    let row_full: Vec<bool> = codes
+        .data
+        .par_chunks(w.max(1))
+        .map(|row| row.iter().fold(0u16, |m, &v| m.max(v)) >= full_scale)
+        .collect();
+    if !row_full.contains(&true) {
+        return 0;
+    }
+    let rows_full = |r0: usize, r1: usize| row_full[r0..r1.min(h)].contains(&true);
+    for i in 0..dolp.height {
+        let r = k * i;
+        if !rows_full(r.saturating_sub(1), r + 3) {
+            continue;
+        }
+        for j in 0..dolp.width {
+            let c = k * j;
+            if any_full(r.saturating_sub(1), r + 3, c.saturating_sub(1), c + 3) {
+                dolp.data[i * dolp.width + j] = f32::NAN;
+            }
+        }
+    }
+    // the frame's count, row by row in parallel: the columns with a code at full scale in
+    // rows r−1..r+1, widened by one column each side
+    (0..h)
+        .into_par_iter()
+        .map(|r| {
+            let (r0, r1) = (r.saturating_sub(1), (r + 2).min(h));
+            if !rows_full(r0, r1) {
+                return 0;
+            }
+            let mut col = vec![false; w];
+            for rr in (r0..r1).filter(|&rr| row_full[rr]) {
+                for (b, &v) in col.iter_mut().zip(codes.row(rr)) {
+                    *b |= v >= full_scale;
+                }
+            }
+            (0..w)
+                .filter(|&c| col[c.saturating_sub(1)..(c + 2).min(w)].contains(&true))
+                .count()
+        })
+        .sum()
+}
+
+/// Demosaics one mosaic (codes minus the black level) and masks the pixels next to a code at
+/// full scale of `bits` (DoLP = NaN); returns the images and the number of masked pixels.
+pub fn polar_from_codes(
+    codes: &Image<u16>,
+    black_level: f64,
+    layout: MosaicLayout,
+    bits: u8,
+    demosaic: Method,
+) -> Result<(PolarImages, usize)> {
+    crate::demosaic::check_raw(codes)?;
+    let full = ((1u32 << bits) - 1).min(65535) as u16;
+    let mut p = demosaic_codes(codes, black_level, layout, demosaic)?;
+    let saturated = mask_saturated(&mut p.dolp, codes, full);
+    Ok((p, saturated))
+}
+
+/// [`polar_from_codes`] for what the estimators read: with no `--demosaic` and a frame large
+/// enough ([`superpixel_step`]), every k-th superpixel only, with the intrinsics of that sampled
+/// view ([`sampled_intrinsics`]) in the returned setup; otherwise the whole frame.
+pub fn polar_for_estimate(
+    codes: &Image<u16>,
+    black_level: f64,
+    layout: MosaicLayout,
+    bits: u8,
+    demosaic: Option<Method>,
+    setup: &HeadingSetup,
+) -> Result<(PolarImages, usize, HeadingSetup)> {
+    let k = superpixel_step(codes.width, codes.height);
+    match (demosaic, k) {
+        (None, Some(k)) => {
+            let full = ((1u32 << bits) - 1).min(65535) as u16;
+            let mut p = superpixel_sampled(codes, layout, k, black_level as f32)?;
+            let saturated = mask_saturated_sampled(&mut p.dolp, codes, full, k);
+            let mut s = *setup;
+            s.intrinsics = sampled_intrinsics(&setup.intrinsics, k);
+            s.step = 1;
+            Ok((p, saturated, s))
+        }
+        (d, _) => {
+            let (p, saturated) = polar_from_codes(
+                codes,
+                black_level,
+                layout,
+                bits,
+                d.unwrap_or(Method::Bilinear),
+            )?;
+            Ok((p, saturated, *setup))
+        }
+    }
+}
+
+/// The estimate from one mosaic: demosaic (see [`polar_for_estimate`]), mask clipped pixels,
+/// estimate. Without enough usable pixels there is no estimate and [`CodesEstimate::reason`]
+/// says why.
+pub fn estimate_codes(
+    codes: &Image<u16>,
+    black_level: f64,
+    layout: MosaicLayout,
+    bits: u8,
+    demosaic: Option<Method>,
+    method: HeadingMethod,
+    setup: &HeadingSetup,
+) -> Result<CodesEstimate> {
+    let (p, saturated, setup) =
+        polar_for_estimate(codes, black_level, layout, bits, demosaic, setup)?;
+    let view = PolarView {
+        aolp_deg: &p.aolp_deg,
+        dolp: &p.dolp,
+        s0: Some(&p.stokes.s0),
+    };
+    match estimate_heading_info(method, &view, &setup) {
+        Ok((e, info)) => Ok(CodesEstimate {
+            estimate: Some(e),
+            saturated,
+            info,
+            reason: None,
+        }),
+        // too few usable pixels (saturated, unpolarized): no heading, zero confidence
+        Err(Error::TooFewPixels(m)) => Ok(CodesEstimate {
+            estimate: None,
+            saturated,
+            info: None,
+            reason: Some(m),
+        }),
+        Err(e) => Err(e),
+    }
+}
+
+/// The estimate from one mosaic ([`estimate_codes`]).
+#[derive(Clone, Debug)]
+pub struct CodesEstimate {
+    /// The estimate; `None` when too few pixels are usable.
+    pub estimate: Option<HeadingEstimate>,
+    /// Pixels masked as within one pixel of a code at full scale.
+    pub saturated: usize,
+    /// The model fit's details (`--method model-fit`).
+    pub info: Option<ModelFitInfo>,
+    /// Why there is no estimate.
+    pub reason: Option<String>,
+}

@@ -1,0 +1,286 @@
+//! Heading from the sky's polarization: the sun-vector (eigenvector) estimator.
+//!
+//! Physics: in single (Rayleigh) scattering the E-vector of the light from view direction v is
+//! perpendicular to the sun direction s (e ∝ s × v). Each pixel's AoLP φ, measured in the sensor
+//! frame (from +x, columns, toward +y, rows — `conventions.md`), is the angle of e projected onto
+//! the focal plane, so e lies in the plane spanned by (cos φ, sin φ, 0) and the optical axis and
+//! is perpendicular to v: e = (cos φ, sin φ, t) with t = −(v_x cos φ + v_y sin φ)/v_z. The sun is
+//! then the direction most perpendicular to every e: the eigenvector of the DoLP-weighted scatter
+//! matrix Σ w e eᵀ with the smallest eigenvalue (after Zhang et al. / Lu et al.), made robust by
+//! iteratively reweighting pixels with a Tukey weight on their residual e·s.
+//!
+//! Frame: with C = R_y(roll) R_x(pitch) R_z(yaw) taking ENU vectors into the camera frame
+//! (`sky.md` §7, [`crate::camera::euler_matrix`]), the camera-frame sun s_c and the known ENU sun
+//! s give R_z(yaw) s = (R_y R_x)ᵀ s_c, from which the yaw follows; pitch and roll are the tilt an
+//! IMU supplies. The sign of the eigenvector is fixed by the sun being above the horizon.
+//!
+//! Limits: the Berry four-neutral-point field is not exactly perpendicular to the sun away from
+//! the neutral points, so on the default sky this estimator alone has a bias (measured below in the
+//! tests); the yaw is ill-conditioned with the sun near the zenith (confidence says so).
+
+use crate::camera::{rot_x, rot_y, Intrinsics};
+use crate::demosaic::superpixel::superpixel_sampled;
+use crate::demosaic::{demosaic_codes, Method, PolarImages};
+use crate::error::{check_range, Error, Result};
+use crate::image::Image;
+use crate::sensor::mosaic::MosaicLayout;
+use crate::sensor::optics::RelativeIllumination;
+use crate::sun::SunPosition;
+use glam::{DMat3, DVec3};
+use rayon::prelude::*;
+
+mod codes;
+mod eigen;
+mod hough;
+mod model_fit;
+mod stats;
+#[cfg(test)]
+mod tests;
+pub use codes::*;
+pub use eigen::*;
+pub use hough::*;
+pub use model_fit::*;
+pub use stats::*;
+
+/// What the estimator is given besides the pixels.
+#[derive(Clone, Copy, Debug)]
+pub struct HeadingSetup {
+    /// Camera intrinsics of the images (pinhole).
+    pub intrinsics: Intrinsics,
+    /// Known tilt from an IMU, degrees (the meaning of `--pitch/--roll` in `psns render`).
+    pub pitch_deg: f64,
+    /// Known roll, degrees.
+    pub roll_deg: f64,
+    /// Sun position (from SPA and the time and place, or given).
+    pub sun: SunPosition,
+    /// Pixels with a DoLP below this are not used (sky near the sun, neutral points, noise).
+    pub min_dolp: f64,
+    /// Use every `step`-th pixel in each direction (1 = all).
+    pub step: usize,
+    /// Flat-field correction of S0 for the intensity decision near the horizon: the frames'
+    /// relative illumination (default cos^1.5 of the field angle, the camera preset's lens; the
+    /// PSNS presets `gniipi`/`gniicpi` fall off as cos⁴, `nfpi` not at all:
+    /// [`crate::sensor::SensorConfig::effective_ri`]). Without it a tilted camera's vignetting
+    /// outvotes the sky.
+    pub relative_illumination: RelativeIllumination,
+    /// Model fit only: fit the sun's zenith angle too (with one neutral-point distance), starting
+    /// from `sun`'s.
+    pub fit_elevation: bool,
+    /// Model fit only: start the neutral-point distances (δ_Ba, δ_Br, degrees) here instead of
+    /// at 25°, e.g. from the previous frame of a stream ([`ModelFitInfo`]); the robust weights
+    /// are then set from the first residuals. The yaw still starts from the eigenvector answer.
+    pub warm_start: Option<(f64, f64)>,
+}
+
+impl HeadingSetup {
+    /// Defaults: level camera, DoLP ≥ 0.05, every 4th pixel.
+    pub fn new(intrinsics: Intrinsics, sun: SunPosition) -> Self {
+        HeadingSetup {
+            intrinsics,
+            pitch_deg: 0.0,
+            roll_deg: 0.0,
+            sun,
+            min_dolp: 0.05,
+            step: 4,
+            relative_illumination: RelativeIllumination::CosPower { n: 1.5 },
+            fit_elevation: false,
+            warm_start: None,
+        }
+    }
+}
+
+/// A heading estimate.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct HeadingEstimate {
+    /// Yaw in the ENU frame, degrees in [0, 360) (as `--frame enu --yaw` in `psns render`).
+    pub yaw_deg: f64,
+    /// 0..1: how well the sun is determined and how well it fixes the yaw (low near the zenith).
+    pub confidence: f64,
+    /// Pixels used.
+    pub pixels: usize,
+    /// Estimated sun direction in the camera frame.
+    pub sun_camera: DVec3,
+}
+
+/// How the heading is estimated (`psns heading --method`).
+#[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Hash)]
+pub enum HeadingMethod {
+    /// Sun vector: smallest eigenvector of the E-vector scatter ([`eigenvector_heading`]).
+    Eigen,
+    /// Berry-field model fit started from the eigenvector answer ([`model_fit_heading`]).
+    #[default]
+    ModelFit,
+    /// Solar meridian by Hough voting (after Lu et al. 2015, [`hough_heading`]).
+    Hough,
+}
+
+impl HeadingMethod {
+    /// Every method.
+    pub const ALL: [HeadingMethod; 3] = [
+        HeadingMethod::Eigen,
+        HeadingMethod::ModelFit,
+        HeadingMethod::Hough,
+    ];
+    /// The name used on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            HeadingMethod::Eigen => "eigen",
+            HeadingMethod::ModelFit => "model-fit",
+            HeadingMethod::Hough => "hough",
+        }
+    }
+}
+
+impl std::fmt::Display for HeadingMethod {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for HeadingMethod {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        let t = s.trim().to_ascii_lowercase();
+        HeadingMethod::ALL
+            .into_iter()
+            .find(|m| m.name() == t)
+            .ok_or_else(|| {
+                Error::Invalid(format!(
+                    "heading method '{s}' is unknown (allowed: eigen, model-fit, hough)"
+                ))
+            })
+    }
+}
+
+/// The images an estimator reads: AoLP (degrees, sensor frame), DoLP and, for the 180° decision
+/// near the horizon, the intensity S0.
+#[derive(Clone, Copy)]
+pub struct PolarView<'a> {
+    /// AoLP, degrees, from +x toward +y.
+    pub aolp_deg: &'a Image<f32>,
+    /// DoLP; NaN marks an unusable pixel.
+    pub dolp: &'a Image<f32>,
+    /// Intensity S0 (optional).
+    pub s0: Option<&'a Image<f32>>,
+}
+
+/// Runs one estimator. The model fit starts from the eigenvector answer (sun elevation given).
+pub fn estimate_heading(
+    method: HeadingMethod,
+    view: &PolarView,
+    setup: &HeadingSetup,
+) -> Result<HeadingEstimate> {
+    estimate_heading_info(method, view, setup).map(|r| r.0)
+}
+
+/// [`estimate_heading`], with the model fit's [`ModelFitInfo`] (`None` for the other methods):
+/// what a stream passes on as the next frame's [`HeadingSetup::warm_start`].
+pub fn estimate_heading_info(
+    method: HeadingMethod,
+    view: &PolarView,
+    setup: &HeadingSetup,
+) -> Result<(HeadingEstimate, Option<ModelFitInfo>)> {
+    if method == HeadingMethod::Hough {
+        return hough_heading(view, setup).map(|e| (e, None));
+    }
+    match method {
+        HeadingMethod::Eigen => Ok((eigen_resolved(view, setup)?, None)),
+        HeadingMethod::ModelFit => {
+            // the start only has to be near the answer: the eigenvector method on the fit's
+            // own (sparser) pixels
+            let mut s = *setup;
+            s.step = model_fit_step(setup);
+            let eigen = eigen_resolved(view, &s)?;
+            model_fit_heading(view.aolp_deg, view.dolp, setup, &eigen, setup.fit_elevation)
+                .map(|(e, i)| (e, Some(i)))
+        }
+        HeadingMethod::Hough => unreachable!("handled above"),
+    }
+}
+
+/// Below this known sun elevation (degrees) the sign of the eigenvector's sun, "above the
+/// horizon", is unreliable: the intensity decides instead.
+pub const HORIZON_ELEVATION_DEG: f64 = 8.0;
+
+/// The intensity's vote on which of ±`s_c` is the sun. Each pixel on the sunward side is paired
+/// with its mirror image across the vertical plane perpendicular to the sun's azimuth (level frame,
+/// from the known tilt): the pair sees the sky at the same zenith angle, sunward and anti-sunward,
+/// so neither the horizon brightening nor the shape of the field of view can bias the vote. Each
+/// pair votes with its S0 difference (flat-fielded by the frames' relative illumination,
+/// [`HeadingSetup::relative_illumination`]) times its distance from that plane: the sunward half
+/// of the sky is brighter. Returned normalised to [−1, 1] (Σ ΔL x / Σ |ΔL| x); `None` without S0, with a
+/// sun at the zenith, or with fewer than 10 pairs inside the image.
+pub fn intensity_side(view: &PolarView, setup: &HeadingSetup, s_c: DVec3) -> Option<f64> {
+    let s0 = view.s0?;
+    let i = &setup.intrinsics;
+    let tilt = rot_y(setup.roll_deg.to_radians()) * rot_x(setup.pitch_deg.to_radians());
+    let u = tilt.transpose() * s_c;
+    let hl = u.x.hypot(u.y);
+    if hl < 1e-9 {
+        return None;
+    }
+    let h = DVec3::new(u.x / hl, u.y / hl, 0.0);
+    let step = sample_step(setup);
+    let ri = setup.relative_illumination;
+    let usable = |k: usize, col: f64, row: f64| {
+        let (l, d) = (s0.data[k] as f64, view.dolp.data[k] as f64);
+        // flat-field: divide by the relative illumination at the pixel
+        let f = ri.factor(i, col, row);
+        (l.is_finite() && d.is_finite() && l > 0.0 && f > 0.0).then_some(l / f)
+    };
+    let (mut num, mut den, mut pairs) = (0.0, 0.0, 0usize);
+    for row in (0..i.height).step_by(step) {
+        for col in (0..i.width).step_by(step) {
+            let Some(ray) = i.ray(col as f64, row as f64) else {
+                continue;
+            };
+            let v = tilt.transpose() * ray.normalize();
+            let x = v.dot(h);
+            if x <= 0.0 {
+                continue;
+            }
+            let Some((cm, rm)) = i.project(tilt * (v - 2.0 * x * h)) else {
+                continue;
+            };
+            let (cm, rm) = (cm.round(), rm.round());
+            if cm < 0.0 || rm < 0.0 || cm >= i.width as f64 || rm >= i.height as f64 {
+                continue;
+            }
+            let k = row * i.width + col;
+            let km = rm as usize * i.width + cm as usize;
+            let (Some(l), Some(lm)) = (usable(k, col as f64, row as f64), usable(km, cm, rm))
+            else {
+                continue;
+            };
+            num += (l - lm) * x;
+            den += (l - lm).abs() * x;
+            pairs += 1;
+        }
+    }
+    if pairs < 10 {
+        return None;
+    }
+    Some(if den > 0.0 { num / den } else { 0.0 })
+}
+
+/// The eigenvector answer with the 180° ambiguity near the horizon decided by the intensity:
+/// with the known sun elevation below [`HORIZON_ELEVATION_DEG`], "the sun is above the horizon"
+/// no longer fixes the eigenvector's sign, so the brighter half of the sky does; the confidence is
+/// scaled by how clearly it does (|vote| / 0.3, at most 1).
+pub fn eigen_resolved(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEstimate> {
+    let mut e = eigenvector_heading(view.aolp_deg, view.dolp, setup)?;
+    if 90.0 - setup.sun.zenith_deg >= HORIZON_ELEVATION_DEG {
+        return Ok(e);
+    }
+    match intensity_side(view, setup, e.sun_camera) {
+        Some(c) => {
+            if c < 0.0 {
+                e.sun_camera = -e.sun_camera;
+                e.yaw_deg = (e.yaw_deg + 180.0).rem_euclid(360.0);
+            }
+            e.confidence *= (c.abs() / 0.3).min(1.0);
+        }
+        None => e.confidence *= 0.5,
+    }
+    Ok(e)
+}

@@ -1,0 +1,410 @@
+//! Degraded mode: a stream whose first file header is damaged, its geometry inferred from the
+//! frames that follow (the stride between frame magics, the CRCs of candidate payload sizes).
+
+use super::*;
+
+/// Geometry given by the user for degraded mode ([`StreamReader::new_recovering`]); `None`
+/// fields are inferred.
+#[derive(Clone, Copy, Debug, Default, PartialEq)]
+pub struct RecoverHint {
+    /// Width in pixels.
+    pub width: Option<u32>,
+    /// Height in pixels.
+    pub height: Option<u32>,
+    /// Payload pixel format.
+    pub pixel_format: Option<PixelFormat>,
+}
+
+/// How a damaged file header was replaced in degraded mode.
+#[derive(Clone, Debug, PartialEq, Serialize)]
+pub struct Recovery {
+    /// Why the header was not usable.
+    pub damage: String,
+    /// Where the geometry came from (stride between frames, payload CRC, header fields, user).
+    pub geometry: String,
+    /// Header fields replaced by defaults because they were invalid.
+    pub defaults: Vec<String>,
+}
+
+impl fmt::Display for Recovery {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}; geometry {}", self.damage, self.geometry)?;
+        if !self.defaults.is_empty() {
+            write!(f, "; defaults used for {}", self.defaults.join(", "))?;
+        }
+        Ok(())
+    }
+}
+
+/// Most bytes degraded mode buffers while looking for two frame headers.
+pub(super) const RECOVER_SCAN_MAX: usize = 256 << 20;
+
+/// A frame header with a valid CRC found while recovering.
+pub(super) struct Found {
+    pub(super) pos: usize,
+    pub(super) index: u64,
+    pub(super) pcrc: u32,
+}
+
+pub(super) fn frames_in(buf: &[u8], want: usize) -> Vec<Found> {
+    let mut out = Vec::new();
+    let mut from = 0;
+    while out.len() < want {
+        let Some(i) = find(&buf[from..], &FRAME_MAGIC) else {
+            break;
+        };
+        let j = from + i;
+        if buf.len() >= j + FRAME_HEADER_SIZE {
+            if let Ok((m, pcrc)) = FrameMeta::decode(&buf[j..]) {
+                out.push(Found {
+                    pos: j,
+                    index: m.index,
+                    pcrc,
+                });
+            }
+        }
+        from = j + 1;
+    }
+    out
+}
+
+/// Payload lengths in `lo..=hi` (capped to the data) whose CRC is `pcrc`.
+pub(super) fn crc_lengths(data: &[u8], lo: usize, hi: usize, pcrc: u32) -> Vec<usize> {
+    let hi = hi.min(data.len());
+    if lo > hi {
+        return Vec::new();
+    }
+    let mut h = crc32fast::Hasher::new();
+    h.update(&data[..lo]);
+    let mut out = Vec::new();
+    for len in lo..=hi {
+        if len > lo {
+            h.update(&data[len - 1..len]);
+        }
+        if len > 0 && h.clone().finalize() == pcrc {
+            out.push(len);
+        }
+    }
+    out
+}
+
+pub(super) fn u32_le(b: &[u8], o: usize) -> u32 {
+    u32::from_le_bytes(b[o..o + 4].try_into().expect("4 bytes"))
+}
+pub(super) fn u64_le(b: &[u8], o: usize) -> u64 {
+    u64::from_le_bytes(b[o..o + 8].try_into().expect("8 bytes"))
+}
+
+/// Infers the file header of a stream whose header is damaged. `buf` starts at the stream's
+/// start; `eof` says whether it holds the whole stream. Returns the header, where reading starts
+/// and the account of what was inferred.
+pub(super) fn infer_header(
+    buf: &[u8],
+    eof: bool,
+    hint: &RecoverHint,
+    damage: String,
+) -> Result<(FileHeader, usize, Recovery)> {
+    let hb: Vec<u8> = {
+        let mut v = buf[..buf.len().min(FILE_HEADER_SIZE)].to_vec();
+        v.resize(FILE_HEADER_SIZE, 0);
+        v
+    };
+    let (w_s, h_s, code_s) = (u32_le(&hb, 20), u32_le(&hb, 24), u32_le(&hb, 28));
+    let (p_s, s_s) = (u64_le(&hb, 48), u64_le(&hb, 56));
+    let found = frames_in(buf, 3);
+    let mut how: Vec<String> = Vec::new();
+    // stride: between the first two frame headers, else from the first one's position
+    let page = FILE_HEADER_SIZE as u64;
+    let mut stride: Option<u64> = None;
+    if let [a, b, ..] = found.as_slice() {
+        let (d, di) = ((b.pos - a.pos) as u64, b.index.wrapping_sub(a.index));
+        if b.index > a.index && d % di == 0 && (d / di) % page == 0 && d / di > 0 {
+            stride = Some(d / di);
+            how.push(format!(
+                "stride {} B between frames {} and {}",
+                d / di,
+                a.index,
+                b.index
+            ));
+        }
+    }
+    if let (None, Some(a)) = (stride, found.first()) {
+        let off = a.pos as u64;
+        if a.index > 0 && off > page && (off - page).is_multiple_of(a.index) {
+            let s = (off - page) / a.index;
+            if s.is_multiple_of(page) && s > 0 {
+                stride = Some(s);
+                how.push(format!("stride {s} B from frame {} at byte {off}", a.index));
+            }
+        } else if eof && found.len() == 1 {
+            let s = (buf.len() - a.pos) as u64;
+            if s.is_multiple_of(page) && s > 0 {
+                stride = Some(s);
+                how.push(format!("stride {s} B from the single frame's record"));
+            }
+        }
+    }
+    // exact payload size: the length whose CRC matches a frame header's payload CRC
+    let mut payload: Option<u64> = None;
+    for f in &found {
+        let data = &buf[f.pos + FRAME_HEADER_SIZE..];
+        let (lo, hi) = match stride {
+            Some(s) => (
+                (s as usize).saturating_sub(FILE_HEADER_SIZE + FRAME_HEADER_SIZE - 1),
+                s as usize - FRAME_HEADER_SIZE,
+            ),
+            None => (0, data.len().min(crate::stream::MAX_PAYLOAD as usize)),
+        };
+        if lo > data.len() {
+            continue;
+        }
+        if let [p] = crc_lengths(data, lo, hi, f.pcrc)[..] {
+            payload = Some(p as u64);
+            how.push(format!(
+                "payload {p} B from the payload CRC of frame {}",
+                f.index
+            ));
+            if stride.is_none() {
+                stride = Some(stride_for(p as u64));
+            }
+            break;
+        }
+    }
+    // the payload size to match: CRC-proven, else the header's if it fits the stride
+    let target = payload.or_else(|| {
+        let ok = stride.map_or(s_s == stride_for(p_s), |s| s == stride_for(p_s));
+        (ok && p_s > 0 && p_s <= crate::stream::MAX_PAYLOAD).then(|| {
+            how.push(format!("payload {p_s} B from the header (fits the stride)"));
+            p_s
+        })
+    });
+    let stored_fmt = PixelFormat::from_pfnc(code_s).ok();
+    let fmts: Vec<PixelFormat> = match hint.pixel_format {
+        Some(f) => vec![f],
+        None => PixelFormat::ALL.to_vec(),
+    };
+    let size = |f: PixelFormat, w: u32, h: u32| {
+        payload_size_checked(f, w as usize, h as usize).map(|p| p as u64)
+    };
+    // candidates (format, width, height) and how many stored fields each keeps
+    let mut cands: Vec<(u32, PixelFormat, u32, u32)> = Vec::new();
+    let n_of = |f: PixelFormat, p: u64| -> Vec<u64> {
+        match f {
+            PixelFormat::Mono8 => vec![p],
+            PixelFormat::Mono16 => {
+                if p.is_multiple_of(2) {
+                    vec![p / 2]
+                } else {
+                    vec![]
+                }
+            }
+            _ => vec![(2 * p) / 3, (2 * p) / 3 + 1]
+                .into_iter()
+                .filter(|&n| n.checked_mul(3).map(|x| x.div_ceil(2)) == Some(p))
+                .collect(),
+        }
+    };
+    let ok_dim = |x: u64| (1..=65_535).contains(&x);
+    if let Some(p) = target {
+        for &f in &fmts {
+            let mut pairs: Vec<(u32, u32)> = Vec::new();
+            let ws = hint.width.unwrap_or(w_s);
+            let hs = hint.height.unwrap_or(h_s);
+            pairs.push((ws, hs));
+            for n in n_of(f, p) {
+                if hint.width.is_none() && hs > 0 && n % hs as u64 == 0 && ok_dim(n / hs as u64) {
+                    pairs.push(((n / hs as u64) as u32, hs));
+                }
+                if hint.height.is_none() && ws > 0 && n % ws as u64 == 0 && ok_dim(n / ws as u64) {
+                    pairs.push((ws, (n / ws as u64) as u32));
+                }
+            }
+            for (w, h) in pairs {
+                if ok_dim(w as u64) && ok_dim(h as u64) && size(f, w, h) == Some(p) {
+                    let score = (w == w_s) as u32
+                        + (h == h_s) as u32
+                        + (Some(f) == stored_fmt) as u32
+                        + hint.width.is_some() as u32
+                        + hint.height.is_some() as u32
+                        + hint.pixel_format.is_some() as u32;
+                    if !cands.iter().any(|c| (c.1, c.2, c.3) == (f, w, h)) {
+                        cands.push((score, f, w, h));
+                    }
+                }
+            }
+        }
+    } else if let (Some(f), Some(w), Some(h)) = (hint.pixel_format, hint.width, hint.height) {
+        // no frame to check against: the user's geometry as given
+        cands.push((3, f, w, h));
+    }
+    cands.sort_by_key(|c| std::cmp::Reverse(c.0));
+    let said = format!(
+        "frames found: {}; stride {}; payload {}; header fields say {w_s} x {h_s}, PFNC 0x{code_s:08X}, payload {p_s} B, stride {s_s} B",
+        found.len(),
+        stride.map_or("unknown".into(), |s| format!("{s} B")),
+        target.map_or("unknown".into(), |p| format!("{p} B")),
+    );
+    let best = match cands.as_slice() {
+        [] => {
+            return Err(Error::Invalid(format!(
+                "{damage}; cannot infer the frame geometry ({said}): give width, height and pixel format"
+            )))
+        }
+        [a, b, ..] if a.0 == b.0 => {
+            return Err(Error::Invalid(format!(
+                "{damage}; frame geometry ambiguous ({} x {} {} or {} x {} {}; {said}): give width, height and pixel format",
+                a.2, a.3, a.1, b.2, b.3, b.1
+            )))
+        }
+        [a, ..] if a.0 < 2 => {
+            return Err(Error::Invalid(format!(
+                "{damage}; only {} x {} {} fits the frames, which disagrees with more than one header field ({said}): give width, height and pixel format",
+                a.2, a.3, a.1
+            )))
+        }
+        [a, ..] => *a,
+    };
+    let (_, fmt, width, height) = best;
+    if let Some(s) = stride {
+        if size(fmt, width, height).map(stride_for) != Some(s) {
+            return Err(Error::Invalid(format!(
+                "{damage}; {width} x {height} {fmt} has stride {} B but the frames found are {s} B apart",
+                size(fmt, width, height).map_or(0, stride_for)
+            )));
+        }
+    }
+    let mut agree = Vec::new();
+    for (name, given, same) in [
+        ("width", hint.width.is_some(), width == w_s),
+        ("height", hint.height.is_some(), height == h_s),
+        (
+            "pixel format",
+            hint.pixel_format.is_some(),
+            Some(fmt) == stored_fmt,
+        ),
+    ] {
+        agree.push(if given {
+            format!("{name} given")
+        } else if same {
+            format!("{name} from the header")
+        } else {
+            format!("{name} inferred (header field disagrees)")
+        });
+    }
+    how.extend(agree);
+    // the other fields: as stored when valid, else defaults
+    let mut defaults = Vec::new();
+    let bits = u16::from_le_bytes([hb[32], hb[33]]);
+    let bits_ok = if fmt == PixelFormat::Mono8 {
+        bits == 8
+    } else {
+        (1..=fmt.container_bits() as u16).contains(&bits)
+    };
+    let bits_valid = if bits_ok {
+        bits as u8
+    } else {
+        defaults.push(format!("bits valid ({bits} -> {})", fmt.container_bits()));
+        fmt.container_bits()
+    };
+    let align = u16::from_le_bytes([hb[34], hb[35]]);
+    if align > 1 || (align == 1 && fmt != PixelFormat::Mono16) {
+        defaults.push(format!("alignment ({align} -> LSB)"));
+    }
+    let msb_aligned = align == 1 && fmt == PixelFormat::Mono16;
+    let mut ch = [0u8; 4];
+    let mut angles_ok = true;
+    for (k, c) in ch.iter_mut().enumerate() {
+        *c = match i16::from_le_bytes([hb[36 + 2 * k], hb[37 + 2 * k]]) {
+            0 => 0,
+            45 => 1,
+            90 => 2,
+            135 => 3,
+            _ => {
+                angles_ok = false;
+                0
+            }
+        };
+    }
+    let layout = match (angles_ok, MosaicLayout::from_channels(ch)) {
+        (true, Ok(l)) => l,
+        _ => {
+            defaults.push("polarizer angles (IMX250MZR 90, 45, 135, 0)".into());
+            MosaicLayout::IMX250MZR
+        }
+    };
+    let sense = i16::from_le_bytes([hb[44], hb[45]]);
+    let angle_sense = if sense == 1 || sense == -1 {
+        sense
+    } else {
+        defaults.push(format!("angle sense ({sense} -> +1)"));
+        1
+    };
+    let text = |off: usize, what: &str, defaults: &mut Vec<String>| {
+        crate::stream::get_str(&hb, off, what).unwrap_or_else(|_| {
+            defaults.push(format!("{what} (empty)"));
+            String::new()
+        })
+    };
+    let producer = text(160, "producer", &mut defaults);
+    let preset = text(192, "preset", &mut defaults);
+    let (jo, jl) = (u32_le(&hb, 224) as usize, u32_le(&hb, 228) as usize);
+    let json = if jo == 0 && jl == 0 {
+        String::new()
+    } else if jo >= JSON_OFFSET
+        && jo
+            .checked_add(jl)
+            .is_some_and(|e| e <= FILE_HEADER_SIZE - 4)
+    {
+        match std::str::from_utf8(&hb[jo..jo + jl]) {
+            Ok(t) if !t.contains('\0') => t.to_string(),
+            _ => {
+                defaults.push("JSON (dropped)".into());
+                String::new()
+            }
+        }
+    } else {
+        defaults.push("JSON (dropped)".into());
+        String::new()
+    };
+    let mut cam = [0f64; 10];
+    for (k, v) in cam.iter_mut().enumerate() {
+        *v = f64::from_le_bytes(hb[80 + 8 * k..88 + 8 * k].try_into().expect("8 bytes"));
+    }
+    let header = FileHeader {
+        version_minor: u16::from_le_bytes([hb[10], hb[11]]),
+        width,
+        height,
+        pixel_format: fmt,
+        bits_valid,
+        msb_aligned,
+        layout,
+        angle_sense,
+        frame_count: 0,
+        seed: u64_le(&hb, 72),
+        camera: CameraConstants::from_array(cam),
+        producer,
+        preset,
+        json,
+    };
+    header.validate()?;
+    // read from the first frame if it lies inside the header's 4096 bytes, else after them
+    let start = found
+        .first()
+        .map_or(FILE_HEADER_SIZE, |f| f.pos.min(FILE_HEADER_SIZE))
+        .min(buf.len());
+    let geometry = format!(
+        "{width} x {height} {fmt} (payload {} B, stride {} B): {}",
+        header.payload_size(),
+        header.stride(),
+        how.join(", ")
+    );
+    Ok((
+        header,
+        start,
+        Recovery {
+            damage,
+            geometry,
+            defaults,
+        },
+    ))
+}
