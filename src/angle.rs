@@ -124,7 +124,7 @@ pub fn wrap_pm90(deg: f64) -> f64 {
 /// v = (sin θ sin A, sin θ cos A, cos θ).
 ///
 /// ```
-/// let v = psns::sky::direction(90.0, 0.0);
+/// let v = psns::angle::direction(90.0, 0.0);
 /// assert!((v.y - 1.0).abs() < 1e-12); // north on the horizon
 /// ```
 pub fn direction(zenith_deg: f64, azimuth_deg: f64) -> glam::DVec3 {

@@ -663,7 +663,7 @@ impl Camera {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::sky::zenith_azimuth_deg;
+    use crate::angle::zenith_azimuth_deg;
 
     #[test]
     fn centre_pixel_looks_at_zenith_and_corners_match_spec() {

@@ -1,4 +1,4 @@
-"""Issue 11: the dataset's 8-bit raw mosaics are "readable by polanalyser": polanalyser, given a
+"""The dataset's 8-bit raw mosaics are "readable by polanalyser": polanalyser, given a
 file of a built dataset as OpenCV reads it, demosaics it as psns does."""
 
 import numpy as np

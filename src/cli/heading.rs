@@ -94,7 +94,7 @@ fn stream_optics(
     let s = &a.scene;
     let c = &h.camera;
     // the stream's record of its optics; a stream without one was rendered rectilinear through
-    // the pinhole (psns before the lens option)
+    // the pinhole
     let doc: Option<serde_json::Value> = serde_json::from_str(&h.json).ok();
     let optics: Option<serde_json::Value> = doc.as_ref().and_then(|v| v.get("optics").cloned());
     let recorded_ri = optics

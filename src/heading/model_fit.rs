@@ -343,7 +343,7 @@ pub fn model_fit_step(setup: &HeadingSetup) -> usize {
     step_for_samples(setup, MODEL_FIT_SAMPLES)
 }
 
-/// The model fit (issue 12 (c)): the yaw ψ and the Berry field's neutral-point distances δ_Ba,
+/// The model fit: the yaw ψ and the Berry field's neutral-point distances δ_Ba,
 /// δ_Br (and with `fit_elevation` the sun zenith) that best explain the observed AoLP,
 /// started from `start` (the eigenvector answer). The predicted AoLP of a pixel is the Berry
 /// E-vector ([`crate::sky::berry::BerryField`]) at its ENU view direction C(ψ)ᵀ r, projected on

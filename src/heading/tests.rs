@@ -264,7 +264,7 @@ fn rayleigh_sky_gives_the_true_yaw() {
 }
 
 /// On the default (Wang/Berry) sky the eigenvector answer is biased by the neutral points but
-/// stays within a degree; the model fit of issue 12 is what removes that bias.
+/// stays within a degree; the model fit is what removes that bias.
 #[test]
 fn default_sky_bias_is_bounded() {
     let e = estimate(

@@ -78,7 +78,7 @@ pub struct RawArgs {
     #[arg(long, value_name = "N", allow_negative_numbers = true)]
     pub sky_grid: Option<i64>,
     /// Reference run: the sky model at every pixel, no caches, and the exact sensor path (exact
-    /// Poisson sampling, per-row ChaCha8 streams), bit-identical to psns before the fast path.
+    /// Poisson sampling, per-row ChaCha8 streams), the bit-stable reference of the fast path.
     #[arg(long)]
     pub exact: bool,
     /// Lens f-number.

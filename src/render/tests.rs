@@ -127,7 +127,8 @@ fn quantize_row_is_round_clamp_at_every_instruction_set() {
     }
 }
 use crate::camera::{Attitude, Intrinsics};
-use crate::sky::{SkyParams, SunPosition};
+use crate::sky::SkyParams;
+use crate::sun::SunPosition;
 
 /// The row evaluator (pixel_sky_row, pixel_sky_cols) gives pixel_sky's bits in every
 /// instruction set the CPU has: skies from the zenith sun to 89°, turbidity 1.7 to 8, both

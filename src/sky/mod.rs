@@ -40,7 +40,7 @@ pub mod stability;
 pub mod values;
 
 use crate::error::{check_range, Result};
-pub use crate::sun::SunPosition;
+use crate::sun::SunPosition;
 use crate::vmath;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
@@ -334,7 +334,7 @@ impl SkySample {
     };
 }
 
-pub use crate::angle::{direction, zenith_azimuth_deg};
+use crate::angle::direction;
 
 /// The polarization half of the sky (`sky.md` §4–§6), cooked for one scene: DOP and E-vector
 /// in any direction above the horizon, no radiance. [`Sky`] adds Hosek–Wilkie radiance to it.

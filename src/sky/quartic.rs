@@ -231,8 +231,8 @@ pub fn peak_half_angle_product(psi: [f64; 4]) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::angle::direction;
     use crate::sky::berry::BerryField;
-    use crate::sky::direction;
 
     #[test]
     fn antipodal_roots_are_berrys_field() {

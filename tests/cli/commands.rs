@@ -460,7 +460,7 @@ fn closed_stdout_ends_quietly() {
 }
 
 /// `--out` naming an existing file, or a directory holding the user's own files: exit 2, and
-/// the file and directory are left as they were (issue 14 items 5, 13).
+/// the file and directory are left as they were.
 #[test]
 fn out_onto_a_file_or_a_foreign_directory_is_refused() {
     let dir = tempfile::tempdir().unwrap();
@@ -488,7 +488,7 @@ fn out_onto_a_file_or_a_foreign_directory_is_refused() {
 }
 
 /// Options that would do nothing are refused instead of ignored, and scene.json writes the sun
-/// out for the default scene (issue 14 item 13).
+/// out for the default scene.
 #[test]
 fn ignored_options_are_refused_and_the_sun_is_recorded() {
     let dir = tempfile::tempdir().unwrap();

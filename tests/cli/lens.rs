@@ -1,4 +1,4 @@
-//! `--lens` and `--projection` on the command line (issue 10 part 2): bad names, what scene.json
+//! `--lens` and `--projection` on the command line: bad names, what scene.json
 //! and a stream's header record, and `psns heading` mapping pixels through the camera model the
 //! frames were rendered with (from the options or the stream's record).
 

@@ -298,7 +298,7 @@ fn png_header_only(w: u32, h: u32) -> Vec<u8> {
     b
 }
 
-/// Bad input files and options for `psns demosaic` (issue 14 items 1, 2, 13): exit 2, a message,
+/// Bad input files and options for `psns demosaic`: exit 2, a message,
 /// and nothing written, never a crash or a partial set of arrays.
 #[test]
 fn demosaic_bad_input_exits_2_and_writes_nothing() {
@@ -381,7 +381,7 @@ fn demosaic_bad_input_exits_2_and_writes_nothing() {
     );
 }
 
-/// Bad scene files for `--config`: exit 2 and nothing written (issue 14 item 13).
+/// Bad scene files for `--config`: exit 2 and nothing written.
 #[test]
 fn bad_config_files_exit_2() {
     let dir = tempfile::tempdir().unwrap();
@@ -418,7 +418,7 @@ fn bad_config_files_exit_2() {
     }
 }
 
-/// Issue 14 item 3: a render larger than the memory the process may use is refused with exit 2
+/// A render larger than the memory the process may use is refused with exit 2
 /// and a message naming the memory, instead of aborting halfway with partial files.
 #[test]
 fn render_beyond_the_memory_limit_is_refused() {
@@ -439,7 +439,7 @@ fn render_beyond_the_memory_limit_is_refused() {
     assert_eq!(std::fs::read_dir(dir.path()).unwrap().count(), 0);
 }
 
-/// Issue 14 item 5: a re-render into an existing directory that is killed leaves the previous
+/// A re-render into an existing directory that is killed leaves the previous
 /// run's files whole (never li.npy of one scene beside scene.json of another), and the next run
 /// removes the killed run's temporaries.
 #[test]
@@ -524,7 +524,7 @@ fn killed_rerender_leaves_the_previous_output_whole() {
 
 /// `--exact` is the reference path: through the pinhole lens, the same bytes as psns before the
 /// fast path (902d52f with `--sky-grid 1`, recorded from that build) and before the lens option.
-/// The camera preset's default lens is the ideal one since issue 10 (docs/camera.md §2): its
+/// The camera preset's default lens is the ideal one (docs/camera.md §2): its
 /// hash was recorded when that default changed (the AOP off axis changes, nothing else). A
 /// change here changes every reference run.
 #[test]

@@ -1,4 +1,4 @@
-//! `psns dataset` (issue 11): shards equal the whole build, a killed build resumes to the
+//! `psns dataset`: shards equal the whole build, a killed build resumes to the
 //! uninterrupted result, verify catches damage, labels reproduce the images through `psns render`,
 //! bad descriptions write nothing, and the Slurm / GNU parallel recipes of docs/dataset.md work.
 

@@ -9,7 +9,8 @@ use psns::demosaic::{demosaic, Method};
 use psns::image::StokesImage;
 use psns::render::{render_stokes, StokesOptions};
 use psns::sensor::SensorConfig;
-use psns::sky::{Sky, SkyParams, SunPosition};
+use psns::sky::{Sky, SkyParams};
+use psns::sun::SunPosition;
 
 /// A 512 × 512 window of the default 2448 × 2048 camera (real pixel pitch and focal length), so the
 /// sky varies across pixels exactly as in a full frame; `corner` picks where in the frame.

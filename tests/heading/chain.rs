@@ -1,4 +1,4 @@
-//! The whole chain sky -> sensor -> demosaic -> Stokes -> heading (issue 12, first estimator):
+//! The whole chain sky -> sensor -> demosaic -> Stokes -> heading (the eigenvector estimator):
 //! a wrong sign or frame anywhere shows up as a heading error.
 
 use crate::common;
@@ -469,7 +469,7 @@ fn never_confidently_wrong(name: &str, rows: &[(HeadingMethod, f64, f64)]) -> us
     failed
 }
 
-/// Failure map (issue 12 part 5): where an estimator fails, its confidence is low instead of a
+/// Failure map: where an estimator fails, its confidence is low instead of a
 /// confident wrong answer; and the cases do make estimators fail (the test is not vacuous).
 ///
 /// Run through the camera preset's ideal lens (its default) and the pinhole. Through the ideal

@@ -1,4 +1,4 @@
-//! The fast path against its targets (issue 9): Poisson statistics of the shot noise, read noise
+//! The fast path against its targets: Poisson statistics of the shot noise, read noise
 //! folded in, frames independent of the thread count, and the fast model's means against the
 //! exact path's over a sweep of skies.
 

@@ -206,7 +206,7 @@ fn ri_stage_switch_applies_to_psns_presets() {
     assert_eq!(off.data[corner], off.data[centre], "no falloff with ri off");
 }
 
-/// The paper's PSNS frames (issue 10): the brightest sample of a `gniipi` frame is full scale
+/// The paper's PSNS frames: the brightest sample of a `gniipi` frame is full scale
 /// **after** the edge falloff, and the 2 % noise is 2 % of that brightest signal. On a frame with
 /// the real field of view and the brightest sky off axis (as toward the sun), κ taken before the
 /// falloff left the brightest sample at 179 of 255 and made the noise 2.8 % of it.

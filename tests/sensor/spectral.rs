@@ -1,4 +1,4 @@
-//! Spectral response of the sensor (issue 10 part 3): the quantum efficiency η(λ) and the wire
+//! Spectral response of the sensor: the quantum efficiency η(λ) and the wire
 //! grid's pass transmission T∥(λ) follow a wavelength curve, so `--wavelength` (the band-pass
 //! centre λ_c) changes electron counts as a real sensor's response does.
 

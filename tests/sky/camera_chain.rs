@@ -6,7 +6,8 @@ use glam::DVec3;
 use proptest::prelude::*;
 use psns::camera::{Attitude, Camera, Intrinsics};
 use psns::render::{pixel_sky, render_ideal};
-use psns::sky::{PolarizationModel, Sky, SkyParams, SunPosition};
+use psns::sky::{PolarizationModel, Sky, SkyParams};
+use psns::sun::SunPosition;
 
 fn axial(a: f64, b: f64) -> f64 {
     let d = (a - b).rem_euclid(180.0);

@@ -5,13 +5,15 @@
 
 use crate::common;
 use glam::DVec3;
+use psns::angle::direction;
 use psns::camera::{Attitude, Camera, Intrinsics};
 use psns::render::{pixel_sky, pixel_sky_row};
 use psns::sky::stability::{stability, Grid};
 use psns::sky::{
-    aop_chart_deg, aop_meridian_deg, direction, pan, NeutralLaw, PolarizationField,
-    PolarizationModel, Sky, SkyParams, SunPosition,
+    aop_chart_deg, aop_meridian_deg, pan, NeutralLaw, PolarizationField, PolarizationModel, Sky,
+    SkyParams,
 };
+use psns::sun::SunPosition;
 
 fn axial(a: f64, b: f64) -> f64 {
     let d = (a - b).rem_euclid(180.0);

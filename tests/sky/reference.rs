@@ -2,12 +2,14 @@
 //! `fixtures/sky-pol-reference.csv`.
 
 use glam::DVec3;
+use psns::angle::direction;
 use psns::sky::berry::{chart, BerryField, NeutralPoints};
 use psns::sky::dop::WangDop;
 use psns::sky::{
-    aop_chart_deg, aop_meridian_deg, direction, rayleigh, DopModel, DopNorm, PolarizationField,
-    PolarizationModel, Sky, SkyParams, SkySample, SunPosition,
+    aop_chart_deg, aop_meridian_deg, rayleigh, DopModel, DopNorm, PolarizationField,
+    PolarizationModel, Sky, SkyParams, SkySample,
 };
+use psns::sun::SunPosition;
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

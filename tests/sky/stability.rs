@@ -1,10 +1,12 @@
-//! Issue 10 part 1: the default DOP (`wang-bounded`) is stable over the accepted domain
+//! The default DOP (`wang-bounded`) is stable over the accepted domain
 //! (turbidity 1.7..10, sun zenith 0..90°, wavelength 380..720 nm), the published formula
 //! (`wang-paper`) is not, and the two agree exactly at the default scene.
 
+use psns::angle::direction;
 use psns::sky::dop::WangDop;
 use psns::sky::stability::{stability, Grid, Stability};
-use psns::sky::{direction, DopModel, DopNorm, PolarizationField, SkyParams, SunPosition};
+use psns::sky::{DopModel, DopNorm, PolarizationField, SkyParams};
+use psns::sun::SunPosition;
 
 fn params(model: DopModel, t: f64, lambda: f64) -> SkyParams {
     SkyParams {

@@ -74,7 +74,7 @@ pub enum BenchCmd {
         runs: usize,
     },
     /// Stream frames/s per stage (sky, sensor, packing, write) and end to end, fast path against
-    /// --exact, and issue 9's targets (writes stream_stages.csv, stream_e2e.csv,
+    /// --exact, and the stream's speed targets (writes stream_stages.csv, stream_e2e.csv,
     /// stream_targets.csv, stream_accuracy.csv and the chart).
     Stream {
         #[command(flatten)]

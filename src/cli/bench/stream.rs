@@ -474,8 +474,6 @@ fn children_max_rss_mb() -> Option<f64> {
         .then(|| ru.ru_maxrss as f64 / 1024.0)
 }
 
-/// Issue 9's targets against the end-to-end runs, as CSV rows: target, measured, and "yes",
-/// "no" or (streams between 75 and 100 frames/s) "floor only".
 /// The FIFO run of `fmt`: `exe stream` into a FIFO in `tmp`, read by the C reader `reader` as a
 /// consumer uses it (`check`: every frame's CRCs checked and its values unpacked); fails unless
 /// the reader read all `n` frames and reported no damage, and the stream succeeded.

@@ -6,8 +6,9 @@
 //! (angle of the E-vector from north toward east) as a cyclic hue.
 
 use crate::cli::vis;
+use psns::angle::direction;
 use psns::image::Image;
-use psns::sky::{aop_chart_deg, direction, Sky, SkyParams};
+use psns::sky::{aop_chart_deg, Sky, SkyParams};
 use psns::sun::SunPosition;
 use rayon::prelude::*;
 
