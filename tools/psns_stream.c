@@ -11,7 +11,7 @@
  *
  * Reads sequentially with fread (works on files, FIFOs and stdin), validates the file header
  * like Rust's FileHeader::decode, checks both CRCs, and follows the Rust StreamReader
- * (src/stream/reader.rs): resynchronisation on the next valid header, producer restarts (also
+ * (src/stream/reader/): resynchronisation on the next valid header, producer restarts (also
  * inside a record), index gaps and out-of-order indexes. `dump` prints one canonical line per
  * event on stdout; otherwise events are reported on stderr.
  */

@@ -375,7 +375,7 @@ def recover_header(buf, eof, damage, width=None, height=None, pixel_format=None)
 
 def iter_events(f, recover=False, width=None, height=None, pixel_format=None):
     """Yields the reader's events from a binary file object (file, FIFO, stdin), as the Rust
-    StreamReader (src/stream/reader.rs) does:
+    StreamReader (src/stream/reader/) does:
       ("frame", meta, values, payload_crc_ok, offset)
       ("gap", first_missing, next_present)              frames first..next-1 dropped upstream
       ("corrupt", index_or_None, offset, reason)        damaged record, or index not increasing

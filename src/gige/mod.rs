@@ -1,5 +1,5 @@
 //! GigE Vision 2.x as a device: the protocol alone, with no sockets, threads or clocks
-//! (`psns gige`, `src/cli/gige.rs`, owns those and the frames).
+//! (`psns gige`, `src/cli/gige/`, owns those and the frames).
 //!
 //! - [`gvcp`]: control packets (discovery, READREG/WRITEREG, READMEM/WRITEMEM, PACKETRESEND)
 //!   and acknowledges with their status codes;
