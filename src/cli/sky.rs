@@ -7,7 +7,7 @@ use psns::options::{first_given, SkyArgs};
 use psns::sky::stability::{stability_map, Grid, MapCell, MAX_AOP_SHIFT_DEG, MAX_JUMP};
 use psns::sky::{DopModel, PolarizationModel, SkyParams};
 use psns::{Error, Result};
-use std::io::{BufRead, Write};
+use std::io::{Read, Write};
 use std::path::{Path, PathBuf};
 
 /// Runs `psns sky`.
@@ -47,24 +47,39 @@ pub fn run(a: SkyArgs) -> anyhow::Result<()> {
 /// `zenith_deg,azimuth_deg,gamma_deg,radiance,dop,aop_meridian_deg,aop_north_deg`).
 ///
 /// Directions at or below the horizon (zenith ≥ 90°) get radiance 0, DOP 0 and AOP 0 (ground).
-pub fn sky_csv(cfg: &SceneConfig, input: impl BufRead, mut output: impl Write) -> Result<usize> {
+pub fn sky_csv(cfg: &SceneConfig, input: impl Read, mut output: impl Write) -> Result<usize> {
     let sun = cfg.sun.resolve()?;
     let sky = psns::sky::Sky::new(sun, &cfg.sky)?;
     let werr = |e| Error::io("writing to stdout", e);
-    let mut lines = input.lines().enumerate();
-    match lines.next() {
-        Some((_, Ok(h))) if h.trim().replace(' ', "") == "zenith_deg,azimuth_deg" => {}
-        Some((_, Ok(h))) => {
-            return Err(Error::Invalid(format!(
-                "line 1: expected the header 'zenith_deg,azimuth_deg', found '{h}'"
-            )))
-        }
-        Some((_, Err(e))) => return Err(Error::io("reading stdin", e)),
-        None => {
-            return Err(Error::Invalid(
-                "empty input: expected a CSV header line".into(),
-            ))
-        }
+    let mut rd = csv::ReaderBuilder::new()
+        .has_headers(false)
+        .flexible(true)
+        .trim(csv::Trim::All)
+        .from_reader(input);
+    let mut rec = csv::StringRecord::new();
+    let read = |rd: &mut csv::Reader<_>, rec: &mut csv::StringRecord| -> Result<bool> {
+        rd.read_record(rec).map_err(|e| {
+            let line = e.position().map_or(0, |p| p.line());
+            match e.into_kind() {
+                csv::ErrorKind::Io(io) => Error::io("reading stdin", io),
+                csv::ErrorKind::Utf8 { .. } => {
+                    Error::Invalid(format!("line {line}: not UTF-8 text"))
+                }
+                k => Error::Invalid(format!("line {line}: {k:?}")),
+            }
+        })
+    };
+    if !read(&mut rd, &mut rec)? {
+        return Err(Error::Invalid(
+            "empty input: expected a CSV header line".into(),
+        ));
+    }
+    if rec.iter().collect::<Vec<_>>() != ["zenith_deg", "azimuth_deg"] {
+        let found = rec.iter().collect::<Vec<_>>().join(",");
+        return Err(Error::Invalid(format!(
+            "line 1: expected the header 'zenith_deg,azimuth_deg', found '{}'",
+            quote(&found)
+        )));
     }
     writeln!(
         output,
@@ -72,33 +87,31 @@ pub fn sky_csv(cfg: &SceneConfig, input: impl BufRead, mut output: impl Write) -
     )
     .map_err(werr)?;
     let mut n = 0;
-    for (i, line) in lines {
-        let line = line.map_err(|e| Error::io("reading stdin", e))?;
-        if line.trim().is_empty() {
+    while read(&mut rd, &mut rec)? {
+        let ln = rec.position().map_or(0, |p| p.line());
+        if rec.iter().all(str::is_empty) {
             continue;
         }
-        let ln = i + 1;
-        let cols: Vec<&str> = line.split(',').collect();
-        if cols.len() != 2 {
+        if rec.len() != 2 {
             return Err(Error::Invalid(format!(
                 "line {ln}: expected 2 columns (zenith_deg,azimuth_deg), found {}",
-                cols.len()
+                rec.len()
             )));
         }
         let num = |s: &str, name: &str| -> Result<f64> {
-            let v: f64 = s.trim().parse().map_err(|_| {
-                Error::Invalid(format!("line {ln}: {name} '{}' is not a number", s.trim()))
+            let v: f64 = s.parse().map_err(|_| {
+                Error::Invalid(format!("line {ln}: {name} '{}' is not a number", quote(s)))
             })?;
             if !v.is_finite() {
                 return Err(Error::Invalid(format!(
                     "line {ln}: {name} '{}' is not finite",
-                    s.trim()
+                    quote(s)
                 )));
             }
             Ok(v)
         };
-        let z = num(cols[0], "zenith_deg")?;
-        let a = num(cols[1], "azimuth_deg")?;
+        let z = num(&rec[0], "zenith_deg")?;
+        let a = num(&rec[1], "azimuth_deg")?;
         if !(0.0..=180.0).contains(&z) {
             return Err(Error::Invalid(format!(
                 "line {ln}: zenith_deg = {z} is out of range (allowed 0..180)"
@@ -115,6 +128,14 @@ pub fn sky_csv(cfg: &SceneConfig, input: impl BufRead, mut output: impl Write) -
     }
     output.flush().map_err(werr)?;
     Ok(n)
+}
+
+/// At most the first 40 characters of a field for a message (a long line is not echoed whole).
+fn quote(s: &str) -> String {
+    match s.char_indices().nth(40) {
+        Some((i, _)) => format!("{}...", &s[..i]),
+        None => s.to_string(),
+    }
 }
 
 /// Turbidities of the stability map: 1..10 every 0.5, plus 1.7 (the bounded model's lowest).

@@ -363,6 +363,42 @@ fn sky_command_reports_bad_line_numbers() {
     assert_eq!(o.status.code(), Some(2));
 }
 
+/// `psns sky` reads its input as CSV: quoted fields and spaced headers are fields like any other;
+/// bytes that are not UTF-8 are bad input with their line, and a 10 MB line is quoted, not echoed.
+#[test]
+fn sky_input_is_csv_and_bad_lines_are_short() {
+    let run = |input: Vec<u8>| {
+        let mut child = std::process::Command::new(env!("CARGO_BIN_EXE_psns"))
+            .arg("sky")
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        let mut stdin = child.stdin.take().unwrap();
+        // psns may stop reading at the bad line: a broken pipe here is expected
+        let w = std::thread::spawn(move || {
+            let _ = std::io::Write::write_all(&mut stdin, &input);
+        });
+        let o = child.wait_with_output().unwrap();
+        w.join().unwrap();
+        o
+    };
+    let o = run(b"zenith_deg, azimuth_deg\n\"10\",20\n".to_vec());
+    assert!(o.status.success(), "{}", stderr(&o));
+    let plain = psns_stdin(&["sky"], "zenith_deg,azimuth_deg\n10,20\n");
+    assert_eq!(o.stdout, plain.stdout);
+    let o = run(b"zenith_deg,azimuth_deg\n10,20\n10,\xff\n".to_vec());
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("line 3"), "{}", stderr(&o));
+    let mut long = b"zenith_deg,azimuth_deg\n".to_vec();
+    long.extend(std::iter::repeat_n(b'1', 10 << 20));
+    long.extend(b",x\n");
+    let o = run(long);
+    assert_eq!(o.status.code(), Some(2));
+    assert!(o.stderr.len() < 250, "{} bytes of stderr", o.stderr.len());
+}
+
 #[test]
 fn sun_command_nrel_reference() {
     let o = psns(&[
