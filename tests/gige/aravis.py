@@ -159,7 +159,7 @@ def trigger(args):
         return out
 
     before = drain(1.0)
-    emit({"frames_before_trigger": len(before)})
+    emit({"frames_before_trigger": len(before), "before": before})
     for _ in range(args.count):
         cam.software_trigger()
         for d in drain(args.interval):
