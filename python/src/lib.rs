@@ -647,6 +647,18 @@ struct StreamIter {
     reader: psns::stream::StreamReader<Source>,
     tally: psns::stream::VerifyTally,
     damage: Vec<psns::stream::Damage>,
+    /// The abort was reported (a warning once per stream).
+    abort_warned: bool,
+}
+
+/// Raises `psns.StreamAbortedWarning` (a `StreamDamageWarning`) for a stream its producer
+/// marked aborted.
+fn warn_aborted(py: Python<'_>, reason: &str) -> PyResult<()> {
+    let warnings = PyModule::import(py, "warnings")?;
+    let cat = PyModule::import(py, "psns")?.getattr("StreamAbortedWarning")?;
+    let msg = format!("stream aborted by its producer: {reason}");
+    warnings.call_method1("warn", (msg, cat, 2))?;
+    Ok(())
 }
 
 #[pyfunction]
@@ -660,6 +672,7 @@ fn open_stream(py: Python<'_>, path: PathBuf) -> PyResult<StreamIter> {
         reader,
         tally,
         damage: Vec::new(),
+        abort_warned: false,
     })
 }
 
@@ -701,8 +714,17 @@ impl StreamIter {
             });
             let (ev, codes) = ev.map_err(lib_err)?;
             let Some(ev) = ev else {
+                // a header marked aborted without an end record (it did not fit on a full disk)
+                if !self.abort_warned && self.reader.header().aborted {
+                    self.abort_warned = true;
+                    warn_aborted(py, psns::stream::REASON_NOT_RECORDED)?;
+                }
                 return Err(PyStopIteration::new_err(()));
             };
+            if let psns::stream::Event::Aborted { reason, .. } = &ev {
+                self.abort_warned = true;
+                warn_aborted(py, reason)?;
+            }
             if let Some(d) = self.tally.record(&ev) {
                 self.damage.push(d.clone());
                 let warnings = PyModule::import(py, "warnings")?;
@@ -752,6 +774,12 @@ impl StreamIter {
     #[getter]
     fn intact(&self) -> bool {
         self.tally.finish(self.reader.restart_offsets()).intact()
+    }
+
+    /// Why the producer aborted the stream (its end record, or the header's mark), if it did.
+    #[getter]
+    fn aborted(&self) -> Option<String> {
+        self.tally.finish(self.reader.restart_offsets()).aborted
     }
 }
 

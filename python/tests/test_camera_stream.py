@@ -122,6 +122,32 @@ def test_open_stream_reports_damage_like_verify(psns_bin, tmp_path):
             list(psns.open_stream(bad))
 
 
+def test_open_stream_reports_an_aborted_stream(psns_bin, tmp_path):
+    traj = tmp_path / "t.csv"
+    traj.write_text("t_s,yaw_deg,pitch_deg,roll_deg\n0,0,0,0\n0.05,NaN,0,0\n")
+    path = tmp_path / "a.psns"
+    r = run(psns_bin, "stream", "--width", "64", "--height", "48", "--trajectory", traj,
+            "--out", path, ok=False)
+    assert r.returncode == 2, r.stderr
+    why = "trajectory line 3: 'NaN' is not a finite number"
+    it = psns.open_stream(path)
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        got = [i for i, _, _ in it]
+    assert got == [0]
+    msgs = [str(x.message) for x in w if issubclass(x.category, psns.StreamAbortedWarning)]
+    assert msgs == [f"stream aborted by its producer: {why}"]
+    assert it.aborted == why and it.intact
+    assert it.report_dict()["status"] == "aborted"
+    v = run(psns_bin, "verify", path, ok=False)
+    assert v.returncode == 3 and it.report() == v.stdout
+    # an aborted stream is damage to code that stops at damage
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", psns.StreamDamageWarning)
+        with pytest.raises(psns.StreamAbortedWarning):
+            list(psns.open_stream(path))
+
+
 def test_open_stream_reads_a_fifo(psns_bin, tmp_path):
     fifo = tmp_path / "f"
     os.mkfifo(fifo)

@@ -3,8 +3,8 @@
 //! file, a growing file, a FIFO and stdin are read the same way.
 
 use super::{
-    stride_for, CameraConstants, FileHeader, FrameMeta, FILE_HEADER_SIZE, FILE_MAGIC, FLAG_LAST,
-    FRAME_HEADER_SIZE, FRAME_MAGIC, JSON_OFFSET,
+    stride_for, CameraConstants, EndRecord, FileHeader, FrameMeta, END_MAGIC, END_RECORD_SIZE,
+    FILE_HEADER_SIZE, FILE_MAGIC, FLAG_LAST, FRAME_HEADER_SIZE, FRAME_MAGIC, JSON_OFFSET,
 };
 use crate::error::{Error, Result};
 use crate::sensor::mosaic::MosaicLayout;
@@ -92,6 +92,15 @@ pub enum Event {
     },
     /// A new file header where a frame was expected (producer restart); the layout may change.
     Restart(FileHeader),
+    /// An end record ([`EndRecord`]): the producer stopped because of a failure.
+    Aborted {
+        /// Byte offset of the record.
+        offset: u64,
+        /// Frame records the producer says it wrote.
+        frames: u64,
+        /// Why it stopped.
+        reason: String,
+    },
 }
 
 /// Reads events from a stream. See the module docs.
@@ -549,6 +558,10 @@ fn infer_header(
     for (k, v) in cam.iter_mut().enumerate() {
         *v = f64::from_le_bytes(hb[80 + 8 * k..88 + 8 * k].try_into().expect("8 bytes"));
     }
+    let end = u16::from_le_bytes([hb[46], hb[47]]);
+    if end > 1 {
+        defaults.push(format!("end status ({end} -> 0)"));
+    }
     let header = FileHeader {
         version_minor: u16::from_le_bytes([hb[10], hb[11]]),
         width,
@@ -559,6 +572,7 @@ fn infer_header(
         layout,
         angle_sense,
         frame_count: 0,
+        aborted: end == 1,
         seed: u64_le(&hb, 72),
         camera: CameraConstants::from_array(cam),
         producer,
@@ -746,6 +760,23 @@ impl<R: Read> StreamReader<R> {
                 Ok((meta, pcrc)) => self.frame(meta, pcrc),
                 Err(e) => self.resync(e.to_string()),
             }
+        } else if self.avail()[..8] == END_MAGIC {
+            self.fill(END_RECORD_SIZE)?;
+            if self.avail().len() < END_RECORD_SIZE {
+                return self.truncated(None);
+            }
+            match EndRecord::decode(self.avail()) {
+                Ok(e) => {
+                    self.pending.push_back(Event::Aborted {
+                        offset: self.offset,
+                        frames: e.frames,
+                        reason: e.reason,
+                    });
+                    self.consume(END_RECORD_SIZE);
+                    Ok(())
+                }
+                Err(e) => self.resync(e.to_string()),
+            }
         } else if self.avail()[..8] == FILE_MAGIC {
             self.fill(FILE_HEADER_SIZE)?;
             if self.avail().len() < FILE_HEADER_SIZE {
@@ -864,14 +895,19 @@ impl<R: Read> StreamReader<R> {
         Ok(None)
     }
 
-    /// True if a frame header or file header with a valid CRC starts at `j` of the buffer.
+    /// True if a frame header, file header or end record with a valid CRC starts at `j` of the
+    /// buffer.
     fn valid_at(&mut self, j: usize) -> Result<bool> {
         self.fill(j + 8)?;
         let a = self.avail();
         if a.len() < j + 8 {
             return Ok(false);
         }
-        if a[j..j + 8] == FRAME_MAGIC {
+        if a[j..j + 8] == END_MAGIC {
+            self.fill(j + END_RECORD_SIZE)?;
+            let a = self.avail();
+            Ok(a.len() >= j + END_RECORD_SIZE && EndRecord::decode(&a[j..]).is_ok())
+        } else if a[j..j + 8] == FRAME_MAGIC {
             self.fill(j + FRAME_HEADER_SIZE)?;
             let a = self.avail();
             Ok(a.len() >= j + FRAME_HEADER_SIZE && FrameMeta::decode(&a[j..]).is_ok())
@@ -1029,6 +1065,9 @@ pub enum VerifyStatus {
     /// producer killed between records, one still writing, or a pipe whose trajectory came from
     /// stdin (see `docs/stream-format.md`).
     Unfinished,
+    /// Nothing damaged, but the producer marked the stream aborted (an end record, or the header's
+    /// mark): it stopped because of bad input, an I/O error or a signal.
+    Aborted,
     /// Damaged records, drops, skipped bytes, a count mismatch, a damaged file header (degraded
     /// mode), or more than one stream in the input (a second file header: concatenated files or a
     /// producer restart).
@@ -1064,8 +1103,12 @@ pub struct VerifyReport {
     pub restart_offsets: Vec<u64>,
     /// Header frame count disagrees with the records found: (declared, found).
     pub count_mismatch: Option<(u64, u64)>,
-    /// The last record is a frame with the LAST flag, or the header frame count matches.
+    /// The last record is a frame with the LAST flag, or the header frame count matches, and the
+    /// stream is not marked aborted.
     pub finished: bool,
+    /// The producer marked the stream aborted: the end record's reason, or
+    /// [`REASON_NOT_RECORDED`] when only the header carries the mark.
+    pub aborted: Option<String>,
     /// Degraded mode: how a damaged file header was replaced (`None`: header intact).
     pub recovered: Option<Recovery>,
 }
@@ -1091,6 +1134,8 @@ impl VerifyReport {
     fn compute_status(&self) -> VerifyStatus {
         if !self.intact() {
             VerifyStatus::Damaged
+        } else if self.aborted.is_some() {
+            VerifyStatus::Aborted
         } else if !self.finished {
             VerifyStatus::Unfinished
         } else {
@@ -1167,10 +1212,23 @@ impl fmt::Display for VerifyReport {
                 f,
                 "intact but UNFINISHED: header frame count 0 and no frame carries the LAST flag (producer killed or still writing)"
             ),
-            VerifyStatus::Damaged => writeln!(f, "NOT clean"),
+            VerifyStatus::Aborted => writeln!(
+                f,
+                "intact but ABORTED by its producer: {}",
+                self.aborted.as_deref().unwrap_or(REASON_NOT_RECORDED)
+            ),
+            VerifyStatus::Damaged => match &self.aborted {
+                Some(r) => writeln!(f, "NOT clean (and aborted by its producer: {r})"),
+                None => writeln!(f, "NOT clean"),
+            },
         }
     }
 }
+
+/// The reason of an abort marked in the file header only (the end record did not fit, e.g. on a
+/// full disk).
+pub const REASON_NOT_RECORDED: &str =
+    "reason not recorded (the header is marked aborted, the end record is missing)";
 
 /// Reads a whole stream and reports on it. Fails only if the file header is unusable or on an
 /// I/O error.
@@ -1198,6 +1256,8 @@ pub struct VerifyTally {
     rep: VerifyReport,
     records: u64,
     last_flag: bool,
+    /// Frame records the end record says were written.
+    end_frames: Option<u64>,
 }
 
 impl VerifyTally {
@@ -1206,7 +1266,6 @@ impl VerifyTally {
         VerifyTally {
             rep: VerifyReport {
                 status: VerifyStatus::Damaged,
-                header,
                 frames: 0,
                 first_index: None,
                 last_index: None,
@@ -1219,10 +1278,13 @@ impl VerifyTally {
                 restart_offsets: Vec::new(),
                 count_mismatch: None,
                 finished: false,
+                aborted: header.aborted.then(|| REASON_NOT_RECORDED.to_string()),
+                header,
                 recovered,
             },
             records: 0,
             last_flag: false,
+            end_frames: None,
         }
     }
 
@@ -1287,6 +1349,11 @@ impl VerifyTally {
                 rep.restarts += 1;
                 self.last_flag = false;
             }
+            Event::Aborted { frames, reason, .. } => {
+                rep.aborted = Some(reason.clone());
+                self.end_frames = Some(*frames);
+                self.last_flag = false;
+            }
         }
         None
     }
@@ -1295,13 +1362,17 @@ impl VerifyTally {
     pub fn finish(&self, restart_offsets: &[u64]) -> VerifyReport {
         let mut rep = self.rep.clone();
         rep.restart_offsets = restart_offsets.to_vec();
-        let declared = rep.header.frame_count;
+        let declared = match (rep.header.frame_count, self.end_frames) {
+            (0, Some(n)) => n,
+            (d, _) => d,
+        };
         let records = self.records;
-        if declared != 0 && rep.restarts == 0 && declared != records {
+        if (declared != 0 || self.end_frames.is_some()) && rep.restarts == 0 && declared != records
+        {
             rep.count_mismatch = Some((declared, records));
         }
-        rep.finished =
-            self.last_flag || (declared != 0 && rep.restarts == 0 && declared == records);
+        rep.finished = rep.aborted.is_none()
+            && (self.last_flag || (declared != 0 && rep.restarts == 0 && declared == records));
         rep.status = rep.compute_status();
         rep
     }

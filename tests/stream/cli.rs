@@ -67,7 +67,7 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-/// All frames of a stream (panics on damage).
+/// All frames of a stream (panics on damage; an end record of an aborted stream may follow).
 fn frames(bytes: &[u8]) -> (FileHeader, Vec<Frame>) {
     let mut r = StreamReader::new(bytes).unwrap();
     let h = r.header().clone();
@@ -78,6 +78,7 @@ fn frames(bytes: &[u8]) -> (FileHeader, Vec<Frame>) {
                 assert!(f.payload_crc_ok, "frame {} payload CRC", f.meta.index);
                 out.push(f)
             }
+            Event::Aborted { frames, .. } => assert_eq!(frames, out.len() as u64),
             other => panic!("unexpected {other:?}"),
         }
     }
@@ -326,11 +327,14 @@ fn malformed_trajectory_lines_keep_earlier_frames_valid() {
             assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
             let e = stderr(&o);
             assert!(e.contains(line) && e.contains(what), "{e}");
+            // the frames before the bad line are intact, and the stream reads aborted
             let v = verify(&out);
-            assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stdout));
+            let text = String::from_utf8_lossy(&v.stdout);
+            assert_eq!(v.status.code(), Some(3), "{text}");
+            assert!(text.contains("ABORTED") && text.contains(line), "{text}");
             let (h, f) = frames(&std::fs::read(&out).unwrap());
             assert_eq!(f.len(), 2);
-            assert_eq!(h.frame_count, 2);
+            assert_eq!((h.frame_count, h.aborted), (0, true));
         }
     }
     // a bad header line: nothing is written at all
