@@ -698,7 +698,9 @@ impl<R: Read> StreamReader<R> {
     }
 
     /// Ensures `n` bytes are buffered unless the source ends first. The buffer keeps its length
-    /// (bytes `end..` are stale), so a full-size frame is not zeroed before every read.
+    /// (bytes `end..` are stale), so a full-size frame is not zeroed before every read. It grows
+    /// with the bytes that arrive (at most doubling per read), never to a size a header merely
+    /// declares: a small file whose header claims 1 GiB frames costs about twice its own size.
     fn fill(&mut self, n: usize) -> Result<()> {
         while self.end - self.start < n && !self.eof {
             if self.start > 0 {
@@ -707,7 +709,8 @@ impl<R: Read> StreamReader<R> {
                 self.start = 0;
             }
             let len = self.end;
-            let want = (n - len).max(1 << 16);
+            let room = self.buf.len() - len;
+            let want = (n - len).max(1 << 16).min(room.max(len).max(1 << 20));
             if self.buf.len() < len + want {
                 self.buf.resize(len + want, 0);
             }

@@ -623,3 +623,61 @@ fn python_reader_recovers_a_damaged_header() {
         );
     }
 }
+
+// ---- memory: a header that declares huge frames ----
+
+/// A valid header declaring 32768 x 16384 Mono16 frames (a 1 GiB payload, the largest allowed),
+/// one frame header and 24 000 bytes of its payload: 28 KB on disk.
+fn lying_stream() -> Vec<u8> {
+    let h = FileHeader {
+        width: 32_768,
+        height: 16_384,
+        pixel_format: PixelFormat::Mono16,
+        bits_valid: 12,
+        ..Default::default()
+    };
+    let mut b = h.encode().unwrap();
+    b.extend_from_slice(&FrameMeta::default().encode(0));
+    b.resize(b.len() + 24_000, 0);
+    b
+}
+
+/// `verify`, `extract` and `demosaic` used to allocate the declared 1 GiB record before finding
+/// that the file ends: under a 256 MiB address-space limit they died of a failed allocation.
+/// The reader's buffer now grows with the bytes that arrive.
+#[test]
+fn a_header_declaring_huge_frames_costs_the_file_not_the_header() {
+    let d = tempfile::tempdir().unwrap();
+    let f = d.path().join("lying.psns");
+    std::fs::write(&f, lying_stream()).unwrap();
+    let out = d.path().join("out");
+    let exe = env!("CARGO_BIN_EXE_psns");
+    for (args, code, says) in [
+        (vec!["verify", s(&f)], 1, "truncated: 1"),
+        (
+            vec!["extract", s(&f), "--frame", "0", "--out", s(&out)],
+            2,
+            "frame 0 is not in the stream",
+        ),
+        (
+            vec!["demosaic", s(&f), "--out", s(&out)],
+            2,
+            "no intact frame",
+        ),
+    ] {
+        let o = Command::new("sh")
+            .arg("-c")
+            .arg("ulimit -v 262144; exec \"$@\"")
+            .arg("sh")
+            .arg(exe)
+            .args(&args)
+            .output()
+            .unwrap();
+        let text = format!("{}{}", stdout(&o), stderr(&o));
+        assert_eq!(o.status.code(), Some(code), "{args:?}: {text}");
+        assert!(text.contains(says), "{args:?}: {text}");
+    }
+    // the library reader on the bytes: a truncated record, no frame
+    let rep = verify(Cursor::new(lying_stream())).unwrap();
+    assert_eq!((rep.frames, rep.truncated.len()), (0, 1), "{rep}");
+}
