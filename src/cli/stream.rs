@@ -256,7 +256,7 @@ pub struct StreamSummary {
     pub frames: u64,
     /// Frames that were late against `--rate`.
     pub late_frames: u64,
-    /// Wall-clock seconds from the file header written to the stream closed.
+    /// Wall-clock seconds from the start of frame 0's render to the stream closed.
     pub seconds: f64,
     /// True when the reader closed the output early.
     pub reader_closed: bool,
@@ -811,6 +811,15 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
         })
         .map_err(|e| Error::io("starting the render thread", e))?;
 
+    let t_open = Instant::now();
+    // the output is created only once frame 0 is made: bad input in the first pose (a missing
+    // column, a time that does not fit the clock) writes nothing at all
+    let first = match next_frame(&rx) {
+        Next::Frame(Ok(r)) => Some(r),
+        Next::Frame(Err(e)) => return Err(e),
+        Next::End => None,
+        Next::Stopped(sig) => die_by(sig),
+    };
     let mut out = match Output::open(&opts.out, &header, opts.bag.as_ref()) {
         Ok(o) => o,
         Err(e) if e.is_broken_pipe() => {
@@ -822,10 +831,9 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
         }
         Err(e) => return Err(e),
     };
-    let t_open = Instant::now();
     // frames/s and ETA on stderr: a bar on a terminal, plain lines for long jobs otherwise
     let mut progress = Progress::new("psns stream", Unit::Frames, opts.frames, false);
-    let res = write_loop(&mut out, &rx, &spare_tx, opts, &mut progress);
+    let res = write_loop(&mut out, first, &rx, &spare_tx, opts, &mut progress);
     drop(progress);
     drop(rx); // a producer blocked on send ends now
     drop(spare_tx); // and one waiting for a buffer
@@ -887,8 +895,30 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
 }
 
 /// Writes frames as they arrive, paced by `--rate`. Returns (frames, late) or the error with them.
+/// What the render thread delivered next.
+enum Next {
+    Frame(Result<Rendered>),
+    /// The poses ended (or the render thread is gone).
+    End,
+    /// A signal asked the stream to stop.
+    Stopped(i32),
+}
+
+/// Waits for the next frame, waking up now and then to see whether a signal asked to stop.
+fn next_frame(rx: &Receiver<Result<Rendered>>) -> Next {
+    loop {
+        match rx.recv_timeout(Duration::from_millis(100)) {
+            _ if stop_signal().is_some() => return Next::Stopped(stop_signal().unwrap_or(0)),
+            Ok(r) => return Next::Frame(r),
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => continue,
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => return Next::End,
+        }
+    }
+}
+
 fn write_loop(
     out: &mut Output,
+    mut first: Option<Rendered>,
     rx: &Receiver<Result<Rendered>>,
     spare: &SyncSender<Payload>,
     opts: &StreamOptions,
@@ -897,12 +927,12 @@ fn write_loop(
     let (mut n, mut late) = (0u64, 0u64);
     let mut t0: Option<Instant> = None;
     loop {
-        // wake up now and then to see whether a signal asked to stop
-        let r = match rx.recv_timeout(Duration::from_millis(100)) {
-            _ if stop_signal().is_some() => break,
-            Ok(r) => r,
-            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => continue,
-            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => break,
+        let r = match first.take() {
+            Some(r) => Ok(r),
+            None => match next_frame(rx) {
+                Next::Frame(r) => r,
+                Next::End | Next::Stopped(_) => break,
+            },
         };
         let mut r = match r {
             Ok(r) => r,
