@@ -375,7 +375,8 @@ mod tests {
             format!("{cut}5\n  \n"),
         ] {
             let t = CsvTrajectory::require_complete_lines(whole.as_bytes()).unwrap();
-            assert_eq!(t.map(|p| p.unwrap()).count(), 2, "{whole:?}");
+            let poses: Vec<Pose> = t.collect::<Result<_>>().unwrap();
+            assert_eq!(poses.len(), 2, "{whole:?}");
         }
         let Err(e) = CsvTrajectory::require_complete_lines("t_s,yaw_deg".as_bytes()) else {
             panic!("a header without its newline from a pipe was accepted")

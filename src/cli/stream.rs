@@ -815,8 +815,7 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
     // the output is created only once frame 0 is made: bad input in the first pose (a missing
     // column, a time that does not fit the clock) writes nothing at all
     let first = match next_frame(&rx) {
-        Next::Frame(Ok(r)) => Some(r),
-        Next::Frame(Err(e)) => return Err(e),
+        Next::Frame(r) => Some((*r)?),
         Next::End => None,
         Next::Stopped(sig) => die_by(sig),
     };
@@ -897,7 +896,7 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
 /// Writes frames as they arrive, paced by `--rate`. Returns (frames, late) or the error with them.
 /// What the render thread delivered next.
 enum Next {
-    Frame(Result<Rendered>),
+    Frame(Box<Result<Rendered>>),
     /// The poses ended (or the render thread is gone).
     End,
     /// A signal asked the stream to stop.
@@ -909,7 +908,7 @@ fn next_frame(rx: &Receiver<Result<Rendered>>) -> Next {
     loop {
         match rx.recv_timeout(Duration::from_millis(100)) {
             _ if stop_signal().is_some() => return Next::Stopped(stop_signal().unwrap_or(0)),
-            Ok(r) => return Next::Frame(r),
+            Ok(r) => return Next::Frame(Box::new(r)),
             Err(std::sync::mpsc::RecvTimeoutError::Timeout) => continue,
             Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => return Next::End,
         }
@@ -930,7 +929,7 @@ fn write_loop(
         let r = match first.take() {
             Some(r) => Ok(r),
             None => match next_frame(rx) {
-                Next::Frame(r) => r,
+                Next::Frame(r) => *r,
                 Next::End | Next::Stopped(_) => break,
             },
         };
