@@ -21,6 +21,14 @@ pub enum Error {
     Invalid(String),
     /// A damaged or unreadable data stream / file format.
     Format(String),
+    /// An input file the user named that is missing, not permitted or a directory (bad input;
+    /// the Python package raises `FileNotFoundError`, `PermissionError`, `IsADirectoryError`).
+    Input {
+        /// The path as the user gave it.
+        path: std::path::PathBuf,
+        /// The underlying error (its kind says which).
+        source: std::io::Error,
+    },
     /// An I/O error, with what was being done.
     Io {
         /// What the library was doing, e.g. `writing out/li.npy`.
@@ -48,12 +56,13 @@ impl Error {
     pub fn input(path: &std::path::Path, source: std::io::Error) -> Self {
         use std::io::ErrorKind as K;
         match source.kind() {
-            K::NotFound
-            | K::PermissionDenied
-            | K::IsADirectory
-            | K::InvalidData
-            | K::InvalidInput
-            | K::UnexpectedEof => Error::Invalid(format!("{}: {source}", path.display())),
+            K::NotFound | K::PermissionDenied | K::IsADirectory => Error::Input {
+                path: path.to_path_buf(),
+                source,
+            },
+            K::InvalidData | K::InvalidInput | K::UnexpectedEof => {
+                Error::Invalid(format!("{}: {source}", path.display()))
+            }
             _ => Error::io(format!("reading {}", path.display()), source),
         }
     }
@@ -71,7 +80,7 @@ impl Error {
     pub fn is_usage(&self) -> bool {
         matches!(
             self,
-            Error::OutOfRange { .. } | Error::Invalid(_) | Error::Format(_)
+            Error::OutOfRange { .. } | Error::Invalid(_) | Error::Format(_) | Error::Input { .. }
         )
     }
 
@@ -92,6 +101,10 @@ impl fmt::Display for Error {
             Error::Invalid(m) => write!(f, "{m}"),
             Error::Format(m) => write!(f, "{m}"),
             Error::Io { context, source } => write!(f, "{context}: {source}"),
+            Error::Input { path, source } if source.kind() == std::io::ErrorKind::NotFound => {
+                write!(f, "{} does not exist", path.display())
+            }
+            Error::Input { path, source } => write!(f, "{}: {source}", path.display()),
         }
     }
 }
@@ -99,7 +112,7 @@ impl fmt::Display for Error {
 impl std::error::Error for Error {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
-            Error::Io { source, .. } => Some(source),
+            Error::Io { source, .. } | Error::Input { source, .. } => Some(source),
             _ => None,
         }
     }

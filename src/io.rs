@@ -341,7 +341,7 @@ pub fn open_input(path: &Path) -> Result<Box<dyn Read + Send + Sync>> {
     } else {
         let f = File::open(path).map_err(|e| Error::input(path, e))?;
         if f.metadata().is_ok_and(|m| m.is_dir()) {
-            return Err(Error::Invalid(format!("{} is a directory", path.display())));
+            return Err(Error::input(path, std::io::ErrorKind::IsADirectory.into()));
         }
         Ok(Box::new(std::io::BufReader::with_capacity(1 << 20, f)))
     }

@@ -154,4 +154,9 @@ def main(argv):
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv))
+    try:
+        sys.exit(main(sys.argv))
+    except ps.StreamError as e:
+        sys.exit("nav_reader.py: not a valid psns stream: %s" % e)
+    except KeyboardInterrupt:  # Ctrl-C: end quietly with the shell's status for SIGINT
+        sys.exit(130)

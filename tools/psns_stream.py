@@ -855,4 +855,17 @@ if __name__ == "__main__":
         # stdout goes to /dev/null so the interpreter's final flush does not complain either
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         status = 0
+    except StreamError as e:
+        # a crafted or damaged header: a message, not a traceback
+        print("psns_stream.py: not a valid psns stream: %s" % e, file=sys.stderr)
+        status = 1
+    except OSError as e:  # a missing file, a read error
+        print("psns_stream.py: %s" % e, file=sys.stderr)
+        status = 1
+    except ValueError as e:  # a frame number that is not a number
+        print("psns_stream.py: %s" % e, file=sys.stderr)
+        status = 2
+    except KeyboardInterrupt:
+        # Ctrl-C: end quietly with the shell's status for SIGINT
+        status = 130
     sys.exit(status)

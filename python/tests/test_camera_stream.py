@@ -52,6 +52,12 @@ def test_camera_defaults_and_meta():
     with pytest.raises(ValueError, match="yaw = NaN is out of range"):
         cam.frame(yaw=float("nan"))
     assert psns.Camera(width=64, height=48, bit_depth=8).frame().dtype == np.uint8
+    # a negative or too large index is a value error with the CLI's range, not OverflowError
+    for bad in (-1, 2**64):
+        with pytest.raises(ValueError, match=f"frame_index = {bad} is out of range"):
+            cam.frame(frame_index=bad)
+    with pytest.raises(TypeError):
+        cam.frame(frame_index=1.5)
 
 
 def test_results_take_over_the_rust_buffer():
@@ -162,8 +168,13 @@ def test_open_stream_reads_a_fifo(psns_bin, tmp_path):
 
 
 def test_open_stream_errors(tmp_path):
-    with pytest.raises(ValueError, match="No such file"):
+    # a missing input is FileNotFoundError (an OSError, as open() raises), not ValueError
+    with pytest.raises(FileNotFoundError, match="missing does not exist"):
         psns.open_stream(tmp_path / "missing")
+    with pytest.raises(IsADirectoryError):
+        psns.open_stream(tmp_path)
+    with pytest.raises(FileNotFoundError, match="nope.toml does not exist"):
+        psns.render(config=str(tmp_path / "nope.toml"), width=8, height=8)
     (tmp_path / "x").write_bytes(b"not a stream at all" * 300)
     with pytest.raises(ValueError):
         psns.open_stream(tmp_path / "x")

@@ -50,7 +50,7 @@ pub fn open_trajectory(
             let f = std::fs::File::open(p).map_err(|e| Error::input(p, e))?;
             let meta = f.metadata().map_err(|e| Error::input(p, e))?;
             if meta.is_dir() {
-                return Err(Error::Invalid(format!("{} is a directory", p.display())));
+                return Err(Error::input(p, std::io::ErrorKind::IsADirectory.into()));
             }
             let regular = meta.is_file();
             let f = BufReader::new(f);

@@ -38,12 +38,7 @@ const BYTES_PER_PIXEL: u64 = 90;
 
 /// Reads a dataset description file (missing or unreadable: bad input).
 pub fn load_description(path: &Path) -> Result<DatasetConfig> {
-    let text = std::fs::read_to_string(path).map_err(|e| match e.kind() {
-        std::io::ErrorKind::NotFound => {
-            Error::Invalid(format!("config file {} does not exist", path.display()))
-        }
-        _ => Error::input(path, e),
-    })?;
+    let text = std::fs::read_to_string(path).map_err(|e| Error::input(path, e))?;
     DatasetConfig::from_toml(&text, &format!("config {}", path.display()))
 }
 

@@ -770,10 +770,11 @@ fn crafted_headers_rejected_by_all_readers() {
         if !good {
             assert!(out.stdout.is_empty(), "C printed for {name}");
         }
-        {
+        // every command of the numpy reader: a message, never a traceback
+        for cmd in ["dump", "info", "mmdump"] {
             let out = common::python_cmd()
                 .arg(root().join("tools/psns_stream.py"))
-                .arg("dump")
+                .arg(cmd)
                 .arg(&p)
                 .output()
                 .unwrap();
@@ -781,9 +782,9 @@ fn crafted_headers_rejected_by_all_readers() {
             assert_eq!(
                 out.status.code(),
                 Some(if good { 0 } else { 1 }),
-                "Python: {name}: {err}"
+                "Python {cmd}: {name}: {err}"
             );
-            assert!(!err.contains("Traceback"), "Python: {name}: {err}");
+            assert!(!err.contains("Traceback"), "Python {cmd}: {name}: {err}");
         }
         // the same header after a valid stream is a restart only if it is valid: otherwise
         // the readers skip it as damage (no restart line), like Rust
@@ -808,6 +809,40 @@ fn crafted_headers_rejected_by_all_readers() {
                     "Python: {name}"
                 );
             }
+        }
+    }
+}
+
+/// Ctrl-C while the numpy reader waits for a pipe, and a missing file: a message or nothing,
+/// never a traceback.
+#[test]
+fn python_reader_ends_quietly_on_ctrl_c_and_missing_files() {
+    common::require_numpy();
+    let tool = root().join("tools/psns_stream.py");
+    for args in [vec!["dump", "-"], vec!["info", "/nonexistent.psns"]] {
+        let mut child = common::python_cmd()
+            .arg(&tool)
+            .args(&args)
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // let the interpreter start and block reading the pipe, then interrupt it
+        std::thread::sleep(std::time::Duration::from_millis(1500));
+        let _ = Command::new("kill")
+            .args(["-INT", &child.id().to_string()])
+            .status();
+        let stdin = child.stdin.take();
+        let out = common::wait_deadline(child, 30);
+        drop(stdin);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!err.contains("Traceback"), "{args:?}: {err}");
+        if args[0] == "dump" {
+            assert_eq!(out.status.code(), Some(130), "{args:?}: {err}");
+        } else {
+            assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+            assert!(err.contains("No such file"), "{err}");
         }
     }
 }
