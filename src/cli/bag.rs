@@ -592,7 +592,10 @@ impl BagWriter {
     /// `metadata.yaml` are written, so it reads as unfinished; returns a note saying so.
     pub fn leave_unfinished(self) -> String {
         let note = match &self.dir {
-            Some(d) => format!("the bag {} is left unfinished: no metadata.yaml", d.display()),
+            Some(d) => format!(
+                "the bag {} is left unfinished: no metadata.yaml",
+                d.display()
+            ),
             None => format!("{} is left unfinished: no MCAP footer", self.path.display()),
         };
         drop(self);

@@ -517,7 +517,7 @@ fn a_stopped_run_leaves_an_unfinished_bag_and_dies_by_its_signal() {
     use std::os::unix::process::ExitStatusExt;
     let d = tempfile::tempdir().unwrap();
     let bag = d.path().join("t");
-    let mut child = Command::new(env!("CARGO_BIN_EXE_psns"))
+    let child = Command::new(env!("CARGO_BIN_EXE_psns"))
         .args(["stream", "--frames", "1000000", "--format", "rosbag2"])
         .args(SMALL)
         .args(["--out", s(&bag)])
@@ -552,9 +552,23 @@ fn convert_refuses_an_aborted_stream() {
     std::fs::write(&traj, input).unwrap();
     // into a file: the header carries the aborted mark; through stdout: only the end record
     let marked = d.path().join("a.psns");
-    let o = psns(&[&["stream", "--trajectory", s(&traj)], &SMALL[..], &["--out", s(&marked)]].concat());
+    let o = psns(
+        &[
+            &["stream", "--trajectory", s(&traj)],
+            &SMALL[..],
+            &["--out", s(&marked)],
+        ]
+        .concat(),
+    );
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    let o = psns(&[&["stream", "--trajectory", s(&traj)], &SMALL[..], &["--out", "-"]].concat());
+    let o = psns(
+        &[
+            &["stream", "--trajectory", s(&traj)],
+            &SMALL[..],
+            &["--out", "-"],
+        ]
+        .concat(),
+    );
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     let piped = d.path().join("p.psns");
     std::fs::write(&piped, &o.stdout).unwrap();
