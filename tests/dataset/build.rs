@@ -1020,3 +1020,42 @@ fn soft_clouds_differ_per_sample_and_render_again() {
         );
     }
 }
+
+/// Split sizes over the cap, and a description within it that the memory the process may use
+/// cannot plan, are refused in one short line (exit 2, nothing written) before the plan is
+/// allocated: under a 2 GB address-space limit, where allocating it would abort the process.
+#[test]
+fn oversized_descriptions_are_refused_before_allocating() {
+    let d = tempfile::tempdir().unwrap();
+    let six = "[splits]\nNFPI = 10000000\nGNIIPI = 10000000\nGNIICPI = 10000000\nTNFPI = 10000000\nTGNIIPI = 10000000\nTGNIICPI = 10000000\n";
+    for (text, want) in [
+        (
+            "[splits]\nNFPI = 999999999\n",
+            "splits.NFPI = 999999999 is out of range (allowed 1..10000000)",
+        ),
+        (
+            "width = 64\nheight = 48\n[splits]\nGNIIPI = 10000001\n",
+            "splits.GNIIPI = 10000001 is out of range",
+        ),
+        (six, "the plan of 60000000 samples needs about"),
+    ] {
+        let cfg = write_config(d.path(), text);
+        let out = d.path().join("out");
+        let o = Command::new("sh")
+            .arg("-c")
+            .arg("ulimit -v 2000000 && exec \"$0\" \"$@\"")
+            .arg(bin())
+            .args(["dataset", "build", "--out"])
+            .arg(&out)
+            .arg("--config")
+            .arg(&cfg)
+            .output()
+            .unwrap();
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{e}");
+        assert!(e.contains(want), "{e}");
+        assert_eq!(e.trim_end().lines().count(), 1, "{e}");
+        assert!(e.len() < 250, "{e}");
+        assert!(!out.exists());
+    }
+}
