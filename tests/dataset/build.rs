@@ -1059,3 +1059,61 @@ fn oversized_descriptions_are_refused_before_allocating() {
         assert!(!out.exists());
     }
 }
+
+/// Two builds of one shard into one directory: the second exits 2 naming the holder and writes
+/// nothing; the lock of a killed holder is taken over by the next build, which completes the
+/// dataset.
+#[test]
+fn a_second_build_of_the_same_shard_is_refused_and_a_dead_holders_lock_taken_over() {
+    let t = tempfile::tempdir().unwrap();
+    let cfg = write_config(
+        t.path(),
+        "seed = 4\nwidth = 128\nheight = 96\n[splits]\nNFPI = 1000\n",
+    );
+    let out = t.path().join("d");
+    let start = || {
+        Command::new(bin())
+            .args(["dataset", "build", "--out"])
+            .arg(&out)
+            .arg("--config")
+            .arg(&cfg)
+            .args(["--jobs", "1"])
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap()
+    };
+    let mut first = start();
+    let part = out.join(".parts/manifest-1-of-1.csv");
+    let t0 = Instant::now();
+    while std::fs::read_to_string(&part).map_or(0, |s| s.lines().count()) < 5 {
+        assert!(
+            t0.elapsed() < Duration::from_secs(30),
+            "build made no progress"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let labels = std::fs::read(out.join("labels.csv")).unwrap();
+    let o = build(&out, &cfg, &["--jobs", "1"]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("is being built") && e.contains(&format!("process {}", first.id())),
+        "{e}"
+    );
+    assert_eq!(e.trim_end().lines().count(), 1, "{e}");
+    // the holder's files are untouched: its part keeps growing, nothing was truncated
+    assert_eq!(std::fs::read(out.join("labels.csv")).unwrap(), labels);
+    assert!(
+        first.try_wait().unwrap().is_none(),
+        "the first build ended early"
+    );
+    first.kill().unwrap();
+    first.wait().unwrap();
+    assert!(out.join(".parts/lock-1-of-1").exists());
+    // the lock of the killed build is taken over
+    ok(&build(&out, &cfg, &["--jobs", "2", "--resume"]));
+    assert!(out.join("manifest.csv").exists());
+    assert!(!out.join(".parts").exists());
+    let v = psns(&["dataset", "verify", out.to_str().unwrap()]);
+    assert!(v.status.success(), "{}", stderr(&v));
+}
