@@ -263,12 +263,7 @@ pub struct SceneConfig {
 impl SceneConfig {
     /// Reads a TOML (`.toml`) or JSON (anything else that starts with `{`) scene file.
     pub fn load(path: &Path) -> Result<Self> {
-        let text = std::fs::read_to_string(path).map_err(|e| match e.kind() {
-            std::io::ErrorKind::NotFound => {
-                Error::Invalid(format!("config file {} does not exist", path.display()))
-            }
-            _ => Error::input(path, e),
-        })?;
+        let text = std::fs::read_to_string(path).map_err(|e| Error::input(path, e))?;
         let empty = text
             .trim()
             .trim_start_matches('{')

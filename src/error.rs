@@ -27,6 +27,14 @@ pub enum Error {
     HeaderDamaged(String),
     /// Too few usable pixels (saturated, unpolarized, off the sky) for a heading estimate.
     TooFewPixels(String),
+    /// An input file the user named that is missing, not permitted or a directory (bad input;
+    /// the Python package raises `FileNotFoundError`, `PermissionError`, `IsADirectoryError`).
+    Input {
+        /// The path as the user gave it.
+        path: std::path::PathBuf,
+        /// The underlying error (its kind says which).
+        source: std::io::Error,
+    },
     /// An I/O error, with what was being done.
     Io {
         /// What the library was doing, e.g. `writing out/li.npy`.
@@ -54,12 +62,13 @@ impl Error {
     pub fn input(path: &std::path::Path, source: std::io::Error) -> Self {
         use std::io::ErrorKind as K;
         match source.kind() {
-            K::NotFound
-            | K::PermissionDenied
-            | K::IsADirectory
-            | K::InvalidData
-            | K::InvalidInput
-            | K::UnexpectedEof => Error::Invalid(format!("{}: {source}", path.display())),
+            K::NotFound | K::PermissionDenied | K::IsADirectory => Error::Input {
+                path: path.to_path_buf(),
+                source,
+            },
+            K::InvalidData | K::InvalidInput | K::UnexpectedEof => {
+                Error::Invalid(format!("{}: {source}", path.display()))
+            }
             _ => Error::io(format!("reading {}", path.display()), source),
         }
     }
@@ -82,6 +91,7 @@ impl Error {
                 | Error::Format(_)
                 | Error::HeaderDamaged(_)
                 | Error::TooFewPixels(_)
+                | Error::Input { .. }
         )
     }
 
@@ -104,6 +114,10 @@ impl fmt::Display for Error {
                 write!(f, "{m}")
             }
             Error::Io { context, source } => write!(f, "{context}: {source}"),
+            Error::Input { path, source } if source.kind() == std::io::ErrorKind::NotFound => {
+                write!(f, "{} does not exist", path.display())
+            }
+            Error::Input { path, source } => write!(f, "{}: {source}", path.display()),
         }
     }
 }
@@ -111,7 +125,7 @@ impl fmt::Display for Error {
 impl std::error::Error for Error {
     fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
         match self {
-            Error::Io { source, .. } => Some(source),
+            Error::Io { source, .. } | Error::Input { source, .. } => Some(source),
             _ => None,
         }
     }

@@ -198,7 +198,11 @@ fn png_write(
     depth: png::BitDepth,
     bytes: &[u8],
 ) -> Result<()> {
-    let perr = |e: png::EncodingError| Error::Format(format!("writing {}: {e}", path.display()));
+    // a full disk or a failed write is an I/O error (exit 1), not a bad picture
+    let perr = |e: png::EncodingError| match e {
+        png::EncodingError::IoError(e) => Error::io(format!("writing {}", path.display()), e),
+        e => Error::Format(format!("writing {}: {e}", path.display())),
+    };
     write_atomic(path, |w| {
         let mut wr = png_encoder(w, width, height, color, depth)
             .write_header()
@@ -307,7 +311,10 @@ pub fn read_gray(path: &Path) -> Result<GrayImage> {
 
 /// Writes a 16-bit greyscale TIFF.
 pub fn write_tiff_u16(path: &Path, img: &Image<u16>) -> Result<()> {
-    let terr = |e: tiff::TiffError| Error::Format(format!("writing {}: {e}", path.display()));
+    let terr = |e: tiff::TiffError| match e {
+        tiff::TiffError::IoError(e) => Error::io(format!("writing {}", path.display()), e),
+        e => Error::Format(format!("writing {}: {e}", path.display())),
+    };
     write_atomic(path, |w| {
         let mut enc = tiff::encoder::TiffEncoder::new(w).map_err(terr)?;
         enc.write_image::<tiff::encoder::colortype::Gray16>(
@@ -341,7 +348,7 @@ pub fn open_input(path: &Path) -> Result<Box<dyn Read + Send + Sync>> {
     } else {
         let f = File::open(path).map_err(|e| Error::input(path, e))?;
         if f.metadata().is_ok_and(|m| m.is_dir()) {
-            return Err(Error::Invalid(format!("{} is a directory", path.display())));
+            return Err(Error::input(path, std::io::ErrorKind::IsADirectory.into()));
         }
         Ok(Box::new(std::io::BufReader::with_capacity(1 << 20, f)))
     }

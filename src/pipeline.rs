@@ -374,7 +374,8 @@ pub fn seconds_to_ns(t_s: f64) -> Result<i64> {
     let ns = (t_s * 1e9).round();
     if !(ns.is_finite() && ns.abs() < 9.0e18) {
         return Err(crate::error::Error::Invalid(format!(
-            "trajectory time {t_s} s does not fit the stream clock"
+            "trajectory time {} s does not fit the stream clock",
+            crate::error::num(t_s)
         )));
     }
     Ok(ns as i64)
@@ -467,7 +468,7 @@ impl SceneClock {
             .ok_or_else(|| {
                 crate::error::Error::Invalid(format!(
                     "trajectory time {} s does not fit the stream clock",
-                    pose.t_s
+                    crate::error::num(pose.t_s)
                 ))
             })
     }

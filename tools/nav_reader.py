@@ -101,6 +101,7 @@ def main(argv):
         hdr["width"], hdr["height"], hdr["pixel_format"], hdr["bits_valid"], hdr["preset"],
         hdr["producer"]), flush=True)
     damaged = []
+    aborted = None
     dropped = 0
     n = 0
     for ev in ps.iter_events(ps._Prefixed(head, f)):
@@ -113,6 +114,10 @@ def main(argv):
         if kind == "gap":
             dropped += ev[2] - ev[1]
             print("dropped: frames %d..%d missing" % (ev[1], ev[2] - 1), flush=True)
+            continue
+        if kind == "aborted":
+            aborted = ev[3]
+            print(ps.describe(ev), file=sys.stderr, flush=True)
             continue
         if kind != "frame":
             damaged.append(ps.describe(ev))
@@ -145,8 +150,13 @@ def main(argv):
         print("dropped: %d frames (index gaps)" % dropped, file=sys.stderr)
     f.close()
     print("read %d frames, %d dropped, %d damaged" % (n, dropped, len(damaged)), flush=True)
-    return 1 if damaged or dropped else 0
+    return 1 if damaged or dropped or aborted is not None else 0
 
 
 if __name__ == "__main__":
-    sys.exit(main(sys.argv))
+    try:
+        sys.exit(main(sys.argv))
+    except ps.StreamError as e:
+        sys.exit("nav_reader.py: not a valid psns stream: %s" % e)
+    except KeyboardInterrupt:  # Ctrl-C: end quietly with the shell's status for SIGINT
+        sys.exit(130)

@@ -5,8 +5,8 @@
  *   psns_stream dump FILE|-          canonical header/frame lines (used by the tests)
  *   psns_stream frame FILE|- N OUT   write frame N's values as raw uint16 little-endian
  *   psns_stream check FILE|-         read every frame as a consumer does: check its CRCs, unpack
- *                                    its values, print "frame INDEX SUM"; damage on stderr,
- *                                    exit status 1 if there was any
+ *                                    its values, print "frame INDEX SUM"; damage and an aborted
+ *                                    stream on stderr, exit status 1 if there was any
  *   psns_stream crc FILE|-           CRC-32 of the whole input, 8 hex digits (tests the CRC)
  *
  * Reads sequentially with fread (works on files, FIFOs and stdin), validates the file header
@@ -145,13 +145,14 @@ static uint64_t rd64(const uint8_t *p) { uint64_t v; memcpy(&v, p, 8); return v;
 
 typedef struct {
     uint32_t width, height, pfnc;
-    uint16_t bits_valid, msb_aligned;
+    uint16_t bits_valid, msb_aligned, aborted;
     int16_t angles[4];
     uint64_t payload, stride, frame_count, seed;
 } stream_header;
 
 static const uint8_t FILE_MAGIC[8] = {0x89, 'P', 'S', 'N', 'S', 'R', 'A', 'W'};
 static const uint8_t FRAME_MAGIC[8] = {0x89, 'P', 'S', 'N', 'S', 'F', 'R', 'M'};
+static const uint8_t END_MAGIC[8] = {0x89, 'P', 'S', 'N', 'S', 'E', 'N', 'D'};
 #define MAX_PAYLOAD ((uint64_t)1 << 30)
 
 /* strict UTF-8 (no overlongs, surrogates or code points above U+10FFFF), as Rust and Python */
@@ -220,6 +221,8 @@ static int parse_header(const uint8_t *b, stream_header *h) {
     }
     int16_t sense = (int16_t)rd16(b + 44);
     if (sense != 1 && sense != -1) return -10;
+    h->aborted = rd16(b + 46);
+    if (h->aborted > 1) return -14;
     if (!str_field_ok(b + 160) || !str_field_ok(b + 192)) return -11;
     uint32_t jo = rd32(b + 224), jl = rd32(b + 228);
     if (jo || jl) {
@@ -390,9 +393,17 @@ static size_t find_magic(const rbuf *r, size_t lo, size_t hi) {
 static int frame_header_ok(const uint8_t *p) {
     return !memcmp(p, FRAME_MAGIC, 8) && crc32_buf(p, 252) == rd32(p + 252);
 }
+/* a 256-byte end record (the producer stopped because of a failure): magic, CRC, status 1, a
+   UTF-8 reason of at most 228 bytes at 24 whose length is at 20 */
+static int end_record_ok(const uint8_t *p) {
+    return !memcmp(p, END_MAGIC, 8) && crc32_buf(p, 252) == rd32(p + 252) && rd32(p + 16) == 1 &&
+           rd32(p + 20) <= 228 && utf8_ok(p + 24, rd32(p + 20));
+}
 /* a frame header or file header with a valid CRC (and valid fields) starts at j */
 static int valid_at(rbuf *r, size_t j) {
     if (fill(r, j + 8) < j + 8) return 0;
+    if (!memcmp(r->b + j, END_MAGIC, 8))
+        return fill(r, j + 256) >= j + 256 && end_record_ok(r->b + j);
     if (!memcmp(r->b + j, FRAME_MAGIC, 8))
         return fill(r, j + 256) >= j + 256 && frame_header_ok(r->b + j);
     if (!memcmp(r->b + j, FILE_MAGIC, 8)) {
@@ -433,11 +444,22 @@ static int cmp_u64(const void *a, const void *b) {
 
 static int dump; /* 1: canonical lines on stdout; 0: reports on stderr */
 static int damage; /* reports of damage or loss made on stderr (not in dump) */
+static int aborted; /* an end record was read */
 static void print_header(const stream_header *h) {
-    printf("header %u %u %08x %u %u %llu %llu %llu %llu %d,%d,%d,%d\n", h->width, h->height,
+    printf("header %u %u %08x %u %u %llu %llu %llu %llu %d,%d,%d,%d%s\n", h->width, h->height,
            h->pfnc, h->bits_valid, h->msb_aligned, (unsigned long long)h->seed,
            (unsigned long long)h->frame_count, (unsigned long long)h->payload,
-           (unsigned long long)h->stride, h->angles[0], h->angles[1], h->angles[2], h->angles[3]);
+           (unsigned long long)h->stride, h->angles[0], h->angles[1], h->angles[2], h->angles[3],
+           h->aborted ? " aborted" : "");
+}
+static void ev_aborted(uint64_t off, const uint8_t *p) {
+    int n = (int)rd32(p + 20);
+    aborted = 1;
+    if (dump)
+        printf("aborted %llu %llu %.*s\n", (unsigned long long)off,
+               (unsigned long long)rd64(p + 8), n, (const char *)(p + 24));
+    else
+        fprintf(stderr, "stream aborted by its producer: %.*s\n", n, (const char *)(p + 24));
 }
 static void idx_str(char *s, int known, uint64_t i) {
     if (known) snprintf(s, 24, "%llu", (unsigned long long)i);
@@ -683,6 +705,14 @@ int main(int argc, char **argv) {
                 consume(&r, len);
                 continue;
             }
+        } else if (!memcmp(r.b, END_MAGIC, 8)) {
+            if (fill(&r, 256) < 256) { ev_truncated(0, 0, r.off, r.len, h.stride); break; }
+            if (end_record_ok(r.b)) {
+                ev_aborted(r.off, r.b);
+                consume(&r, 256);
+                continue;
+            }
+            why = "end record invalid";
         } else if (!memcmp(r.b, FILE_MAGIC, 8)) {
             if (fill(&r, 4096) < 4096) { ev_truncated(0, 0, r.off, r.len, h.stride); break; }
             stream_header h2;
@@ -700,7 +730,12 @@ int main(int argc, char **argv) {
         }
         if (resync(&r, &h, &has_exp, &expected, why)) break;
     }
-    if (check) status = damage != 0;
+    if (check && h.aborted && !aborted) {
+        /* the header's mark without an end record (it did not fit on a full disk) */
+        fprintf(stderr, "stream aborted by its producer: reason not recorded\n");
+        aborted = 1;
+    }
+    if (check) status = damage != 0 || aborted;
     else if (!dump && status)
         fprintf(stderr, "frame %llu not found or damaged\n", (unsigned long long)want_index);
     free(v); free(r.b);

@@ -29,6 +29,9 @@ except ImportError:  # a message, not a traceback: the reader's one dependency i
 
 FILE_MAGIC = b"\x89PSNSRAW"
 FRAME_MAGIC = b"\x89PSNSFRM"
+END_MAGIC = b"\x89PSNSEND"
+END_REASON_MAX = 228
+REASON_NOT_RECORDED = "reason not recorded (the header is marked aborted, the end record is missing)"
 PFNC = {0x01080001: "Mono8", 0x010C0047: "Mono12p", 0x010C0006: "Mono12Packed", 0x01100007: "Mono16"}
 CAMERA = ["pixel_pitch_um", "focal_length_mm", "f_number", "wavelength_nm", "bandwidth_nm",
           "full_well_e", "k0_dn_per_e", "read_noise_e", "principal_col", "principal_row"]
@@ -95,7 +98,9 @@ def parse_header(b):
     angles = struct.unpack_from("<4h", b, 36)
     if sorted(angles) != [0, 45, 90, 135]:
         raise StreamError("polarizer angles %s are not a permutation of 0, 45, 90, 135" % (angles,))
-    sense = struct.unpack_from("<h", b, 44)[0]
+    sense, end = struct.unpack_from("<hH", b, 44)
+    if end > 1:
+        raise StreamError("end status %d (0 or 1)" % end)
     payload, stride, count, seed = struct.unpack_from("<4Q", b, 48)
     cam = struct.unpack_from("<10d", b, 80)
     jo, jl = struct.unpack_from("<II", b, 224)
@@ -123,9 +128,47 @@ def parse_header(b):
         raise StreamError("payload size / stride inconsistent")
     hdr = dict(version=(major, minor), width=w, height=h, pfnc=code, pixel_format=fmt,
                bits_valid=bits, msb_aligned=bool(align), angles_deg=list(angles), angle_sense=sense,
-               payload_size=payload, stride=stride, frame_count=count, seed=seed,
-               camera=dict(zip(CAMERA, cam)), producer=producer, preset=preset, json=js)
+               payload_size=payload, stride=stride, frame_count=count, aborted=bool(end),
+               seed=seed, camera=dict(zip(CAMERA, cam)), producer=producer, preset=preset, json=js)
     return hdr
+
+
+def parse_end(b):
+    """(frames, reason) of a 256-byte end record (written after the last frame when the producer
+    stopped because of a failure), or None if `b` is not a valid one."""
+    b = bytes(b)
+    if len(b) < 256 or b[:8] != END_MAGIC or zlib.crc32(b[:252]) != struct.unpack_from("<I", b, 252)[0]:
+        return None
+    frames, status, n = struct.unpack_from("<QII", b, 8)
+    if status != 1 or n > END_REASON_MAX:
+        return None
+    try:
+        return frames, b[24:24 + n].decode()
+    except UnicodeDecodeError:
+        return None
+
+
+def _end_after(path, hdr, n):
+    """(offset, frames, reason) of a valid end record right after the n whole records, or None."""
+    off = 4096 + n * hdr["stride"]
+    with open(path, "rb") as f:
+        f.seek(off)
+        end = parse_end(f.read(256))
+    return None if end is None else (off, end[0], end[1])
+
+
+def aborted_reason(path, hdr=None):
+    """Why the producer of the stream file at `path` aborted it: the reason in the end record
+    after the last whole record, REASON_NOT_RECORDED when only the header is marked, or None if it
+    was not aborted."""
+    if hdr is None:
+        with open(path, "rb") as f:
+            hdr = parse_header(f.read(4096))
+    n = max(os.path.getsize(path) - 4096, 0) // hdr["stride"]
+    end = _end_after(path, hdr, n)
+    if end is not None:
+        return end[2]
+    return REASON_NOT_RECORDED if hdr["aborted"] else None
 
 
 def black_level_values(hdr, black):
@@ -366,7 +409,8 @@ def recover_header(buf, eof, damage, width=None, height=None, pixel_format=None)
         info += "; defaults used for " + ", ".join(defaults)
     hdr = dict(version=(1, minor), width=w, height=h, pfnc=code, pixel_format=fmt,
                bits_valid=bits, msb_aligned=bool(align), angles_deg=angles, angle_sense=sense,
-               payload_size=p, stride=stride_for(p), frame_count=0, seed=seed,
+               payload_size=p, stride=stride_for(p), frame_count=0,
+               aborted=struct.unpack_from("<H", hb, 46)[0] == 1, seed=seed,
                camera=dict(zip(CAMERA, struct.unpack_from("<10d", hb, 80))), producer=strs[0],
                preset=strs[1], json=js, recovered=info)
     start = min(found[0][0], 4096) if found else 4096
@@ -382,6 +426,8 @@ def iter_events(f, recover=False, width=None, height=None, pixel_format=None):
       ("truncated", index_or_None, offset, have, need)  partial record (EOF or producer died)
       ("skipped", offset, bytes)                        bytes skipped while resynchronising
       ("restart", header)                               new file header; layout may change
+      ("aborted", offset, frames, reason)               end record: the producer stopped because
+                                                        of a failure (bad input, I/O, a signal)
       ("recovered", header)                             degraded mode: first event, the inferred
                                                         header (header["recovered"] says how)
     The first file header is read first and raises StreamError if it is unusable, unless
@@ -422,6 +468,9 @@ def iter_events(f, recover=False, width=None, height=None, pixel_format=None):
         if avail() < j + 8:
             return False
         m = view(j, j + 8)
+        if m == END_MAGIC:
+            fill(j + 256)
+            return parse_end(view(j, j + 256)) is not None
         if m == FRAME_MAGIC:
             fill(j + 256)
             return _frame_header_ok(view(j, j + 256))
@@ -521,6 +570,19 @@ def iter_events(f, recover=False, width=None, height=None, pixel_format=None):
                 meta, values = _meta(rec), unpack(rec["payload"], hdr)
                 consume(n)
                 yield ("frame", meta, values, ok, off)
+                continue
+        elif head == END_MAGIC:
+            fill(256)
+            if avail() < 256:
+                yield ("truncated", None, st["off"], avail(), hdr["stride"])
+                return
+            end = parse_end(view(0, 256))
+            if end is None:
+                reason = "end record invalid"
+            else:
+                off = st["off"]
+                consume(256)
+                yield ("aborted", off, end[0], end[1])
                 continue
         elif head == FILE_MAGIC:
             fill(4096)
@@ -640,6 +702,8 @@ def describe(ev):
         return "skipped %d bytes at byte %d" % (ev[2], ev[1])
     if k == "restart":
         return "producer restart"
+    if k == "aborted":
+        return "stream aborted by its producer: %s" % ev[3]
     return k
 
 
@@ -657,6 +721,8 @@ def canonical_event(ev):
         return "truncated %s %d %d %d" % (idx(ev[1]), ev[2], ev[3], ev[4])
     if k == "skipped":
         return "skipped %d %d" % (ev[1], ev[2])
+    if k == "aborted":
+        return "aborted %d %d %s" % (ev[1], ev[2], ev[3])
     return "restart\n" + canonical_header(ev[1])
 
 
@@ -679,9 +745,10 @@ def canonical(meta, values, ok):
 
 
 def canonical_header(h):
-    return "header %d %d %08x %d %d %d %d %d %d %s" % (
+    return "header %d %d %08x %d %d %d %d %d %d %s%s" % (
         h["width"], h["height"], h["pfnc"], h["bits_valid"], int(h["msb_aligned"]), h["seed"],
-        h["frame_count"], h["payload_size"], h["stride"], ",".join(str(a) for a in h["angles_deg"]))
+        h["frame_count"], h["payload_size"], h["stride"], ",".join(str(a) for a in h["angles_deg"]),
+        " aborted" if h.get("aborted") else "")
 
 
 def _recover_opts(argv):
@@ -743,10 +810,13 @@ def main(argv):
             hok, pok = check_frame(hdr, rec)
             if hok:
                 print(canonical(_meta(rec), unpack(rec["payload"], hdr), pok))
+        end = _end_after(path, hdr, len(frames))
+        if end is not None:
+            print(canonical_event(("aborted",) + end))
         return 0
     if cmd == "info":
         hdr, frames = open_memmap(path)
-        out = dict(header=hdr, frames=[])
+        out = dict(header=hdr, aborted=aborted_reason(path, hdr), frames=[])
         for rec in frames:
             hok, pok = check_frame(hdr, rec)
             m = _meta(rec) if hok else {}
@@ -785,4 +855,17 @@ if __name__ == "__main__":
         # stdout goes to /dev/null so the interpreter's final flush does not complain either
         os.dup2(os.open(os.devnull, os.O_WRONLY), sys.stdout.fileno())
         status = 0
+    except StreamError as e:
+        # a crafted or damaged header: a message, not a traceback
+        print("psns_stream.py: not a valid psns stream: %s" % e, file=sys.stderr)
+        status = 1
+    except OSError as e:  # a missing file, a read error
+        print("psns_stream.py: %s" % e, file=sys.stderr)
+        status = 1
+    except ValueError as e:  # a frame number that is not a number
+        print("psns_stream.py: %s" % e, file=sys.stderr)
+        status = 2
+    except KeyboardInterrupt:
+        # Ctrl-C: end quietly with the shell's status for SIGINT
+        status = 130
     sys.exit(status)

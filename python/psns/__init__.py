@@ -34,6 +34,7 @@ __all__ = [
     "demosaic",
     "open_stream",
     "StreamDamageWarning",
+    "StreamAbortedWarning",
     "heading",
     "sky",
     "dataset",
@@ -42,6 +43,11 @@ __all__ = [
 
 class StreamDamageWarning(UserWarning):
     """A damaged, truncated or dropped part of a frame stream (see :func:`open_stream`)."""
+
+
+class StreamAbortedWarning(StreamDamageWarning):
+    """A frame stream whose producer stopped because of a failure (bad input, an I/O error, a
+    signal) and marked it aborted: its frames are intact, but it is not the whole run."""
 
 
 def render(**scene: Any) -> Dict[str, np.ndarray]:
@@ -199,6 +205,11 @@ def open_stream(path: "os.PathLike[str] | str") -> "_psns.StreamIter":
     prints for what was read so far, ``it.report_dict()`` its ``--json`` form, ``it.intact``
     whether nothing was damaged, dropped or skipped, ``it.header`` the file header. Use
     ``warnings.simplefilter("error", psns.StreamDamageWarning)`` to stop at the first damage.
+
+    A stream its producer marked aborted (bad input, an I/O error or a signal stopped it) raises
+    a :class:`StreamAbortedWarning` (a kind of ``StreamDamageWarning``) with the reason when its
+    end is read; ``it.aborted`` is then the reason (else ``None``) and ``it.report_dict()``'s
+    ``status`` is ``"aborted"``.
     """
     return _psns.open_stream(os.fspath(path))
 

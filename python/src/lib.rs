@@ -14,7 +14,10 @@ use clap::{ArgAction, Args, Command, FromArgMatches, Subcommand};
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArrayMethods, PyUntypedArrayMethods};
 use psns::image::Image;
-use pyo3::exceptions::{PyOSError, PyRuntimeError, PyStopIteration, PyValueError};
+use pyo3::exceptions::{
+    PyFileNotFoundError, PyIsADirectoryError, PyOSError, PyPermissionError, PyRuntimeError,
+    PyStopIteration, PyValueError,
+};
 use pyo3::prelude::*;
 use pyo3::types::{PyDict, PyList, PyTuple};
 use std::path::PathBuf;
@@ -22,9 +25,20 @@ use std::path::PathBuf;
 // ---------------------------------------------------------------------------------------------
 // errors
 
-/// The library's error as the Python exception for it: bad input is `ValueError` (exit code 2 in
-/// the CLI), I/O is `OSError`, the rest `RuntimeError`; the message is the CLI's.
+/// The library's error as the Python exception for it: an input file that is missing, not
+/// permitted or a directory is `FileNotFoundError`, `PermissionError` or `IsADirectoryError`;
+/// other bad input is `ValueError` (exit code 2 in the CLI), I/O is `OSError`, the rest
+/// `RuntimeError`; the message is the CLI's.
 fn lib_err(e: psns::Error) -> PyErr {
+    if let psns::Error::Input { source, .. } = &e {
+        use std::io::ErrorKind as K;
+        match source.kind() {
+            K::NotFound => return PyFileNotFoundError::new_err(e.to_string()),
+            K::PermissionDenied => return PyPermissionError::new_err(e.to_string()),
+            K::IsADirectory => return PyIsADirectoryError::new_err(e.to_string()),
+            _ => {}
+        }
+    }
     if e.is_usage() {
         PyValueError::new_err(e.to_string())
     } else if matches!(e, psns::Error::Io { .. }) {
@@ -512,6 +526,24 @@ fn dataset_build(
     Ok(())
 }
 
+/// A whole number 0..2^64-1 from Python: a negative or too large int is `ValueError` with the
+/// CLI's range message (not `OverflowError`), anything else `TypeError`.
+fn index_arg(name: &str, v: &Bound<'_, PyAny>) -> PyResult<u64> {
+    if let Ok(u) = v.extract::<u64>() {
+        return Ok(u);
+    }
+    if v.is_instance_of::<pyo3::types::PyInt>() {
+        return Err(PyValueError::new_err(format!(
+            "{name} = {} is out of range (allowed a whole number 0..18446744073709551615)",
+            v.str()?
+        )));
+    }
+    Err(pyo3::exceptions::PyTypeError::new_err(format!(
+        "{name} must be a whole number, not {}",
+        v.get_type().name()?
+    )))
+}
+
 // ---------------------------------------------------------------------------------------------
 // Camera
 
@@ -570,10 +602,13 @@ impl Camera {
         roll: Option<f64>,
         sun_zenith: Option<f64>,
         sun_azimuth: Option<f64>,
-        frame_index: Option<u64>,
+        frame_index: Option<Bound<'py, PyAny>>,
         meta: bool,
     ) -> PyResult<Bound<'py, PyAny>> {
         use psns::camera::Attitude;
+        let frame_index = frame_index
+            .map(|v| index_arg("frame_index", &v))
+            .transpose()?;
         let cfg = self.pipe.config();
         let (frame, y0, p0, r0) = match cfg.camera.attitude {
             Attitude::Euler {
@@ -647,6 +682,18 @@ struct StreamIter {
     reader: psns::stream::StreamReader<Source>,
     tally: psns::stream::VerifyTally,
     damage: Vec<psns::stream::Damage>,
+    /// The abort was reported (a warning once per stream).
+    abort_warned: bool,
+}
+
+/// Raises `psns.StreamAbortedWarning` (a `StreamDamageWarning`) for a stream its producer
+/// marked aborted.
+fn warn_aborted(py: Python<'_>, reason: &str) -> PyResult<()> {
+    let warnings = PyModule::import(py, "warnings")?;
+    let cat = PyModule::import(py, "psns")?.getattr("StreamAbortedWarning")?;
+    let msg = format!("stream aborted by its producer: {reason}");
+    warnings.call_method1("warn", (msg, cat, 2))?;
+    Ok(())
 }
 
 #[pyfunction]
@@ -660,6 +707,7 @@ fn open_stream(py: Python<'_>, path: PathBuf) -> PyResult<StreamIter> {
         reader,
         tally,
         damage: Vec::new(),
+        abort_warned: false,
     })
 }
 
@@ -701,8 +749,17 @@ impl StreamIter {
             });
             let (ev, codes) = ev.map_err(lib_err)?;
             let Some(ev) = ev else {
+                // a header marked aborted without an end record (it did not fit on a full disk)
+                if !self.abort_warned && self.reader.header().aborted {
+                    self.abort_warned = true;
+                    warn_aborted(py, psns::stream::REASON_NOT_RECORDED)?;
+                }
                 return Err(PyStopIteration::new_err(()));
             };
+            if let psns::stream::Event::Aborted { reason, .. } = &ev {
+                self.abort_warned = true;
+                warn_aborted(py, reason)?;
+            }
             if let Some(d) = self.tally.record(&ev) {
                 self.damage.push(d.clone());
                 let warnings = PyModule::import(py, "warnings")?;
@@ -752,6 +809,12 @@ impl StreamIter {
     #[getter]
     fn intact(&self) -> bool {
         self.tally.finish(self.reader.restart_offsets()).intact()
+    }
+
+    /// Why the producer aborted the stream (its end record, or the header's mark), if it did.
+    #[getter]
+    fn aborted(&self) -> Option<String> {
+        self.tally.finish(self.reader.restart_offsets()).aborted
     }
 }
 

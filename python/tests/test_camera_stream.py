@@ -52,6 +52,12 @@ def test_camera_defaults_and_meta():
     with pytest.raises(ValueError, match="yaw = NaN is out of range"):
         cam.frame(yaw=float("nan"))
     assert psns.Camera(width=64, height=48, bit_depth=8).frame().dtype == np.uint8
+    # a negative or too large index is a value error with the CLI's range, not OverflowError
+    for bad in (-1, 2**64):
+        with pytest.raises(ValueError, match=f"frame_index = {bad} is out of range"):
+            cam.frame(frame_index=bad)
+    with pytest.raises(TypeError):
+        cam.frame(frame_index=1.5)
 
 
 def test_results_take_over_the_rust_buffer():
@@ -122,6 +128,32 @@ def test_open_stream_reports_damage_like_verify(psns_bin, tmp_path):
             list(psns.open_stream(bad))
 
 
+def test_open_stream_reports_an_aborted_stream(psns_bin, tmp_path):
+    traj = tmp_path / "t.csv"
+    traj.write_text("t_s,yaw_deg,pitch_deg,roll_deg\n0,0,0,0\n0.05,NaN,0,0\n")
+    path = tmp_path / "a.psns"
+    r = run(psns_bin, "stream", "--width", "64", "--height", "48", "--trajectory", traj,
+            "--out", path, ok=False)
+    assert r.returncode == 2, r.stderr
+    why = "trajectory line 3: 'NaN' is not a finite number"
+    it = psns.open_stream(path)
+    with warnings.catch_warnings(record=True) as w:
+        warnings.simplefilter("always")
+        got = [i for i, _, _ in it]
+    assert got == [0]
+    msgs = [str(x.message) for x in w if issubclass(x.category, psns.StreamAbortedWarning)]
+    assert msgs == [f"stream aborted by its producer: {why}"]
+    assert it.aborted == why and it.intact
+    assert it.report_dict()["status"] == "aborted"
+    v = run(psns_bin, "verify", path, ok=False)
+    assert v.returncode == 3 and it.report() == v.stdout
+    # an aborted stream is damage to code that stops at damage
+    with warnings.catch_warnings():
+        warnings.simplefilter("error", psns.StreamDamageWarning)
+        with pytest.raises(psns.StreamAbortedWarning):
+            list(psns.open_stream(path))
+
+
 def test_open_stream_reads_a_fifo(psns_bin, tmp_path):
     fifo = tmp_path / "f"
     os.mkfifo(fifo)
@@ -136,8 +168,13 @@ def test_open_stream_reads_a_fifo(psns_bin, tmp_path):
 
 
 def test_open_stream_errors(tmp_path):
-    with pytest.raises(ValueError, match="No such file"):
+    # a missing input is FileNotFoundError (an OSError, as open() raises), not ValueError
+    with pytest.raises(FileNotFoundError, match="missing does not exist"):
         psns.open_stream(tmp_path / "missing")
+    with pytest.raises(IsADirectoryError):
+        psns.open_stream(tmp_path)
+    with pytest.raises(FileNotFoundError, match="nope.toml does not exist"):
+        psns.render(config=str(tmp_path / "nope.toml"), width=8, height=8)
     (tmp_path / "x").write_bytes(b"not a stream at all" * 300)
     with pytest.raises(ValueError):
         psns.open_stream(tmp_path / "x")

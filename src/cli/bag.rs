@@ -588,6 +588,20 @@ impl BagWriter {
         Ok(())
     }
 
+    /// Stops writing the bag of a run that failed or was stopped: no summary, footer or
+    /// `metadata.yaml` are written, so it reads as unfinished; returns a note saying so.
+    pub fn leave_unfinished(self) -> String {
+        let note = match &self.dir {
+            Some(d) => format!(
+                "the bag {} is left unfinished: no metadata.yaml",
+                d.display()
+            ),
+            None => format!("{} is left unfinished: no MCAP footer", self.path.display()),
+        };
+        drop(self);
+        note
+    }
+
     /// Gives the bag up (the input turned out bad): removes the MCAP file, and the directory if
     /// this run made it, so nothing is left of it.
     pub fn abandon(mut self) {

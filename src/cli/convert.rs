@@ -52,6 +52,13 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
     let input = psns::io::open_input(&a.input)?;
     let mut rd = StreamReader::new(input)?;
     let h = rd.header().clone();
+    if h.aborted {
+        return Err(Error::Invalid(format!(
+            "{}: its producer aborted it (psns verify tells why); nothing written",
+            a.input.display()
+        ))
+        .into());
+    }
     let enc = ImageEncoding::of_pixel_format(h.pixel_format);
     let src = BagSource::of_header(&h, enc)?;
     let mut bag = BagWriter::create(&opts, &a.out, src)?;
@@ -96,6 +103,9 @@ pub fn run(a: ConvertArgs) -> anyhow::Result<()> {
                 break Err(bad(
                     "it holds more than one stream (another file header)".into()
                 ))
+            }
+            Event::Aborted { reason, .. } => {
+                break Err(bad(format!("its producer aborted it: {reason}")))
             }
         };
         // mono8: the payload itself; else the codes, unpacked, as little-endian u16

@@ -381,6 +381,10 @@ fn usable_frame(
             None
         }
         Event::Skipped { .. } => None,
+        Event::Aborted { reason, .. } => {
+            eprintln!("psns: the stream was aborted by its producer: {reason}");
+            None
+        }
     }
 }
 

@@ -43,6 +43,16 @@ impl std::fmt::Display for Unfinished {
 }
 impl std::error::Error for Unfinished {}
 
+/// `psns verify` found an intact stream its producer marked aborted: exit code 3, with the reason.
+#[derive(Debug)]
+pub struct Aborted(pub String);
+impl std::fmt::Display for Aborted {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        write!(f, "stream was aborted by its producer: {}", self.0)
+    }
+}
+impl std::error::Error for Aborted {}
+
 /// Maps a command's result to the process exit code: 0 on success or when the reader closed the
 /// pipe (a closed pipe ends quietly), 2 for bad input (the library's usage errors), 1 otherwise.
 pub fn exit_code(r: anyhow::Result<()>) -> ExitCode {
@@ -57,7 +67,7 @@ pub fn exit_code(r: anyhow::Result<()>) -> ExitCode {
     if lib.is_some_and(|l| l.is_broken_pipe()) || io_pipe {
         return ExitCode::SUCCESS;
     }
-    if e.downcast_ref::<Unfinished>().is_some() {
+    if e.downcast_ref::<Unfinished>().is_some() || e.downcast_ref::<Aborted>().is_some() {
         eprintln!("psns: {e}");
         return ExitCode::from(3);
     }

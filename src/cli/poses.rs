@@ -36,8 +36,10 @@ pub fn open_trajectory(
                 has_place: false,
             })
         }
+        // a pipe's last line must end in a newline (else its producer was cut off mid-line); a
+        // file saved without a final newline is fine
         Some(p) if p.as_os_str() == "-" => {
-            let t = CsvTrajectory::new(BufReader::new(std::io::stdin()))?;
+            let t = CsvTrajectory::require_complete_lines(BufReader::new(std::io::stdin()))?;
             Ok(Trajectory {
                 has_place: t.has_place(),
                 poses: Box::new(t),
@@ -45,10 +47,18 @@ pub fn open_trajectory(
             })
         }
         Some(p) => {
-            let f = std::fs::File::open(p)
-                .map_err(|e| Error::io(format!("opening trajectory {}", p.display()), e))?;
-            let regular = f.metadata().map(|m| m.is_file()).unwrap_or(false);
-            let t = CsvTrajectory::new(BufReader::new(f))?;
+            let f = std::fs::File::open(p).map_err(|e| Error::input(p, e))?;
+            let meta = f.metadata().map_err(|e| Error::input(p, e))?;
+            if meta.is_dir() {
+                return Err(Error::input(p, std::io::ErrorKind::IsADirectory.into()));
+            }
+            let regular = meta.is_file();
+            let f = BufReader::new(f);
+            let t = if regular {
+                CsvTrajectory::new(f)?
+            } else {
+                CsvTrajectory::require_complete_lines(f)?
+            };
             Ok(Trajectory {
                 has_place: t.has_place(),
                 poses: Box::new(t),

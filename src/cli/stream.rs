@@ -126,9 +126,10 @@ pub fn run(a: StreamArgs) -> anyhow::Result<()> {
         stamp_host_time: a.stamp_host_time,
         bag,
     };
+    catch_signals();
     let s = run_stream(&cfg, &opts)?;
     eprintln!(
-        "streamed {} frames in {:.2} s ({:.2} fps){}{}",
+        "streamed {} frames in {:.2} s ({:.2} fps){}{}{}",
         s.frames,
         s.seconds,
         s.frames as f64 / s.seconds.max(1e-9),
@@ -141,9 +142,67 @@ pub fn run(a: StreamArgs) -> anyhow::Result<()> {
             ", reader closed the stream"
         } else {
             ""
-        }
+        },
+        s.signal.map_or(String::new(), |sig| format!(
+            ", stopped by {}",
+            signal_name(sig)
+        ))
     );
+    if let Some(sig) = s.signal {
+        die_by(sig);
+    }
     Ok(())
+}
+
+/// The signal that asked the stream to stop (0: none yet).
+static STOP_SIGNAL: std::sync::atomic::AtomicI32 = std::sync::atomic::AtomicI32::new(0);
+
+extern "C" fn on_stop_signal(sig: libc::c_int) {
+    STOP_SIGNAL.store(sig, std::sync::atomic::Ordering::Relaxed);
+}
+
+/// SIGINT, SIGTERM and SIGHUP stop the stream between frames, so it can be marked aborted
+/// instead of looking like a killed one; a second signal kills at once (`SA_RESETHAND`).
+fn catch_signals() {
+    // SAFETY: the handler only stores to an atomic (async-signal-safe); the sigaction struct is
+    // zeroed (an empty mask, no flags) before the fields set here, and sigaction copies it
+    unsafe {
+        let mut sa: libc::sigaction = std::mem::zeroed();
+        sa.sa_sigaction = on_stop_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
+        sa.sa_flags = libc::SA_RESTART | libc::SA_RESETHAND;
+        libc::sigemptyset(&mut sa.sa_mask);
+        for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+            libc::sigaction(sig, &sa, std::ptr::null_mut());
+        }
+    }
+}
+
+fn stop_signal() -> Option<i32> {
+    match STOP_SIGNAL.load(std::sync::atomic::Ordering::Relaxed) {
+        0 => None,
+        s => Some(s),
+    }
+}
+
+fn signal_name(sig: i32) -> String {
+    match sig {
+        libc::SIGINT => "SIGINT".into(),
+        libc::SIGTERM => "SIGTERM".into(),
+        libc::SIGHUP => "SIGHUP".into(),
+        s => format!("signal {s}"),
+    }
+}
+
+/// Ends the process by `sig` with its default action, as if it had not been caught, so the
+/// parent sees the signal (a shell's 128 + n).
+fn die_by(sig: i32) -> ! {
+    // SAFETY: restoring the default action and raising a signal are plain libc calls on a valid
+    // signal number; the default action of SIGINT, SIGTERM and SIGHUP ends the process
+    unsafe {
+        libc::signal(sig, libc::SIG_DFL);
+        libc::raise(sig);
+    }
+    std::process::exit(128 + sig)
 }
 
 /// A frame counts as late under `--rate` when it is ready this long after its due time.
@@ -197,10 +256,13 @@ pub struct StreamSummary {
     pub frames: u64,
     /// Frames that were late against `--rate`.
     pub late_frames: u64,
-    /// Wall-clock seconds from the file header written to the stream closed.
+    /// Wall-clock seconds from the start of frame 0's render to the stream closed.
     pub seconds: f64,
     /// True when the reader closed the output early.
     pub reader_closed: bool,
+    /// The signal (SIGINT, SIGTERM, SIGHUP) that stopped the stream, which was then marked
+    /// aborted.
+    pub signal: Option<i32>,
 }
 
 /// One rendered frame, ready to write.
@@ -423,6 +485,7 @@ pub fn stream_header(
         layout: sc.layout,
         angle_sense: 1,
         frame_count: 0,
+        aborted: false,
         seed: cfg.raw.seed,
         camera: CameraConstants {
             pixel_pitch_um: intr.pixel_pitch_um,
@@ -621,13 +684,31 @@ impl Output {
             Output::Bag(w) => w.finish(),
         }
     }
+    /// Marks the stream aborted ([`FileStreamWriter::abort`]); a bag is left unfinished (no
+    /// footer, no `metadata.yaml`), which is how rosbag2 and MCAP readers tell a cut-off bag.
+    fn abort(self, reason: &str) -> Result<()> {
+        match self {
+            Output::Stdout(mut w) => {
+                w.abort(reason)?;
+                w.finish()?
+                    .flush()
+                    .map_err(|e| Error::io("flushing stdout", e))
+            }
+            Output::Path(w) => w.abort(reason).map(|_| ()),
+            Output::Bag(w) => {
+                eprintln!("psns: {}", w.leave_unfinished());
+                Ok(())
+            }
+        }
+    }
 }
 
 /// Runs `psns stream`.
 ///
 /// Everything is validated (scene, sensor, options, trajectory header) before the output is
-/// opened. A malformed trajectory line ends the stream cleanly after the frames before it and
-/// returns the line's [`Error::Invalid`]; a closed reader returns `Ok` with `reader_closed`.
+/// opened. A malformed trajectory line, an I/O error or a stop signal ends the stream marked
+/// aborted after the frames before it (a bag is left unfinished) and returns the error (a
+/// signal: `Ok` with `signal`); a closed reader returns `Ok` with `reader_closed`.
 pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSummary> {
     if let Some(r) = opts.rate_fps {
         psns::error::check_range("rate", r, 1e-6, 1e6)?;
@@ -730,6 +811,14 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
         })
         .map_err(|e| Error::io("starting the render thread", e))?;
 
+    let t_open = Instant::now();
+    // the output is created only once frame 0 is made: bad input in the first pose (a missing
+    // column, a time that does not fit the clock) writes nothing at all
+    let first = match next_frame(&rx) {
+        Next::Frame(r) => Some((*r)?),
+        Next::End => None,
+        Next::Stopped(sig) => die_by(sig),
+    };
     let mut out = match Output::open(&opts.out, &header, opts.bag.as_ref()) {
         Ok(o) => o,
         Err(e) if e.is_broken_pipe() => {
@@ -741,10 +830,9 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
         }
         Err(e) => return Err(e),
     };
-    let t_open = Instant::now();
     // frames/s and ETA on stderr: a bar on a terminal, plain lines for long jobs otherwise
     let mut progress = Progress::new("psns stream", Unit::Frames, opts.frames, false);
-    let res = write_loop(&mut out, &rx, &spare_tx, opts, &mut progress);
+    let res = write_loop(&mut out, first, &rx, &spare_tx, opts, &mut progress);
     drop(progress);
     drop(rx); // a producer blocked on send ends now
     drop(spare_tx); // and one waiting for a buffer
@@ -770,8 +858,29 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
             return Ok(summary);
         }
     }
-    let fin = out.finish();
-    let _ = producer.join();
+    // a failed or stopped stream is marked aborted so that no reader takes it for finished
+    summary.signal = match &err {
+        None => stop_signal(),
+        Some(_) => None,
+    };
+    let fin = match (&err, summary.signal) {
+        (Some(e), _) => out.abort(&e.to_string()),
+        (None, Some(sig)) => out.abort(&format!("stopped by {}", signal_name(sig))),
+        (None, None) => out.finish(),
+    };
+    let fin = match fin {
+        Err(e) if err.is_some() || summary.signal.is_some() => {
+            eprintln!("psns: could not mark the stream aborted in full: {e}");
+            Ok(())
+        }
+        r => r,
+    };
+    if summary.signal.is_some() {
+        // the render thread may be waiting for a trajectory line: leave it
+        drop(producer);
+    } else {
+        let _ = producer.join();
+    }
     summary.seconds = t_open.elapsed().as_secs_f64();
     match (err, fin) {
         (Some(e), _) => Err(e),
@@ -785,8 +894,30 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
 }
 
 /// Writes frames as they arrive, paced by `--rate`. Returns (frames, late) or the error with them.
+/// What the render thread delivered next.
+enum Next {
+    Frame(Box<Result<Rendered>>),
+    /// The poses ended (or the render thread is gone).
+    End,
+    /// A signal asked the stream to stop.
+    Stopped(i32),
+}
+
+/// Waits for the next frame, waking up now and then to see whether a signal asked to stop.
+fn next_frame(rx: &Receiver<Result<Rendered>>) -> Next {
+    loop {
+        match rx.recv_timeout(Duration::from_millis(100)) {
+            _ if stop_signal().is_some() => return Next::Stopped(stop_signal().unwrap_or(0)),
+            Ok(r) => return Next::Frame(Box::new(r)),
+            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => continue,
+            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => return Next::End,
+        }
+    }
+}
+
 fn write_loop(
     out: &mut Output,
+    mut first: Option<Rendered>,
     rx: &Receiver<Result<Rendered>>,
     spare: &SyncSender<Payload>,
     opts: &StreamOptions,
@@ -794,7 +925,14 @@ fn write_loop(
 ) -> std::result::Result<(u64, u64), (u64, u64, Error)> {
     let (mut n, mut late) = (0u64, 0u64);
     let mut t0: Option<Instant> = None;
-    for r in rx.iter() {
+    loop {
+        let r = match first.take() {
+            Some(r) => Ok(r),
+            None => match next_frame(rx) {
+                Next::Frame(r) => *r,
+                Next::End | Next::Stopped(_) => break,
+            },
+        };
         let mut r = match r {
             Ok(r) => r,
             Err(e) => return Err((n, late, e)),

@@ -1,7 +1,7 @@
 //! `psns verify` (check a frame stream; exit 0 only if clean) and `psns extract` (one frame of a
 //! stream as PNG, TIFF and JSON).
 
-use super::{NotClean, Unfinished};
+use super::{Aborted, NotClean, Unfinished};
 use clap::Args;
 use psns::image::Image;
 use psns::io::{create_dir, open_input};
@@ -46,7 +46,8 @@ const VERIFY_EXIT_CODES: &str = "Exit status: 0 clean (one stream, nothing damag
 the LAST flag or the header frame count matches); 1 damaged (corrupt, truncated or dropped frames, skipped bytes, \
 a frame-count mismatch, a damaged file header, or more than one stream in the input: concatenated files or a \
 producer restart); 2 bad input (usage error, not a psns stream, or --recover cannot infer the geometry); \
-3 intact but unfinished (header frame count 0 and no LAST flag: the producer was killed or is still writing).";
+3 intact but unfinished (header frame count 0 and no LAST flag: the producer was killed or is still writing) \
+or aborted (the producer marked the stream aborted, with its reason: bad input, an I/O error or a signal).";
 
 /// Options of `psns verify`.
 #[derive(Args)]
@@ -108,6 +109,9 @@ pub fn run_verify(a: VerifyArgs) -> anyhow::Result<()> {
     match rep.status {
         VerifyStatus::Clean => Ok(()),
         VerifyStatus::Unfinished => Err(anyhow::Error::new(Unfinished)),
+        VerifyStatus::Aborted => Err(anyhow::Error::new(Aborted(
+            rep.aborted.clone().unwrap_or_default(),
+        ))),
         VerifyStatus::Damaged => Err(anyhow::Error::new(NotClean)),
     }
 }

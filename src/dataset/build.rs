@@ -38,12 +38,7 @@ const BYTES_PER_PIXEL: u64 = 90;
 
 /// Reads a dataset description file (missing or unreadable: bad input).
 pub fn load_description(path: &Path) -> Result<DatasetConfig> {
-    let text = std::fs::read_to_string(path).map_err(|e| match e.kind() {
-        std::io::ErrorKind::NotFound => {
-            Error::Invalid(format!("config file {} does not exist", path.display()))
-        }
-        _ => Error::input(path, e),
-    })?;
+    let text = std::fs::read_to_string(path).map_err(|e| Error::input(path, e))?;
     DatasetConfig::from_toml(&text, &format!("config {}", path.display()))
 }
 
@@ -294,6 +289,66 @@ impl Worker<'_> {
     }
 }
 
+/// The lock of one shard's build: `.parts/lock-K-of-N`, held with an exclusive `flock` for the
+/// whole build and holding the holder's host and PID. The kernel drops the lock when its holder
+/// ends, so the lock of a killed build is taken over by the next one; the file itself is only a
+/// name to lock and a note of who holds it.
+struct ShardLock {
+    file: std::fs::File,
+    path: PathBuf,
+}
+
+impl ShardLock {
+    fn take(dir: &Path, shard: Shard) -> Result<ShardLock> {
+        let path = dir
+            .join(PARTS)
+            .join(format!("lock-{}-of-{}", shard.k, shard.n));
+        let ctx = || format!("locking {}", path.display());
+        let mut file = std::fs::OpenOptions::new()
+            .read(true)
+            .write(true)
+            .create(true)
+            .truncate(false)
+            .open(&path)
+            .map_err(|e| Error::io(ctx(), e))?;
+        match file.try_lock() {
+            Ok(()) => {}
+            Err(std::fs::TryLockError::WouldBlock) => {
+                let holder = std::fs::read_to_string(&path).unwrap_or_default();
+                let what = if shard.n == 1 {
+                    "this dataset".to_string()
+                } else {
+                    format!("shard {shard} of this dataset")
+                };
+                return Err(Error::Invalid(format!(
+                    "{what} is being built into {} by {} (lock {}); wait for it to end, or stop it",
+                    dir.display(),
+                    match holder.trim() {
+                        "" => "another process".to_string(),
+                        h => format!("process {h}"),
+                    },
+                    path.display()
+                )));
+            }
+            Err(std::fs::TryLockError::Error(e)) => return Err(Error::io(ctx(), e)),
+        }
+        let note = format!("{} on {}\n", std::process::id(), hostname());
+        file.set_len(0)
+            .and_then(|_| file.write_all(note.as_bytes()))
+            .map_err(|e| Error::io(ctx(), e))?;
+        Ok(ShardLock { file, path })
+    }
+
+    /// Removes the lock file (while still holding it), then `.parts` if that leaves it empty.
+    fn release(self) {
+        let _ = std::fs::remove_file(&self.path);
+        if let Some(parts) = self.path.parent() {
+            let _ = std::fs::remove_dir(parts);
+        }
+        drop(self.file);
+    }
+}
+
 /// How a build went ([`build`]); its `Display` is the summary `psns dataset build` prints.
 #[derive(Clone, Debug)]
 pub struct BuildSummary {
@@ -332,6 +387,12 @@ impl std::fmt::Display for BuildSummary {
                 "psns dataset: {} samples complete; wrote {} ({files} files)",
                 self.total_samples,
                 self.dir.join(MANIFEST).display()
+            ),
+            Merged::Missing { samples, .. } if self.shard.n == 1 => write!(
+                f,
+                "psns dataset: {samples} of {} samples are missing or damaged (changed while this build ran); run the build again with --resume to complete {}",
+                self.total_samples,
+                self.dir.display()
             ),
             Merged::Missing { samples, .. } => write!(
                 f,
@@ -387,6 +448,8 @@ pub fn build(
     for d in &dirs {
         create_dir(d)?;
     }
+    // one build per shard at a time; a lock whose holder died is taken over
+    let lock = ShardLock::take(&dir, shard)?;
     remove_stale_staging(&dir);
     write_shared(&dir.join(DESCRIPTION), &cfg_toml)?;
     write_shared(&dir.join(LABELS), &labels)?;
@@ -478,6 +541,7 @@ pub fn build(
     let files = built * cfg.files(&plan[0]).len();
     let total_seconds = t0.elapsed().as_secs_f64();
     let merged = merge(&dir, cfg, &plan)?;
+    lock.release();
     Ok(BuildSummary {
         dir,
         shard,

@@ -33,10 +33,15 @@ mod tests;
 pub use dist::*;
 pub use sample::*;
 
+/// Peak bytes per sample of a build's plan: its index, the drawn sample and its result, the
+/// shard's copy and its label row.
+const PLAN_BYTES_PER_SAMPLE: u64 = 16 + 3 * std::mem::size_of::<Result<Sample>>() as u64 + 256;
+
 /// Frame-index stride between splits: sample `n` of split id `s` is frame `s · STRIDE + n`.
 pub const SPLIT_STRIDE: u64 = 1_000_000_000;
-/// Most samples in one split.
-pub const MAX_SAMPLES_PER_SPLIT: u64 = SPLIT_STRIDE - 1;
+/// Most samples in one split (so a description holds at most six times as many): the plan of
+/// a build holds every sample's parameters, a few hundred bytes each.
+pub const MAX_SAMPLES_PER_SPLIT: u64 = 10_000_000;
 
 /// One of the six PSNS folders.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -519,8 +524,16 @@ impl DatasetConfig {
     }
 
     /// Every sample in canonical order, or the first that cannot be drawn.
+    ///
+    /// The plan's memory is checked against what the process may use before it is allocated: a
+    /// description too big for this machine is bad input, not an allocation abort.
     pub fn plan(&self) -> Result<Vec<Sample>> {
         use rayon::prelude::*;
+        crate::memory::check_memory(
+            &format!("the plan of {} samples", self.total()),
+            self.total().saturating_mul(PLAN_BYTES_PER_SAMPLE),
+            crate::memory::memory_available(),
+        )?;
         // SPA draws (with `sun_time`) cost a few microseconds each: spread them over the cores
         let ids: Vec<(Split, u64)> = self
             .split_counts()

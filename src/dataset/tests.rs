@@ -126,7 +126,7 @@ fn bad_descriptions_name_the_key_and_range() {
         ("[splits]\nNFP = 3\n", "splits = NFP is out of range"),
         (
             "[splits]\nNFPI = 0\n",
-            "splits.NFPI = 0 is out of range (allowed 1..999999999)",
+            "splits.NFPI = 0 is out of range (allowed 1..10000000)",
         ),
         ("sky_grid = 0\n", "sky_grid = 0"),
         ("[outputs]\nraw = true\n", "raw"),

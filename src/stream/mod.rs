@@ -15,7 +15,7 @@ mod writer;
 pub use reader::{
     extract_frame, find_frame, find_frame_with, verify, verify_with, Damage, Event, Extracted,
     FindOptions, Frame, FrameLocation, RecoverHint, Recovery, StreamReader, VerifyReport,
-    VerifyStatus, VerifyTally, HEADER_DAMAGED,
+    VerifyStatus, VerifyTally, HEADER_DAMAGED, REASON_NOT_RECORDED,
 };
 pub use writer::{FileStreamWriter, StreamWriter};
 
@@ -28,6 +28,14 @@ use serde::{Deserialize, Serialize};
 pub const FILE_MAGIC: [u8; 8] = *b"\x89PSNSRAW";
 /// Frame-header magic `\x89PSNSFRM`.
 pub const FRAME_MAGIC: [u8; 8] = *b"\x89PSNSFRM";
+/// End-record magic `\x89PSNSEND` ([`EndRecord`]).
+pub const END_MAGIC: [u8; 8] = *b"\x89PSNSEND";
+/// End-record size in bytes.
+pub const END_RECORD_SIZE: usize = 256;
+/// Longest reason an end record holds, in bytes (longer ones are cut at a character boundary).
+pub const END_REASON_MAX: usize = END_RECORD_SIZE - 4 - 24;
+/// End-record status: the producer stopped because of a failure.
+pub const END_ABORTED: u32 = 1;
 /// Format major version (readers reject another major).
 pub const VERSION_MAJOR: u16 = 1;
 /// Format minor version written (readers accept any minor).
@@ -164,6 +172,10 @@ pub struct FileHeader {
     pub angle_sense: i16,
     /// Frames in the file; 0 = unknown (stream, or the writer did not close).
     pub frame_count: u64,
+    /// The producer stopped because of a failure (offset 46; set on close of a regular file
+    /// whose run failed, with the frame count left 0). The reason is in the [`EndRecord`].
+    #[serde(default)]
+    pub aborted: bool,
     /// Camera seed.
     pub seed: u64,
     /// Camera constants.
@@ -188,6 +200,7 @@ impl Default for FileHeader {
             layout: MosaicLayout::IMX250MZR,
             angle_sense: 1,
             frame_count: 0,
+            aborted: false,
             seed: 0,
             camera: CameraConstants::default(),
             producer: format!("psns {}", env!("CARGO_PKG_VERSION")),
@@ -327,6 +340,7 @@ impl FileHeader {
             put(&mut b, 36 + 2 * k, (*a as i16).to_le_bytes());
         }
         put(&mut b, 44, self.angle_sense.to_le_bytes());
+        put(&mut b, 46, (self.aborted as u16).to_le_bytes());
         put(&mut b, 48, self.payload_size().to_le_bytes());
         put(&mut b, 56, self.stride().to_le_bytes());
         put(&mut b, 64, self.frame_count.to_le_bytes());
@@ -384,6 +398,10 @@ impl FileHeader {
             return Err(Error::Format(format!("alignment code {align} (0 or 1)")));
         }
         let bits = u16_at(b, 32);
+        let end = u16_at(b, 46);
+        if end > 1 {
+            return Err(Error::Format(format!("end status {end} (0 or 1)")));
+        }
         let mut ch = [0u8; 4];
         for (k, c) in ch.iter_mut().enumerate() {
             let a = i16_at(b, 36 + 2 * k);
@@ -422,6 +440,7 @@ impl FileHeader {
             layout,
             angle_sense: i16_at(b, 44),
             frame_count: u64_at(b, 64),
+            aborted: end == 1,
             seed: u64_at(b, 72),
             camera: CameraConstants::from_array(cam),
             producer: get_str(b, 160, "producer")?,
@@ -580,6 +599,89 @@ impl FrameMeta {
             albedo: f32_at(b, 196),
         };
         Ok((m, u32_at(b, 20)))
+    }
+}
+
+/// The end record (256 bytes, after the last whole frame record): written only when the producer
+/// stops because of a failure (bad input, I/O error, signal), so every reader can tell an aborted
+/// stream from a finished one. A stream that ends normally has none.
+///
+/// | off | type | field |
+/// |---|---|---|
+/// | 0 | u8[8] | magic `\x89PSNSEND` |
+/// | 8 | u64 | frame records written before it |
+/// | 16 | u32 | status: 1 = aborted |
+/// | 20 | u32 | reason length in bytes (at most 228) |
+/// | 24 | u8[228] | reason, UTF-8, zero-padded |
+/// | 252 | u32 | CRC-32 of bytes 0..251 |
+///
+/// ```
+/// use psns::stream::EndRecord;
+/// let e = EndRecord::aborted(3, "trajectory line 4: 'NaN' is not a finite number");
+/// let b = e.encode();
+/// assert_eq!(&b[..8], b"\x89PSNSEND");
+/// assert_eq!(EndRecord::decode(&b).unwrap(), e);
+/// ```
+#[derive(Clone, Debug, PartialEq, Eq, Serialize, Deserialize)]
+pub struct EndRecord {
+    /// Frame records the producer wrote before the end record.
+    pub frames: u64,
+    /// Why the producer stopped.
+    pub reason: String,
+}
+
+impl EndRecord {
+    /// An aborted stream's end record; the reason is cut to [`END_REASON_MAX`] bytes.
+    pub fn aborted(frames: u64, reason: &str) -> Self {
+        let mut n = reason.len().min(END_REASON_MAX);
+        while !reason.is_char_boundary(n) {
+            n -= 1;
+        }
+        EndRecord {
+            frames,
+            reason: reason[..n].to_string(),
+        }
+    }
+
+    /// Encodes the 256-byte record with its CRC.
+    pub fn encode(&self) -> [u8; END_RECORD_SIZE] {
+        let mut b = [0u8; END_RECORD_SIZE];
+        let r = &self.reason.as_bytes()[..self.reason.len().min(END_REASON_MAX)];
+        put(&mut b, 0, END_MAGIC);
+        put(&mut b, 8, self.frames.to_le_bytes());
+        put(&mut b, 16, END_ABORTED.to_le_bytes());
+        put(&mut b, 20, (r.len() as u32).to_le_bytes());
+        b[24..24 + r.len()].copy_from_slice(r);
+        let c = crc32(&b[..END_RECORD_SIZE - 4]);
+        put(&mut b, END_RECORD_SIZE - 4, c.to_le_bytes());
+        b
+    }
+
+    /// Decodes and checks an end record: magic, CRC, status, reason length and UTF-8.
+    pub fn decode(b: &[u8]) -> Result<Self> {
+        if b.len() < END_RECORD_SIZE {
+            return Err(Error::Format("end record truncated".into()));
+        }
+        if b[..8] != END_MAGIC {
+            return Err(Error::Format("end-record magic missing".into()));
+        }
+        if crc32(&b[..END_RECORD_SIZE - 4]) != u32_at(b, END_RECORD_SIZE - 4) {
+            return Err(Error::Format("end record CRC mismatch".into()));
+        }
+        let status = u32_at(b, 16);
+        if status != END_ABORTED {
+            return Err(Error::Format(format!("end record status {status}")));
+        }
+        let n = u32_at(b, 20) as usize;
+        if n > END_REASON_MAX {
+            return Err(Error::Format(format!("end record reason of {n} bytes")));
+        }
+        let reason = String::from_utf8(b[24..24 + n].to_vec())
+            .map_err(|_| Error::Format("end record reason is not UTF-8".into()))?;
+        Ok(EndRecord {
+            frames: u64_at(b, 8),
+            reason,
+        })
     }
 }
 

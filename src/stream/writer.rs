@@ -1,7 +1,9 @@
 //! Stream writer: file header, then whole records (header | payload | zero pad), one vectored
 //! write and one flush per frame so a reader can follow the stream as it grows.
 
-use super::{crc32, FileHeader, FrameMeta, FILE_HEADER_SIZE, FLAG_DROPPED, FRAME_HEADER_SIZE};
+use super::{
+    crc32, EndRecord, FileHeader, FrameMeta, FILE_HEADER_SIZE, FLAG_DROPPED, FRAME_HEADER_SIZE,
+};
 use crate::error::{Error, Result};
 use crate::sensor::packing::{pack, payload_size};
 use std::fs::File;
@@ -21,6 +23,8 @@ pub struct StreamWriter<W: Write> {
     last_index: Option<u64>,
     frames: u64,
     sensor_bits: u8,
+    /// A write failed: part of a record may have gone out, so the position is unknown.
+    broken: bool,
 }
 
 impl<W: Write> StreamWriter<W> {
@@ -46,6 +50,7 @@ impl<W: Write> StreamWriter<W> {
             packed: Vec::new(),
             last_index: None,
             frames: 0,
+            broken: false,
             sensor_bits: if header.pixel_format == crate::sensor::packing::PixelFormat::Mono8 {
                 12
             } else {
@@ -142,10 +147,34 @@ impl<W: Write> StreamWriter<W> {
         let pad = &self.pad[..self.header.stride() as usize - FRAME_HEADER_SIZE - p];
         write_all_vectored(&mut self.w, &[&hdr[..], payload, pad])
             .and_then(|_| self.w.flush())
-            .map_err(|e| Error::io(format!("writing stream frame {}", meta.index), e))?;
+            .map_err(|e| {
+                self.broken = true;
+                Error::io(format!("writing stream frame {}", meta.index), e)
+            })?;
         self.last_index = Some(meta.index);
         self.frames += 1;
         Ok(())
+    }
+
+    /// Marks the stream aborted: writes the [`EndRecord`] with `reason` after the last whole
+    /// record and flushes. For a producer that stops because of a failure (bad input, I/O error,
+    /// signal); a stream that ends normally gets no end record. Writes nothing and fails when an
+    /// earlier write failed, since part of a record may then be out.
+    pub fn abort(&mut self, reason: &str) -> Result<()> {
+        if self.broken {
+            return Err(Error::io(
+                "writing the stream's end record",
+                std::io::Error::other("an earlier write failed part-way"),
+            ));
+        }
+        let rec = EndRecord::aborted(self.frames, reason).encode();
+        self.w
+            .write_all(&rec)
+            .and_then(|_| self.w.flush())
+            .map_err(|e| {
+                self.broken = true;
+                Error::io("writing the stream's end record", e)
+            })
     }
 
     /// Flushes and returns the inner writer.
@@ -243,23 +272,72 @@ impl FileStreamWriter {
         let n = self.inner.frames_written();
         let mut header = self.inner.header().clone();
         let mut f = self.inner.finish()?;
-        let regular = f
-            .metadata()
-            .map(|m| m.file_type().is_file())
-            .unwrap_or(false);
-        if regular {
+        if is_regular(&f) {
             header.frame_count = n;
-            let b = header.encode()?;
-            debug_assert_eq!(b.len(), FILE_HEADER_SIZE);
-            let end = f
-                .stream_position()
-                .map_err(|e| Error::io("patching stream frame count", e))?;
-            f.seek(SeekFrom::Start(0))
-                .and_then(|_| f.write_all(&b))
-                .and_then(|_| f.seek(SeekFrom::Start(end)))
-                .and_then(|_| f.flush())
+            patch_header(&mut f, &header)
                 .map_err(|e| Error::io("patching stream frame count", e))?;
         }
         Ok(n)
     }
+
+    /// Ends a stream whose producer failed (bad input, I/O error, signal), so that every reader
+    /// sees it aborted rather than finished: the frame count stays 0, and
+    /// - a regular file loses a partly written record (cut back to the last whole one), gets the
+    ///   [`EndRecord`] with `reason` and its header's `aborted` mark (which needs no new disk
+    ///   space, so it lands even when the end record does not fit on a full disk);
+    /// - a FIFO or device gets the end record if no write failed part-way.
+    ///
+    /// Every step is tried; the first failure is returned.
+    pub fn abort(mut self, reason: &str) -> Result<u64> {
+        let n = self.inner.frames_written();
+        let regular = is_regular(&self.inner.w);
+        let whole = FILE_HEADER_SIZE as u64 + n * self.inner.header.stride();
+        let mut first: Option<Error> = None;
+        if regular && self.inner.broken {
+            let f = &mut self.inner.w;
+            match f
+                .set_len(whole)
+                .and_then(|_| f.seek(SeekFrom::Start(whole)))
+            {
+                Ok(_) => self.inner.broken = false,
+                Err(e) => first = Some(Error::io("cutting the partly written frame record", e)),
+            }
+        }
+        if let Err(e) = self.inner.abort(reason) {
+            if regular {
+                // a partial end record would read as damage: cut it off
+                let _ = self.inner.w.set_len(whole);
+            }
+            first.get_or_insert(e);
+        }
+        if regular {
+            let mut header = self.inner.header.clone();
+            header.frame_count = 0;
+            header.aborted = true;
+            if let Err(e) = patch_header(&mut self.inner.w, &header) {
+                first.get_or_insert(Error::io("marking the stream aborted in its header", e));
+            }
+        }
+        match first {
+            None => Ok(n),
+            Some(e) => Err(e),
+        }
+    }
+}
+
+fn is_regular(f: &File) -> bool {
+    f.metadata().is_ok_and(|m| m.file_type().is_file())
+}
+
+/// Rewrites the file header at the start of `f` and returns to where it was.
+fn patch_header(f: &mut File, header: &FileHeader) -> std::io::Result<()> {
+    let b = header
+        .encode()
+        .map_err(|e| std::io::Error::other(e.to_string()))?;
+    debug_assert_eq!(b.len(), FILE_HEADER_SIZE);
+    let end = f.stream_position()?;
+    f.seek(SeekFrom::Start(0))?;
+    f.write_all(&b)?;
+    f.seek(SeekFrom::Start(end))?;
+    f.flush()
 }

@@ -7,6 +7,7 @@
 mod common;
 
 mod commands;
+mod full_disk;
 mod layering;
 mod lens;
 mod outputs;

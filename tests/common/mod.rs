@@ -102,3 +102,73 @@ pub fn simulate_float(
     c.psns = None;
     psns::sensor::Sensor::new(&c, i, 0)?.float_image(st)
 }
+
+/// Builds the C stream reader (tools/psns_stream.c) into `dir` and returns its path.
+pub fn c_stream_reader(dir: &Path) -> std::path::PathBuf {
+    let exe = dir.join("psns_stream_c");
+    let st = Command::new("cc")
+        .args(["-std=c99", "-O2", "-Wall", "-Werror", "-o"])
+        .arg(&exe)
+        .arg(concat!(env!("CARGO_MANIFEST_DIR"), "/tools/psns_stream.c"))
+        .status()
+        .expect("a C compiler (cc) is required");
+    assert!(st.success());
+    exe
+}
+
+/// A small tmpfs mounted for a test (a full file system on demand), unmounted on drop. Mounting
+/// needs root, which the test machines and CI have; anywhere else the test fails and says why.
+pub struct Tmpfs {
+    dir: tempfile::TempDir,
+}
+
+impl Tmpfs {
+    /// Mounts a tmpfs of `kib` KiB (rounded up to pages by the kernel).
+    pub fn new(kib: u64) -> Tmpfs {
+        let dir = tempfile::tempdir().unwrap();
+        let o = Command::new("mount")
+            .args(["-t", "tmpfs", "-o", &format!("size={kib}k"), "psns-test"])
+            .arg(dir.path())
+            .output()
+            .expect("mount(8)");
+        assert!(
+            o.status.success(),
+            "mounting a {kib} KiB tmpfs for a full-disk test failed (it needs root, as on the test \
+             machines and CI): {}",
+            String::from_utf8_lossy(&o.stderr)
+        );
+        Tmpfs { dir }
+    }
+
+    /// The mount point.
+    pub fn path(&self) -> &Path {
+        self.dir.path()
+    }
+
+    /// Fills the file system up to the last `keep` bytes with a file named `filler`.
+    pub fn fill(&self, keep: u64) {
+        let st = free_bytes(self.path());
+        let free = st.saturating_sub(keep);
+        std::fs::write(self.path().join("filler"), vec![0u8; free as usize]).unwrap();
+    }
+}
+
+impl Drop for Tmpfs {
+    fn drop(&mut self) {
+        let _ = Command::new("umount").arg(self.dir.path()).status();
+    }
+}
+
+/// Free bytes of the file system at `p` (df).
+fn free_bytes(p: &Path) -> u64 {
+    let o = Command::new("df")
+        .args(["--output=avail", "-B1"])
+        .arg(p)
+        .output()
+        .expect("df");
+    String::from_utf8_lossy(&o.stdout)
+        .lines()
+        .nth(1)
+        .and_then(|l| l.trim().parse().ok())
+        .expect("df --output=avail")
+}

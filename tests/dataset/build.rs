@@ -1020,3 +1020,100 @@ fn soft_clouds_differ_per_sample_and_render_again() {
         );
     }
 }
+
+/// Split sizes over the cap, and a description within it that the memory the process may use
+/// cannot plan, are refused in one short line (exit 2, nothing written) before the plan is
+/// allocated: under a 2 GB address-space limit, where allocating it would abort the process.
+#[test]
+fn oversized_descriptions_are_refused_before_allocating() {
+    let d = tempfile::tempdir().unwrap();
+    let six = "[splits]\nNFPI = 10000000\nGNIIPI = 10000000\nGNIICPI = 10000000\nTNFPI = 10000000\nTGNIIPI = 10000000\nTGNIICPI = 10000000\n";
+    for (text, want) in [
+        (
+            "[splits]\nNFPI = 999999999\n",
+            "splits.NFPI = 999999999 is out of range (allowed 1..10000000)",
+        ),
+        (
+            "width = 64\nheight = 48\n[splits]\nGNIIPI = 10000001\n",
+            "splits.GNIIPI = 10000001 is out of range",
+        ),
+        (six, "the plan of 60000000 samples needs about"),
+    ] {
+        let cfg = write_config(d.path(), text);
+        let out = d.path().join("out");
+        let o = Command::new("sh")
+            .arg("-c")
+            .arg("ulimit -v 2000000 && exec \"$0\" \"$@\"")
+            .arg(bin())
+            .args(["dataset", "build", "--out"])
+            .arg(&out)
+            .arg("--config")
+            .arg(&cfg)
+            .output()
+            .unwrap();
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(2), "{e}");
+        assert!(e.contains(want), "{e}");
+        assert_eq!(e.trim_end().lines().count(), 1, "{e}");
+        assert!(e.len() < 250, "{e}");
+        assert!(!out.exists());
+    }
+}
+
+/// Two builds of one shard into one directory: the second exits 2 naming the holder and writes
+/// nothing; the lock of a killed holder is taken over by the next build, which completes the
+/// dataset.
+#[test]
+fn a_second_build_of_the_same_shard_is_refused_and_a_dead_holders_lock_taken_over() {
+    let t = tempfile::tempdir().unwrap();
+    let cfg = write_config(
+        t.path(),
+        "seed = 4\nwidth = 128\nheight = 96\n[splits]\nNFPI = 1000\n",
+    );
+    let out = t.path().join("d");
+    let start = || {
+        Command::new(bin())
+            .args(["dataset", "build", "--out"])
+            .arg(&out)
+            .arg("--config")
+            .arg(&cfg)
+            .args(["--jobs", "1"])
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap()
+    };
+    let mut first = start();
+    let part = out.join(".parts/manifest-1-of-1.csv");
+    let t0 = Instant::now();
+    while std::fs::read_to_string(&part).map_or(0, |s| s.lines().count()) < 5 {
+        assert!(
+            t0.elapsed() < Duration::from_secs(30),
+            "build made no progress"
+        );
+        std::thread::sleep(Duration::from_millis(5));
+    }
+    let labels = std::fs::read(out.join("labels.csv")).unwrap();
+    let o = build(&out, &cfg, &["--jobs", "1"]);
+    let e = stderr(&o);
+    assert_eq!(o.status.code(), Some(2), "{e}");
+    assert!(
+        e.contains("is being built") && e.contains(&format!("process {}", first.id())),
+        "{e}"
+    );
+    assert_eq!(e.trim_end().lines().count(), 1, "{e}");
+    // the holder's files are untouched: its part keeps growing, nothing was truncated
+    assert_eq!(std::fs::read(out.join("labels.csv")).unwrap(), labels);
+    assert!(
+        first.try_wait().unwrap().is_none(),
+        "the first build ended early"
+    );
+    first.kill().unwrap();
+    first.wait().unwrap();
+    assert!(out.join(".parts/lock-1-of-1").exists());
+    // the lock of the killed build is taken over
+    ok(&build(&out, &cfg, &["--jobs", "2", "--resume"]));
+    assert!(out.join("manifest.csv").exists());
+    assert!(!out.join(".parts").exists());
+    let v = psns(&["dataset", "verify", out.to_str().unwrap()]);
+    assert!(v.status.success(), "{}", stderr(&v));
+}

@@ -67,7 +67,7 @@ fn s(p: &Path) -> &str {
     p.to_str().unwrap()
 }
 
-/// All frames of a stream (panics on damage).
+/// All frames of a stream (panics on damage; an end record of an aborted stream may follow).
 fn frames(bytes: &[u8]) -> (FileHeader, Vec<Frame>) {
     let mut r = StreamReader::new(bytes).unwrap();
     let h = r.header().clone();
@@ -78,6 +78,7 @@ fn frames(bytes: &[u8]) -> (FileHeader, Vec<Frame>) {
                 assert!(f.payload_crc_ok, "frame {} payload CRC", f.meta.index);
                 out.push(f)
             }
+            Event::Aborted { frames, .. } => assert_eq!(frames, out.len() as u64),
             other => panic!("unexpected {other:?}"),
         }
     }
@@ -326,11 +327,14 @@ fn malformed_trajectory_lines_keep_earlier_frames_valid() {
             assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
             let e = stderr(&o);
             assert!(e.contains(line) && e.contains(what), "{e}");
+            // the frames before the bad line are intact, and the stream reads aborted
             let v = verify(&out);
-            assert!(v.status.success(), "{}", String::from_utf8_lossy(&v.stdout));
+            let text = String::from_utf8_lossy(&v.stdout);
+            assert_eq!(v.status.code(), Some(3), "{text}");
+            assert!(text.contains("ABORTED") && text.contains(line), "{text}");
             let (h, f) = frames(&std::fs::read(&out).unwrap());
             assert_eq!(f.len(), 2);
-            assert_eq!(h.frame_count, 2);
+            assert_eq!((h.frame_count, h.aborted), (0, true));
         }
     }
     // a bad header line: nothing is written at all
@@ -339,6 +343,81 @@ fn malformed_trajectory_lines_keep_earlier_frames_valid() {
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
     assert!(stderr(&o).contains("line 1"), "{}", stderr(&o));
     assert!(!out.exists());
+}
+
+/// Trajectory input a new user might feed: a 10 MB line, bytes that are not UTF-8, a first pose
+/// that cannot be streamed, and a last line cut off inside a number on a pipe.
+#[test]
+fn trajectory_input_errors_are_short_numbered_and_write_nothing_early() {
+    let d = tempfile::tempdir().unwrap();
+    let head = "t_s,yaw_deg,pitch_deg,roll_deg\n";
+    // a 10 MB number on line 3: at most a few dozen of its characters on stderr
+    let t = d.path().join("big.csv");
+    std::fs::write(
+        &t,
+        format!("{head}0,0,0,0\n0.05,{},0,0\n", "9".repeat(10 << 20)),
+    )
+    .unwrap();
+    let out = d.path().join("big.psns");
+    let o = run(&["--trajectory", s(&t), "--out", s(&out)]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(o.stderr.len() < 250, "{} bytes of stderr", o.stderr.len());
+    assert!(stderr(&o).contains("line 3"), "{}", stderr(&o));
+    // not UTF-8: bad input (2) with the line, not an I/O error (1)
+    let t = d.path().join("bytes.csv");
+    std::fs::write(
+        &t,
+        [head.as_bytes(), b"0,0,0,0\n\n0.1,\xff\xfe,0,0\n"].concat(),
+    )
+    .unwrap();
+    let out = d.path().join("bytes.psns");
+    let o = run(&["--trajectory", s(&t), "--out", s(&out)]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("line 4") && stderr(&o).contains("UTF-8"),
+        "{}",
+        stderr(&o)
+    );
+    // a first pose that cannot be streamed: nothing is written (no header-only file)
+    for (name, first, what) in [
+        ("column", "0,0,0\n", "line 2: expected 4 columns"),
+        ("time", "1e308,0,0,0\n", "line 2: t_s = 1e308"),
+        ("yaw", "0,1e308,0,0\n", "line 2: yaw = 1e308"),
+    ] {
+        let t = d.path().join(format!("{name}.csv"));
+        std::fs::write(&t, format!("{head}{first}")).unwrap();
+        let out = d.path().join(format!("{name}.psns"));
+        for o in [
+            run(&["--trajectory", s(&t), "--out", s(&out)]),
+            run_stdin(
+                &["--trajectory", "-", "--out", s(&out)],
+                &format!("{head}{first}"),
+            ),
+        ] {
+            assert_eq!(o.status.code(), Some(2), "{name}: {}", stderr(&o));
+            assert!(stderr(&o).contains(what), "{name}: {}", stderr(&o));
+            assert!(!out.exists(), "{name}: a file was written");
+        }
+    }
+    // a last line without its newline, from a pipe: refused (the stream reads aborted); from a
+    // regular file it is a file saved without a final newline, and taken
+    let cut = format!("{head}0,0,0,0\n0.05,12,0,0.2");
+    let out = d.path().join("cut.psns");
+    let o = run_stdin(&["--trajectory", "-", "--out", s(&out)], &cut);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("line 3") && stderr(&o).contains("no newline"),
+        "{}",
+        stderr(&o)
+    );
+    let v = verify(&out);
+    assert_eq!(v.status.code(), Some(3));
+    assert!(String::from_utf8_lossy(&v.stdout).contains("ABORTED"));
+    let t = d.path().join("cut.csv");
+    std::fs::write(&t, &cut).unwrap();
+    let o = run(&["--trajectory", s(&t), "--out", s(&out)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(frames(&std::fs::read(&out).unwrap()).1.len(), 2);
 }
 
 #[test]

@@ -95,6 +95,11 @@ fn rust_dump(bytes: &[u8]) -> String {
             } => s += &format!("truncated {} {offset} {have} {need}\n", id(index)),
             Event::Skipped { offset, bytes } => s += &format!("skipped {offset} {bytes}\n"),
             Event::Restart(h) => s += &format!("restart\n{}", header_line(&h)),
+            Event::Aborted {
+                offset,
+                frames,
+                reason,
+            } => s += &format!("aborted {offset} {frames} {reason}\n"),
         }
     }
     s
@@ -103,7 +108,7 @@ fn rust_dump(bytes: &[u8]) -> String {
 fn header_line(h: &FileHeader) -> String {
     let a = h.layout.angles_deg();
     format!(
-        "header {} {} {:08x} {} {} {} {} {} {} {},{},{},{}\n",
+        "header {} {} {:08x} {} {} {} {} {} {} {},{},{},{}{}\n",
         h.width,
         h.height,
         h.pixel_format.pfnc_code(),
@@ -116,7 +121,8 @@ fn header_line(h: &FileHeader) -> String {
         a[0],
         a[1],
         a[2],
-        a[3]
+        a[3],
+        if h.aborted { " aborted" } else { "" }
     )
 }
 
@@ -302,7 +308,45 @@ fn event_cases() -> Vec<(&'static str, Vec<u8>)> {
     let mut b = stream(PixelFormat::Mono8, 16, 8, 2, false);
     b.extend_from_slice(b"\x89PS");
     v.push(("stray-tail", b));
+    // producers that stopped on a failure: an end record after the last frame (a pipe), also
+    // with the header's mark (a file), one after damage (found by resynchronisation), one whose
+    // CRC fails (damage), one cut short (truncated), and the header's mark alone
+    let aborted = |n: u64, reason: &str| {
+        let mut b = stream(PixelFormat::Mono12p, 16, 8, n, false);
+        b.extend_from_slice(&EndRecord::aborted(n, reason).encode());
+        b
+    };
+    v.push((
+        "aborted",
+        aborted(2, "trajectory line 4: 'NaN' is not a finite number"),
+    ));
+    let mut b = aborted(
+        3,
+        "writing stream frame 3: No space left on device (os error 28)",
+    );
+    mark_aborted(&mut b);
+    v.push(("aborted-marked", b));
+    let mut b = aborted(2, "stopped by SIGTERM — ünïcode");
+    b.splice(4096 + 4096 + 30..4096 + 4096 + 30, *b"garbage");
+    v.push(("aborted-after-damage", b));
+    let mut b = aborted(1, &"x".repeat(400));
+    let n = b.len();
+    b[n - 100] ^= 1;
+    v.push(("aborted-bad-crc", b));
+    let mut b = aborted(1, "cut");
+    b.truncate(b.len() - 10);
+    v.push(("aborted-cut", b));
+    let mut b = stream(PixelFormat::Mono8, 16, 8, 2, false);
+    mark_aborted(&mut b);
+    v.push(("aborted-header-only", b));
     v
+}
+
+/// Sets the file header's aborted mark (offset 46) and its CRC.
+fn mark_aborted(b: &mut [u8]) {
+    b[46] = 1;
+    let c = crc32(&b[..4092]);
+    b[4092..4096].copy_from_slice(&c.to_le_bytes());
 }
 
 #[test]
@@ -355,7 +399,8 @@ fn check_matches_dump(exe: &Path, p: &Path, want: &str, name: &str) {
         match f[0] {
             "frame" if f[3] == "1" => lines += &format!("frame {} {}\n", f[1], f[f.len() - 2]),
             "frame" => damaged = true,
-            "gap" | "corrupt" | "truncated" | "skipped" => damaged = true,
+            "gap" | "corrupt" | "truncated" | "skipped" | "aborted" => damaged = true,
+            "header" if l.ends_with(" aborted") => damaged = true,
             "restart" => restarted = true,
             _ => {}
         }
@@ -689,6 +734,10 @@ fn crafted_cases() -> Vec<(&'static str, Vec<u8>)> {
             "stride off",
             crafted(&|b| set(b, 56, &8192u64.to_le_bytes())),
         ),
+        (
+            "end status 2",
+            crafted(&|b| set(b, 46, &2u16.to_le_bytes())),
+        ),
     ]
 }
 
@@ -721,10 +770,11 @@ fn crafted_headers_rejected_by_all_readers() {
         if !good {
             assert!(out.stdout.is_empty(), "C printed for {name}");
         }
-        {
+        // every command of the numpy reader: a message, never a traceback
+        for cmd in ["dump", "info", "mmdump"] {
             let out = common::python_cmd()
                 .arg(root().join("tools/psns_stream.py"))
-                .arg("dump")
+                .arg(cmd)
                 .arg(&p)
                 .output()
                 .unwrap();
@@ -732,9 +782,9 @@ fn crafted_headers_rejected_by_all_readers() {
             assert_eq!(
                 out.status.code(),
                 Some(if good { 0 } else { 1 }),
-                "Python: {name}: {err}"
+                "Python {cmd}: {name}: {err}"
             );
-            assert!(!err.contains("Traceback"), "Python: {name}: {err}");
+            assert!(!err.contains("Traceback"), "Python {cmd}: {name}: {err}");
         }
         // the same header after a valid stream is a restart only if it is valid: otherwise
         // the readers skip it as damage (no restart line), like Rust
@@ -759,6 +809,40 @@ fn crafted_headers_rejected_by_all_readers() {
                     "Python: {name}"
                 );
             }
+        }
+    }
+}
+
+/// Ctrl-C while the numpy reader waits for a pipe, and a missing file: a message or nothing,
+/// never a traceback.
+#[test]
+fn python_reader_ends_quietly_on_ctrl_c_and_missing_files() {
+    common::require_numpy();
+    let tool = root().join("tools/psns_stream.py");
+    for args in [vec!["dump", "-"], vec!["info", "/nonexistent.psns"]] {
+        let mut child = common::python_cmd()
+            .arg(&tool)
+            .args(&args)
+            .stdin(std::process::Stdio::piped())
+            .stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap();
+        // let the interpreter start and block reading the pipe, then interrupt it
+        std::thread::sleep(std::time::Duration::from_millis(1500));
+        let _ = Command::new("kill")
+            .args(["-INT", &child.id().to_string()])
+            .status();
+        let stdin = child.stdin.take();
+        let out = common::wait_deadline(child, 30);
+        drop(stdin);
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(!err.contains("Traceback"), "{args:?}: {err}");
+        if args[0] == "dump" {
+            assert_eq!(out.status.code(), Some(130), "{args:?}: {err}");
+        } else {
+            assert_eq!(out.status.code(), Some(1), "{args:?}: {err}");
+            assert!(err.contains("No such file"), "{err}");
         }
     }
 }

@@ -3,7 +3,7 @@
 //! terminal, non-stream input, and the Python reader on a closed pipe.
 
 use crate::common;
-use common::{psns, python_cmd, require_numpy, stderr};
+use common::{c_stream_reader, psns, python_cmd, require_numpy, stderr, Tmpfs};
 use psns::sensor::packing::PixelFormat;
 use psns::stream::{
     extract_frame, find_frame_with, verify, verify_with, FileHeader, FindOptions, FrameMeta,
@@ -95,6 +95,193 @@ fn killed_producer_is_reported_unfinished_exit_3() {
     let rep = verify(Cursor::new(&b[..whole])).unwrap();
     assert_eq!(rep.status, VerifyStatus::Unfinished);
     assert!(rep.intact() && !rep.clean() && !rep.finished);
+}
+
+/// The end every reader reports for a stream file: `psns verify` (exit 3, the reason in the
+/// report), the C reader's `check` (exit 1, the reason on stderr) and the numpy reader (`dump`'s
+/// `aborted` line and `info`'s `aborted`).
+fn assert_aborted_everywhere(p: &Path, reason: &str) {
+    let o = psns(&["verify", s(p)]);
+    assert_eq!(o.status.code(), Some(3), "{}{}", stdout(&o), stderr(&o));
+    assert!(
+        stdout(&o).contains("ABORTED") && stdout(&o).contains(reason),
+        "{}",
+        stdout(&o)
+    );
+    assert!(stderr(&o).contains(reason), "{}", stderr(&o));
+    let o = psns(&["verify", "--json", s(p)]);
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert_eq!(j["status"], "aborted");
+    assert!(j["aborted"].as_str().unwrap().contains(reason), "{j}");
+    let d = tempfile::tempdir().unwrap();
+    let o = Command::new(c_stream_reader(d.path()))
+        .args(["check", s(p)])
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1), "C check: {}", stderr(&o));
+    assert!(
+        stderr(&o).contains("aborted by its producer") && stderr(&o).contains(reason),
+        "C check: {}",
+        stderr(&o)
+    );
+    require_numpy();
+    let tool = concat!(env!("CARGO_MANIFEST_DIR"), "/tools/psns_stream.py");
+    let o = python_cmd().args([tool, "dump", s(p)]).output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let last = stdout(&o).lines().last().unwrap_or("").to_string();
+    if !reason.starts_with("reason not recorded") {
+        assert!(
+            last.starts_with("aborted ") && last.contains(reason),
+            "Python dump: {last}"
+        );
+    }
+    let o = python_cmd().args([tool, "info", s(p)]).output().unwrap();
+    assert!(o.status.success(), "{}", stderr(&o));
+    let j: serde_json::Value = serde_json::from_slice(&o.stdout).unwrap();
+    assert!(
+        j["aborted"].as_str().is_some_and(|r| r.contains(reason)),
+        "Python info: {}",
+        j["aborted"]
+    );
+}
+
+/// A run that fails on bad input after writing frames used to leave a stream that verified
+/// clean (the writer patched the frame count on its error path).
+#[test]
+fn stream_stopped_by_bad_input_reads_aborted() {
+    let d = tempfile::tempdir().unwrap();
+    let t = d.path().join("t.csv");
+    std::fs::write(
+        &t,
+        "t_s,yaw_deg,pitch_deg,roll_deg\n0,0,0,0\n0.05,0,0,0\n0.1,NaN,0,0\n",
+    )
+    .unwrap();
+    let out = d.path().join("t.psns");
+    let o = psns(&[
+        "stream",
+        "--trajectory",
+        s(&t),
+        "--width",
+        "64",
+        "--height",
+        "64",
+        "--out",
+        s(&out),
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let why = "trajectory line 4: 'NaN' is not a finite number";
+    assert!(stderr(&o).contains(why), "{}", stderr(&o));
+    assert_aborted_everywhere(&out, why);
+    let b = std::fs::read(&out).unwrap();
+    let h = FileHeader::decode(&b).unwrap();
+    assert!(h.aborted && h.frame_count == 0, "{h:?}");
+    // the library, and the same stream through a pipe (no header mark: the end record says it)
+    let rep = verify(Cursor::new(&b)).unwrap();
+    assert_eq!(rep.status, VerifyStatus::Aborted, "{rep}");
+    assert_eq!((rep.frames, rep.aborted.as_deref()), (2, Some(why)));
+    let o = common::psns_stdin(
+        &[
+            "stream",
+            "--width",
+            "64",
+            "--height",
+            "64",
+            "--trajectory",
+            "-",
+        ],
+        &std::fs::read_to_string(&t).unwrap(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(!FileHeader::decode(&o.stdout).unwrap().aborted);
+    let rep = verify(Cursor::new(&o.stdout)).unwrap();
+    assert_eq!(rep.status, VerifyStatus::Aborted, "{rep}");
+    assert_eq!(rep.aborted.as_deref(), Some(why));
+    let p = d.path().join("pipe.psns");
+    std::fs::write(&p, &o.stdout).unwrap();
+    assert_aborted_everywhere(&p, why);
+}
+
+/// A disk that fills mid-frame: the partial record is cut, the end record says why when it still
+/// fits, and the header's mark says "aborted" when it does not; never a finished stream.
+#[test]
+fn stream_on_a_full_disk_reads_aborted() {
+    // 64 x 64 Mono16: 4096-byte header, 12 288-byte records (three pages each); a 116 KiB tmpfs
+    // holds 9 records and a page of the tenth, a 112 KiB one exactly 9 records
+    for (kib, reason) in [
+        (116, "writing stream frame 9: No space left on device"),
+        (112, "reason not recorded"),
+    ] {
+        let fs = Tmpfs::new(kib);
+        let out = fs.path().join("s.psns");
+        let o = psns(&[
+            "stream",
+            "--width",
+            "64",
+            "--height",
+            "64",
+            "--frames",
+            "100",
+            "--out",
+            s(&out),
+        ]);
+        assert_eq!(o.status.code(), Some(1), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains("No space left on device"),
+            "{}",
+            stderr(&o)
+        );
+        let len = std::fs::metadata(&out).unwrap().len();
+        assert_eq!(
+            (len - 4096) % 12_288,
+            if reason.starts_with("writing") {
+                256
+            } else {
+                0
+            }
+        );
+        assert_aborted_everywhere(&out, reason);
+        let rep = verify(Cursor::new(std::fs::read(&out).unwrap())).unwrap();
+        assert_eq!(
+            (rep.status, rep.frames),
+            (VerifyStatus::Aborted, 9),
+            "{rep}"
+        );
+    }
+}
+
+/// SIGINT, SIGTERM and SIGHUP stop the stream between frames, mark it aborted, and end psns by
+/// the same signal.
+#[test]
+fn stream_stopped_by_a_signal_reads_aborted() {
+    use std::os::unix::process::ExitStatusExt;
+    let d = tempfile::tempdir().unwrap();
+    for (sig, name) in [(15, "SIGTERM"), (2, "SIGINT"), (1, "SIGHUP")] {
+        let out = d.path().join(format!("{name}.psns"));
+        let child = Command::new(env!("CARGO_BIN_EXE_psns"))
+            .args(["stream", "--width", "64", "--height", "64", "--rate", "20"])
+            .args(["--out", s(&out)])
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        let t = Instant::now();
+        while std::fs::metadata(&out).map_or(0, |m| m.len()) < 4096 + 2 * 12_288 {
+            assert!(t.elapsed() < Duration::from_secs(60), "producer too slow");
+            std::thread::sleep(Duration::from_millis(10));
+        }
+        let st = Command::new("kill")
+            .args([&format!("-{sig}"), &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(st.success());
+        let o = common::wait_deadline(child, 30);
+        assert_eq!(o.status.signal(), Some(sig), "{}", stderr(&o));
+        assert!(
+            stderr(&o).contains(&format!("stopped by {name}")),
+            "{}",
+            stderr(&o)
+        );
+        assert_aborted_everywhere(&out, &format!("stopped by {name}"));
+    }
 }
 
 #[test]
@@ -435,4 +622,62 @@ fn python_reader_recovers_a_damaged_header() {
             "pos {pos}"
         );
     }
+}
+
+// ---- memory: a header that declares huge frames ----
+
+/// A valid header declaring 32768 x 16384 Mono16 frames (a 1 GiB payload, the largest allowed),
+/// one frame header and 24 000 bytes of its payload: 28 KB on disk.
+fn lying_stream() -> Vec<u8> {
+    let h = FileHeader {
+        width: 32_768,
+        height: 16_384,
+        pixel_format: PixelFormat::Mono16,
+        bits_valid: 12,
+        ..Default::default()
+    };
+    let mut b = h.encode().unwrap();
+    b.extend_from_slice(&FrameMeta::default().encode(0));
+    b.resize(b.len() + 24_000, 0);
+    b
+}
+
+/// `verify`, `extract` and `demosaic` used to allocate the declared 1 GiB record before finding
+/// that the file ends: under a 256 MiB address-space limit they died of a failed allocation.
+/// The reader's buffer now grows with the bytes that arrive.
+#[test]
+fn a_header_declaring_huge_frames_costs_the_file_not_the_header() {
+    let d = tempfile::tempdir().unwrap();
+    let f = d.path().join("lying.psns");
+    std::fs::write(&f, lying_stream()).unwrap();
+    let out = d.path().join("out");
+    let exe = env!("CARGO_BIN_EXE_psns");
+    for (args, code, says) in [
+        (vec!["verify", s(&f)], 1, "truncated: 1"),
+        (
+            vec!["extract", s(&f), "--frame", "0", "--out", s(&out)],
+            2,
+            "frame 0 is not in the stream",
+        ),
+        (
+            vec!["demosaic", s(&f), "--out", s(&out)],
+            2,
+            "no intact frame",
+        ),
+    ] {
+        let o = Command::new("sh")
+            .arg("-c")
+            .arg("ulimit -v 262144; exec \"$@\"")
+            .arg("sh")
+            .arg(exe)
+            .args(&args)
+            .output()
+            .unwrap();
+        let text = format!("{}{}", stdout(&o), stderr(&o));
+        assert_eq!(o.status.code(), Some(code), "{args:?}: {text}");
+        assert!(text.contains(says), "{args:?}: {text}");
+    }
+    // the library reader on the bytes: a truncated record, no frame
+    let rep = verify(Cursor::new(lying_stream())).unwrap();
+    assert_eq!((rep.frames, rep.truncated.len()), (0, 1), "{rep}");
 }

@@ -487,7 +487,7 @@ fn bad_input_exits_2_and_writes_nothing() {
 }
 
 #[test]
-fn bad_trajectory_line_closes_a_whole_bag_with_the_frames_before() {
+fn a_bad_trajectory_line_leaves_an_unfinished_bag() {
     let d = tempfile::tempdir().unwrap();
     let bag = d.path().join("b");
     let input = "t_s,yaw_deg,pitch_deg,roll_deg\n0,0,0,0\n0.1,10,0,0\n0.05,20,0,0\n";
@@ -501,9 +501,84 @@ fn bad_trajectory_line_closes_a_whole_bag_with_the_frames_before() {
         input,
     );
     assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
-    assert!(stderr(&o).contains("trajectory line 4"), "{}", stderr(&o));
-    let y = std::fs::read_to_string(bag.join("metadata.yaml")).unwrap();
-    assert!(y.contains("\n  message_count: 8\n"), "{y}");
+    let e = stderr(&o);
+    assert!(e.contains("trajectory line 4"), "{e}");
+    assert!(e.contains("left unfinished"), "{e}");
+    // the run failed: the bag must not read as whole
+    assert!(!bag.join("metadata.yaml").exists());
+    let r = check(&["unfinished", s(&bag)]);
+    assert!(r.contains("metadata"), "{r}");
+    let r = check(&["unfinished", s(&bag.join("b_0.mcap"))]);
+    assert!(r.starts_with("refused: "), "{r}");
+}
+
+#[test]
+fn a_stopped_run_leaves_an_unfinished_bag_and_dies_by_its_signal() {
+    use std::os::unix::process::ExitStatusExt;
+    let d = tempfile::tempdir().unwrap();
+    let bag = d.path().join("t");
+    let child = Command::new(env!("CARGO_BIN_EXE_psns"))
+        .args(["stream", "--frames", "1000000", "--format", "rosbag2"])
+        .args(SMALL)
+        .args(["--out", s(&bag)])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mcap = bag.join("t_0.mcap");
+    let t = Instant::now();
+    while std::fs::metadata(&mcap).map_or(0, |m| m.len()) < 200_000 {
+        assert!(t.elapsed() < Duration::from_secs(60), "producer too slow");
+        std::thread::sleep(Duration::from_millis(10));
+    }
+    let st = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(st.success());
+    let o = child.wait_with_output().unwrap();
+    assert_eq!(o.status.signal(), Some(15), "SIGTERM");
+    let e = String::from_utf8_lossy(&o.stderr);
+    assert!(e.contains("left unfinished"), "{e}");
+    assert!(!bag.join("metadata.yaml").exists());
+    let r = check(&["unfinished", s(&bag)]);
+    assert!(r.contains("metadata"), "{r}");
+}
+
+#[test]
+fn convert_refuses_an_aborted_stream() {
+    let d = tempfile::tempdir().unwrap();
+    let input = "t_s,yaw_deg,pitch_deg,roll_deg\n0,0,0,0\n0.1,10,0,0\n0.05,20,0,0\n";
+    let traj = d.path().join("t.csv");
+    std::fs::write(&traj, input).unwrap();
+    // into a file: the header carries the aborted mark; through stdout: only the end record
+    let marked = d.path().join("a.psns");
+    let o = psns(
+        &[
+            &["stream", "--trajectory", s(&traj)],
+            &SMALL[..],
+            &["--out", s(&marked)],
+        ]
+        .concat(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let o = psns(
+        &[
+            &["stream", "--trajectory", s(&traj)],
+            &SMALL[..],
+            &["--out", "-"],
+        ]
+        .concat(),
+    );
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    let piped = d.path().join("p.psns");
+    std::fs::write(&piped, &o.stdout).unwrap();
+    for run in [&marked, &piped] {
+        let bag = d.path().join("b");
+        let o = psns(&["convert", s(run), "--format", "rosbag2", "--out", s(&bag)]);
+        assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+        assert!(stderr(&o).contains("aborted"), "{}", stderr(&o));
+        assert!(!bag.exists(), "{}", run.display());
+    }
 }
 
 #[test]

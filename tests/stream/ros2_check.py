@@ -1,5 +1,5 @@
 """Checks of psns's ROS 2 bags with readers nobody here wrote: rosbags (AnyReader, Humble type
-store, serialize_cdr) and mcap + mcap-ros2-support (DecoderFactory). Run by tests/ros2.rs with
+store, serialize_cdr) and mcap + mcap-ros2-support (DecoderFactory). Run by tests/stream/ros2.rs with
 the test venv's interpreter; every check is an assert, and the last line says what was checked.
 
     ros2_check.py cdr CASES.json          rosbags' CDR and msgdef of each case, as JSON lines

@@ -305,7 +305,10 @@ pub fn error_palette() -> [[u8; 3]; 8] {
 
 /// Writes an indexed-colour PNG (small files for maps with few colours).
 pub fn write_png_indexed(path: &Path, img: &Image<u8>, palette: &[[u8; 3]]) -> Result<()> {
-    let err = |e: png::EncodingError| Error::Format(format!("writing {}: {e}", path.display()));
+    let err = |e: png::EncodingError| match e {
+        png::EncodingError::IoError(e) => Error::io(format!("writing {}", path.display()), e),
+        e => Error::Format(format!("writing {}: {e}", path.display())),
+    };
     io::write_atomic(path, |w| {
         let mut enc = png::Encoder::new(w, img.width as u32, img.height as u32);
         enc.set_color(png::ColorType::Indexed);

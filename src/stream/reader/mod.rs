@@ -3,8 +3,8 @@
 //! file, a growing file, a FIFO and stdin are read the same way.
 
 use super::{
-    stride_for, CameraConstants, FileHeader, FrameMeta, FILE_HEADER_SIZE, FILE_MAGIC, FLAG_LAST,
-    FRAME_HEADER_SIZE, FRAME_MAGIC, JSON_OFFSET,
+    stride_for, CameraConstants, EndRecord, FileHeader, FrameMeta, END_MAGIC, END_RECORD_SIZE,
+    FILE_HEADER_SIZE, FILE_MAGIC, FLAG_LAST, FRAME_HEADER_SIZE, FRAME_MAGIC, JSON_OFFSET,
 };
 use crate::error::{Error, Result};
 use crate::sensor::mosaic::MosaicLayout;
@@ -99,6 +99,15 @@ pub enum Event {
     },
     /// A new file header where a frame was expected (producer restart); the layout may change.
     Restart(FileHeader),
+    /// An end record ([`EndRecord`]): the producer stopped because of a failure.
+    Aborted {
+        /// Byte offset of the record.
+        offset: u64,
+        /// Frame records the producer says it wrote.
+        frames: u64,
+        /// Why it stopped.
+        reason: String,
+    },
 }
 
 /// Reads events from a stream. See the module docs.
@@ -282,7 +291,9 @@ impl<R: Read> StreamReader<R> {
     }
 
     /// Ensures `n` bytes are buffered unless the source ends first. The buffer keeps its length
-    /// (bytes `end..` are stale), so a full-size frame is not zeroed before every read.
+    /// (bytes `end..` are stale), so a full-size frame is not zeroed before every read. It grows
+    /// with the bytes that arrive (at most doubling per read), never to a size a header merely
+    /// declares: a small file whose header claims 1 GiB frames costs about twice its own size.
     fn fill(&mut self, n: usize) -> Result<()> {
         while self.end - self.start < n && !self.eof {
             if self.start > 0 {
@@ -291,7 +302,8 @@ impl<R: Read> StreamReader<R> {
                 self.start = 0;
             }
             let len = self.end;
-            let want = (n - len).max(1 << 16);
+            let room = self.buf.len() - len;
+            let want = (n - len).max(1 << 16).min(room.max(len).max(1 << 20));
             if self.buf.len() < len + want {
                 self.buf.resize(len + want, 0);
             }
@@ -342,6 +354,23 @@ impl<R: Read> StreamReader<R> {
             }
             match FrameMeta::decode(self.avail()) {
                 Ok((meta, pcrc)) => self.frame(meta, pcrc),
+                Err(e) => self.resync(e.to_string()),
+            }
+        } else if self.avail()[..8] == END_MAGIC {
+            self.fill(END_RECORD_SIZE)?;
+            if self.avail().len() < END_RECORD_SIZE {
+                return self.truncated(None);
+            }
+            match EndRecord::decode(self.avail()) {
+                Ok(e) => {
+                    self.pending.push_back(Event::Aborted {
+                        offset: self.offset,
+                        frames: e.frames,
+                        reason: e.reason,
+                    });
+                    self.consume(END_RECORD_SIZE);
+                    Ok(())
+                }
                 Err(e) => self.resync(e.to_string()),
             }
         } else if self.avail()[..8] == FILE_MAGIC {
@@ -462,14 +491,19 @@ impl<R: Read> StreamReader<R> {
         Ok(None)
     }
 
-    /// True if a frame header or file header with a valid CRC starts at `j` of the buffer.
+    /// True if a frame header, file header or end record with a valid CRC starts at `j` of the
+    /// buffer.
     fn valid_at(&mut self, j: usize) -> Result<bool> {
         self.fill(j + 8)?;
         let a = self.avail();
         if a.len() < j + 8 {
             return Ok(false);
         }
-        if a[j..j + 8] == FRAME_MAGIC {
+        if a[j..j + 8] == END_MAGIC {
+            self.fill(j + END_RECORD_SIZE)?;
+            let a = self.avail();
+            Ok(a.len() >= j + END_RECORD_SIZE && EndRecord::decode(&a[j..]).is_ok())
+        } else if a[j..j + 8] == FRAME_MAGIC {
             self.fill(j + FRAME_HEADER_SIZE)?;
             let a = self.avail();
             Ok(a.len() >= j + FRAME_HEADER_SIZE && FrameMeta::decode(&a[j..]).is_ok())

@@ -370,6 +370,10 @@ pub(super) fn infer_header(
     for (k, v) in cam.iter_mut().enumerate() {
         *v = f64::from_le_bytes(hb[80 + 8 * k..88 + 8 * k].try_into().expect("8 bytes"));
     }
+    let end = u16::from_le_bytes([hb[46], hb[47]]);
+    if end > 1 {
+        defaults.push(format!("end status ({end} -> 0)"));
+    }
     let header = FileHeader {
         version_minor: u16::from_le_bytes([hb[10], hb[11]]),
         width,
@@ -380,6 +384,7 @@ pub(super) fn infer_header(
         layout,
         angle_sense,
         frame_count: 0,
+        aborted: end == 1,
         seed: u64_le(&hb, 72),
         camera: CameraConstants::from_array(cam),
         producer,

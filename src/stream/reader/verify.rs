@@ -24,6 +24,9 @@ pub enum VerifyStatus {
     /// producer killed between records, one still writing, or a pipe whose trajectory came from
     /// stdin (see `docs/stream-format.md`).
     Unfinished,
+    /// Nothing damaged, but the producer marked the stream aborted (an end record, or the header's
+    /// mark): it stopped because of bad input, an I/O error or a signal.
+    Aborted,
     /// Damaged records, drops, skipped bytes, a count mismatch, a damaged file header (degraded
     /// mode), or more than one stream in the input (a second file header: concatenated files or a
     /// producer restart).
@@ -59,8 +62,12 @@ pub struct VerifyReport {
     pub restart_offsets: Vec<u64>,
     /// Header frame count disagrees with the records found: (declared, found).
     pub count_mismatch: Option<(u64, u64)>,
-    /// The last record is a frame with the LAST flag, or the header frame count matches.
+    /// The last record is a frame with the LAST flag, or the header frame count matches, and the
+    /// stream is not marked aborted.
     pub finished: bool,
+    /// The producer marked the stream aborted: the end record's reason, or
+    /// [`REASON_NOT_RECORDED`] when only the header carries the mark.
+    pub aborted: Option<String>,
     /// Degraded mode: how a damaged file header was replaced (`None`: header intact).
     pub recovered: Option<Recovery>,
 }
@@ -86,6 +93,8 @@ impl VerifyReport {
     pub(super) fn compute_status(&self) -> VerifyStatus {
         if !self.intact() {
             VerifyStatus::Damaged
+        } else if self.aborted.is_some() {
+            VerifyStatus::Aborted
         } else if !self.finished {
             VerifyStatus::Unfinished
         } else {
@@ -162,10 +171,23 @@ impl fmt::Display for VerifyReport {
                 f,
                 "intact but UNFINISHED: header frame count 0 and no frame carries the LAST flag (producer killed or still writing)"
             ),
-            VerifyStatus::Damaged => writeln!(f, "NOT clean"),
+            VerifyStatus::Aborted => writeln!(
+                f,
+                "intact but ABORTED by its producer: {}",
+                self.aborted.as_deref().unwrap_or(REASON_NOT_RECORDED)
+            ),
+            VerifyStatus::Damaged => match &self.aborted {
+                Some(r) => writeln!(f, "NOT clean (and aborted by its producer: {r})"),
+                None => writeln!(f, "NOT clean"),
+            },
         }
     }
 }
+
+/// The reason of an abort marked in the file header only (the end record did not fit, e.g. on a
+/// full disk).
+pub const REASON_NOT_RECORDED: &str =
+    "reason not recorded (the header is marked aborted, the end record is missing)";
 
 /// Reads a whole stream and reports on it. Fails only if the file header is unusable or on an
 /// I/O error.
@@ -193,6 +215,8 @@ pub struct VerifyTally {
     rep: VerifyReport,
     records: u64,
     last_flag: bool,
+    /// Frame records the end record says were written.
+    end_frames: Option<u64>,
 }
 
 impl VerifyTally {
@@ -201,7 +225,6 @@ impl VerifyTally {
         VerifyTally {
             rep: VerifyReport {
                 status: VerifyStatus::Damaged,
-                header,
                 frames: 0,
                 first_index: None,
                 last_index: None,
@@ -214,10 +237,13 @@ impl VerifyTally {
                 restart_offsets: Vec::new(),
                 count_mismatch: None,
                 finished: false,
+                aborted: header.aborted.then(|| REASON_NOT_RECORDED.to_string()),
+                header,
                 recovered,
             },
             records: 0,
             last_flag: false,
+            end_frames: None,
         }
     }
 
@@ -282,6 +308,11 @@ impl VerifyTally {
                 rep.restarts += 1;
                 self.last_flag = false;
             }
+            Event::Aborted { frames, reason, .. } => {
+                rep.aborted = Some(reason.clone());
+                self.end_frames = Some(*frames);
+                self.last_flag = false;
+            }
         }
         None
     }
@@ -290,13 +321,17 @@ impl VerifyTally {
     pub fn finish(&self, restart_offsets: &[u64]) -> VerifyReport {
         let mut rep = self.rep.clone();
         rep.restart_offsets = restart_offsets.to_vec();
-        let declared = rep.header.frame_count;
+        let declared = match (rep.header.frame_count, self.end_frames) {
+            (0, Some(n)) => n,
+            (d, _) => d,
+        };
         let records = self.records;
-        if declared != 0 && rep.restarts == 0 && declared != records {
+        if (declared != 0 || self.end_frames.is_some()) && rep.restarts == 0 && declared != records
+        {
             rep.count_mismatch = Some((declared, records));
         }
-        rep.finished =
-            self.last_flag || (declared != 0 && rep.restarts == 0 && declared == records);
+        rep.finished = rep.aborted.is_none()
+            && (self.last_flag || (declared != 0 && rep.restarts == 0 && declared == records));
         rep.status = rep.compute_status();
         rep
     }
