@@ -35,9 +35,14 @@ use psns::stream::{
     FLAG_EXPOSURE_CLIPPED, FLAG_GROUND_IN_VIEW, FLAG_LAST, FLAG_SATURATION, FLAG_SKY_INVALID,
     FLAG_SUN_IN_VIEW, JSON_MAX,
 };
+
+mod output;
+mod signals;
+pub(crate) use output::*;
 #[cfg(test)]
 use psns::sun::SunPosition;
 use psns::trajectory::Pose;
+use signals::*;
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
@@ -152,57 +157,6 @@ pub fn run(a: StreamArgs) -> anyhow::Result<()> {
         die_by(sig);
     }
     Ok(())
-}
-
-/// The signal that asked the stream to stop (0: none yet).
-static STOP_SIGNAL: std::sync::atomic::AtomicI32 = std::sync::atomic::AtomicI32::new(0);
-
-extern "C" fn on_stop_signal(sig: libc::c_int) {
-    STOP_SIGNAL.store(sig, std::sync::atomic::Ordering::Relaxed);
-}
-
-/// SIGINT, SIGTERM and SIGHUP stop the stream between frames, so it can be marked aborted
-/// instead of looking like a killed one; a second signal kills at once (`SA_RESETHAND`).
-fn catch_signals() {
-    // SAFETY: the handler only stores to an atomic (async-signal-safe); the sigaction struct is
-    // zeroed (an empty mask, no flags) before the fields set here, and sigaction copies it
-    unsafe {
-        let mut sa: libc::sigaction = std::mem::zeroed();
-        sa.sa_sigaction = on_stop_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
-        sa.sa_flags = libc::SA_RESTART | libc::SA_RESETHAND;
-        libc::sigemptyset(&mut sa.sa_mask);
-        for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
-            libc::sigaction(sig, &sa, std::ptr::null_mut());
-        }
-    }
-}
-
-fn stop_signal() -> Option<i32> {
-    match STOP_SIGNAL.load(std::sync::atomic::Ordering::Relaxed) {
-        0 => None,
-        s => Some(s),
-    }
-}
-
-fn signal_name(sig: i32) -> String {
-    match sig {
-        libc::SIGINT => "SIGINT".into(),
-        libc::SIGTERM => "SIGTERM".into(),
-        libc::SIGHUP => "SIGHUP".into(),
-        s => format!("signal {s}"),
-    }
-}
-
-/// Ends the process by `sig` with its default action, as if it had not been caught, so the
-/// parent sees the signal (a shell's 128 + n).
-fn die_by(sig: i32) -> ! {
-    // SAFETY: restoring the default action and raising a signal are plain libc calls on a valid
-    // signal number; the default action of SIGINT, SIGTERM and SIGHUP ends the process
-    unsafe {
-        libc::signal(sig, libc::SIG_DFL);
-        libc::raise(sig);
-    }
-    std::process::exit(128 + sig)
 }
 
 /// A frame counts as late under `--rate` when it is ready this long after its due time.
@@ -617,90 +571,6 @@ fn pin_workers() {
             let _ = k;
         })
         .build_global();
-}
-
-/// The output: stdout, or a path (regular file, FIFO, device) with the count patched on close,
-/// or a ROS 2 bag.
-enum Output {
-    Stdout(StreamWriter<BufWriter<std::io::StdoutLock<'static>>>),
-    Path(FileStreamWriter),
-    Bag(Box<super::bag::BagWriter>),
-}
-
-/// Asks the kernel for a 1 MiB buffer on a pipe or FIFO (the default 64 KiB wakes the reader
-/// 160 times per 10 MB frame); anything else, or a refusal, leaves it as it is.
-pub(crate) fn grow_pipe(fd: std::os::fd::RawFd) {
-    #[cfg(target_os = "linux")]
-    // SAFETY: fcntl on a descriptor this process holds open; F_SETPIPE_SZ fails harmlessly
-    // (EBADF/EINVAL/EPERM) on non-pipes and over the limit
-    unsafe {
-        libc::fcntl(fd, libc::F_SETPIPE_SZ, 1 << 20);
-    }
-    #[cfg(not(target_os = "linux"))]
-    let _ = fd;
-}
-
-impl Output {
-    fn open(
-        path: &Path,
-        header: &FileHeader,
-        bag: Option<&super::bag::BagOptions>,
-    ) -> Result<Self> {
-        use std::os::fd::AsRawFd;
-        if let Some(b) = bag {
-            let enc = psns::ros2::ImageEncoding::of_pixel_format(header.pixel_format);
-            let src = super::bag::BagSource::of_header(header, enc)?;
-            Ok(Output::Bag(Box::new(super::bag::BagWriter::create(
-                b, path, src,
-            )?)))
-        } else if path.as_os_str() == "-" {
-            let out = std::io::stdout().lock();
-            grow_pipe(out.as_raw_fd());
-            let w = BufWriter::with_capacity(1 << 20, out);
-            Ok(Output::Stdout(StreamWriter::new(w, header)?))
-        } else {
-            let w = FileStreamWriter::create(path, header)?;
-            grow_pipe(w.as_raw_fd());
-            Ok(Output::Path(w))
-        }
-    }
-    fn write(&mut self, r: &Rendered) -> Result<()> {
-        match self {
-            Output::Stdout(w) => w.write_payload_crc(&r.meta, r.payload.as_bytes(), r.crc),
-            Output::Path(w) => w.write_payload_crc(&r.meta, r.payload.as_bytes(), r.crc),
-            Output::Bag(w) => {
-                let truth = r.truth.as_ref().map(|(d, a)| (&d[..], &a[..]));
-                w.write_frame(&r.meta, r.payload.as_bytes(), truth)
-            }
-        }
-    }
-    fn finish(self) -> Result<()> {
-        match self {
-            Output::Stdout(w) => w
-                .finish()?
-                .flush()
-                .map_err(|e| Error::io("flushing stdout", e)),
-            Output::Path(w) => w.finish().map(|_| ()),
-            Output::Bag(w) => w.finish(),
-        }
-    }
-    /// Marks the stream aborted ([`FileStreamWriter::abort`]); a bag is left unfinished (no
-    /// footer, no `metadata.yaml`), which is how rosbag2 and MCAP readers tell a cut-off bag.
-    fn abort(self, reason: &str) -> Result<()> {
-        match self {
-            Output::Stdout(mut w) => {
-                w.abort(reason)?;
-                w.finish()?
-                    .flush()
-                    .map_err(|e| Error::io("flushing stdout", e))
-            }
-            Output::Path(w) => w.abort(reason).map(|_| ()),
-            Output::Bag(w) => {
-                eprintln!("psns: {}", w.leave_unfinished());
-                Ok(())
-            }
-        }
-    }
 }
 
 /// Runs `psns stream`.
