@@ -26,7 +26,8 @@
 //! camera preset with auto-exposure and no sun disc, pitch 5° and roll −5° (compensated), sun
 //! elevation 15°, 35°, 55° at azimuth 200°, yaws 17° + 90° k.
 
-use super::demosaic::inside_docs;
+use super::demosaic::check_quick_out;
+use super::heading::csv_field;
 use psns::camera::{Attitude, Intrinsics, Lens};
 use psns::config::SceneConfig;
 use psns::demosaic::{full_chain, Method, PolarImages};
@@ -771,23 +772,9 @@ pub fn budget_svg(rows: &[BudgetRow]) -> Result<String> {
     Ok(svg)
 }
 
-fn csv_field(s: &str) -> String {
-    if s.contains(',') || s.contains('"') {
-        format!("\"{}\"", s.replace('"', "\"\""))
-    } else {
-        s.to_string()
-    }
-}
-
 /// `psns bench heading --budget`; returns the files written.
 pub fn bench_budget(opts: &BudgetOptions) -> Result<Vec<String>> {
-    if opts.quick && inside_docs(&opts.out) {
-        return Err(Error::Invalid(format!(
-            "--quick with --out {}: quick numbers never land in docs; drop --quick, or write \
-             elsewhere (default out-bench)",
-            opts.out.display()
-        )));
-    }
+    check_quick_out(opts.quick, &opts.out)?;
     create_dir(&opts.out)?;
     let t0 = std::time::Instant::now();
     let (frames, rows) = run_budget(opts, &mut |s| {

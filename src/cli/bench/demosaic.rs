@@ -801,12 +801,12 @@ pub fn inside_docs(out: &Path) -> bool {
 
 /// `--quick` with an output directory inside `docs/` is bad input: quick numbers never land in
 /// the docs (the tracked files are regenerated only by a full run with an explicit `--out`).
-pub fn check_quick_out(opts: &BenchOptions) -> Result<()> {
-    if opts.quick && inside_docs(&opts.out) {
+pub fn check_quick_out(quick: bool, out: &Path) -> Result<()> {
+    if quick && inside_docs(out) {
         return Err(Error::Invalid(format!(
             "--quick with --out {}: quick numbers never land in docs; drop --quick, or write \
              elsewhere (default out-bench)",
-            opts.out.display()
+            out.display()
         )));
     }
     Ok(())
@@ -819,7 +819,7 @@ pub fn check_quick_out(opts: &BenchOptions) -> Result<()> {
 /// `sun-in-view` (methods left to right in [`Method::ALL`] order, top: whole frame max-pooled;
 /// bottom: a native-resolution crop), `demosaic_noise.csv` and `demosaic_noise.svg`.
 pub fn bench_demosaic(opts: &BenchOptions) -> Result<Vec<String>> {
-    check_quick_out(opts)?;
+    check_quick_out(opts.quick, &opts.out)?;
     let (w, h, runs, sweep_size) = if opts.quick {
         (512, 512, opts.runs.clamp(1, 2), 64)
     } else {

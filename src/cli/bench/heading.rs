@@ -3,7 +3,7 @@
 //! 95th percentile and maximum error, mean confidence, confident-wrong frames and time per frame,
 //! as CSV and SVG charts.
 
-use super::demosaic::inside_docs;
+use super::demosaic::check_quick_out;
 use psns::camera::{Attitude, Intrinsics};
 use psns::config::SceneConfig;
 use psns::demosaic::Method;
@@ -626,7 +626,8 @@ pub fn time_svg(cells: &[CellRow]) -> Result<String> {
     Ok(svg)
 }
 
-fn csv_field(s: &str) -> String {
+/// A CSV field, quoted when it holds a comma or a quote.
+pub(super) fn csv_field(s: &str) -> String {
     if s.contains(',') || s.contains('"') {
         format!("\"{}\"", s.replace('"', "\"\""))
     } else {
@@ -636,13 +637,7 @@ fn csv_field(s: &str) -> String {
 
 /// `psns bench heading`; returns the files written.
 pub fn bench_heading(opts: &HeadingBenchOptions) -> Result<Vec<String>> {
-    if opts.quick && inside_docs(&opts.out) {
-        return Err(Error::Invalid(format!(
-            "--quick with --out {}: quick numbers never land in docs; drop --quick, or write \
-             elsewhere (default out-bench)",
-            opts.out.display()
-        )));
-    }
+    check_quick_out(opts.quick, &opts.out)?;
     create_dir(&opts.out)?;
     let t0 = Instant::now();
     let (frames, cells) = run_sweep(opts, &mut |s| {
