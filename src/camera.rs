@@ -18,9 +18,9 @@ use serde::{Deserialize, Serialize};
 #[serde(rename_all = "lowercase")]
 pub enum AttitudeFrame {
     /// Solar-azimuth frame a: yaw measured from the sun's azimuth.
-    #[default]
     Solar,
-    /// East-North-Up: yaw measured from north.
+    /// East-North-Up: yaw measured from north (the compass heading `psns heading` reports).
+    #[default]
     Enu,
 }
 
@@ -51,7 +51,7 @@ pub enum Attitude {
 impl Default for Attitude {
     fn default() -> Self {
         Attitude::Euler {
-            frame: AttitudeFrame::Solar,
+            frame: AttitudeFrame::Enu,
             yaw_deg: 0.0,
             pitch_deg: 0.0,
             roll_deg: 0.0,

@@ -88,7 +88,8 @@ class Camera:
     :meth:`frame` renders one raw frame in-process (the fast path of ``psns stream``).
 
     ``Camera(preset="camera", seed=1, width=2448, height=2048, **sensor)`` takes every option of
-    :func:`render_raw`. The attitude frame (``frame="solar"|"enu"``), the sun (``sun_zenith`` and
+    :func:`render_raw`. The attitude frame (``frame="enu"``, the default: yaw is the compass heading
+    that :func:`heading` reports; or ``"solar"``: yaw from the sun's azimuth), the sun (``sun_zenith`` and
     ``sun_azimuth`` or ``time``/``lat``/``lon``) and the attitude given here are the defaults of
     :meth:`frame`.
     """

@@ -178,3 +178,13 @@ def test_open_stream_errors(tmp_path):
     (tmp_path / "x").write_bytes(b"not a stream at all" * 300)
     with pytest.raises(ValueError):
         psns.open_stream(tmp_path / "x")
+
+
+def test_camera_yaw_is_the_yaw_heading_reports():
+    # defaults on both sides: the Camera's yaw and heading's yaw are the same ENU compass heading
+    cam = psns.Camera(seed=3)
+    for yaw in (0.0, 30.0, 251.0):
+        h = psns.heading(cam.frame(yaw=yaw))
+        gap = (h["yaw_deg"] - yaw) % 360.0
+        assert min(gap, 360.0 - gap) < 0.5, (yaw, h)
+        assert h["confidence"] > 0.5, (yaw, h)

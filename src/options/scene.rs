@@ -144,7 +144,8 @@ pub struct SceneArgs {
     /// Camera roll, degrees.
     #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG")]
     pub roll: Option<f64>,
-    /// Reference frame of yaw/pitch/roll (or of --quaternion).
+    /// Reference frame of yaw/pitch/roll (or of --quaternion): enu (yaw from north, the compass
+    /// heading `psns heading` reports; the default) or solar (yaw from the sun's azimuth, as PSNS).
     #[arg(long, value_enum)]
     pub frame: Option<FrameArg>,
     /// Attitude quaternion W,X,Y,Z (Hamilton, scalar first) rotating camera vectors into the frame.

@@ -525,8 +525,9 @@ fn killed_rerender_leaves_the_previous_output_whole() {
 /// `--exact` is the reference path: through the pinhole lens, the same bytes as psns before the
 /// fast path (902d52f with `--sky-grid 1`, recorded from that build) and before the lens option.
 /// The camera preset's default lens is the ideal one (docs/camera.md §2): its
-/// hash was recorded when that default changed (the AOP off axis changes, nothing else). A
-/// change here changes every reference run.
+/// hash was recorded when that default changed (the AOP off axis changes, nothing else). The
+/// attitude is yaw 0 in the solar frame, the frame the hashes were recorded in. A change here
+/// changes every reference run.
 #[test]
 fn exact_raw_is_bit_identical_to_the_reference() {
     use sha2::{Digest, Sha256};
@@ -546,7 +547,8 @@ fn exact_raw_is_bit_identical_to_the_reference() {
         ),
     ] {
         let out = dir.path().join(format!("r-{lens:?}"));
-        let mut args = vec!["render", "--raw", "--exact", "--out", out.to_str().unwrap()];
+        let mut args = vec!["render", "--raw", "--exact", "--frame", "solar"];
+        args.extend(["--out", out.to_str().unwrap()]);
         args.extend(SMALL);
         if let Some(l) = lens {
             args.extend(["--lens", l]);

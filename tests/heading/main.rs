@@ -8,3 +8,4 @@ mod common;
 
 mod budget;
 mod chain;
+mod defaults;

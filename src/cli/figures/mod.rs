@@ -35,6 +35,15 @@ pub enum Group {
 }
 
 /// Runs `psns figures`.
+/// The scene of the docs' pictures: the default scene with the camera's image +y axis toward the
+/// sun's azimuth (yaw 0 in the solar frame, ENU yaw 200°), the view the pictures and their numbers
+/// in docs/ describe.
+pub(crate) fn figure_scene() -> SceneConfig {
+    let mut c = SceneConfig::default();
+    c.camera.attitude = psns::camera::Attitude::solar(0.0, 0.0, 0.0);
+    c
+}
+
 pub fn run(a: FiguresArgs) -> anyhow::Result<()> {
     let want = |g: Group| a.only.is_none_or(|o| o == g);
     let steps = [
@@ -75,7 +84,7 @@ pub fn lens_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>> 
     create_dir(dir)?;
     let mut files = Vec::new();
     progress.set_message("lens: fisheye");
-    let mut cfg = SceneConfig::default();
+    let mut cfg = figure_scene();
     let i = &mut cfg.camera.intrinsics;
     i.projection = Projection::Equidistant;
     i.focal_length_mm = 1.8;
@@ -95,7 +104,7 @@ pub fn lens_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>> 
 
     progress.set_message("lens: pinhole vs ideal");
     let aop_of = |lens: Lens| -> Result<psns::image::Image<f32>> {
-        let mut c = SceneConfig::default();
+        let mut c = figure_scene();
         c.camera.intrinsics.lens = Some(lens);
         let (sky, cam) = c.build()?;
         Ok(render::render_ideal(&sky, &cam).aop_deg)
@@ -187,7 +196,7 @@ pub fn sky_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>> {
     progress.inc(1);
     progress.set_message("sky: default camera frame");
     // the default camera frame, 8x smaller
-    let cfg = SceneConfig::default();
+    let cfg = figure_scene();
     let (sky, cam) = cfg.build()?;
     let ideal = render::render_ideal(&sky, &cam);
     let li = vis::downsample(&ideal.li, 8);

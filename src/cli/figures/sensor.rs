@@ -10,7 +10,6 @@
 use crate::cli::progress::Progress;
 use crate::cli::vis;
 use psns::camera::{Attitude, Camera};
-use psns::config::SceneConfig;
 use psns::error::{Error, Result};
 use psns::image::Image;
 use psns::io;
@@ -532,7 +531,7 @@ pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>
     // 1. the default camera frame of the default sky, on the exact (reference) path the pipeline
     // section describes: every pixel's sky evaluated, the reference noise (the pictures then do
     // not move when the fast path is tuned)
-    let mut cfg = SceneConfig::default();
+    let mut cfg = super::figure_scene();
     cfg.raw.exact = true;
     let pipe = RawPipeline::new(&cfg)?;
     let layout = pipe.sensor_config().layout;
