@@ -212,7 +212,7 @@ impl RawPipeline {
             FastSink::None
         };
         let (f, info) =
-            self.frame_at_sink(&self.cfg.sky, sun, attitude, frame_index, codes, sink)?;
+            self.frame_at_sink(&self.cfg.sky, sun, attitude, frame_index, codes, 0, sink)?;
         let crc = if codes_are_payload {
             f.codes_crc32
         } else {
@@ -236,11 +236,41 @@ impl RawPipeline {
         frame_index: u64,
         codes: Vec<u16>,
     ) -> Result<(RawFrame, SceneInfo)> {
-        self.frame_at_sink(sky, sun, attitude, frame_index, codes, FastSink::None)
+        self.frame_at_sink(sky, sun, attitude, frame_index, codes, 0, FastSink::None)
+    }
+
+    /// [`Self::frame_at`] with the codes after the first `lead` elements of `buf`, which are
+    /// kept (room for a message header in front of the pixels, e.g. a ROS 2 `Image`'s CDR
+    /// prefix: the pixels need no copy). The frame's `codes` is 0 × 0; the buffer comes back in
+    /// [`RawFrame::lead_buffer`], its codes the same as [`Self::frame_at`]'s.
+    pub fn frame_at_after(
+        &self,
+        sun: SunPosition,
+        attitude: &Attitude,
+        frame_index: u64,
+        buf: Vec<u16>,
+        lead: usize,
+    ) -> Result<(RawFrame, SceneInfo)> {
+        let (mut f, info) = self.frame_at_sink(
+            &self.cfg.sky,
+            sun,
+            attitude,
+            frame_index,
+            buf,
+            lead,
+            FastSink::None,
+        )?;
+        if lead == 0 {
+            f.lead_buffer = Some(std::mem::take(&mut f.codes.data));
+            f.codes = crate::image::Image::from_vec(0, 0, Vec::new());
+        }
+        Ok((f, info))
     }
 
     /// [`Self::frame_at_in`], with `sink` for the fast path's frames (the other paths ignore it
-    /// and leave [`RawFrame::codes_crc32`] `None`).
+    /// and leave [`RawFrame::codes_crc32`] `None`), the codes after `lead` elements of `codes`
+    /// ([`FrameOptions::lead`]).
+    #[allow(clippy::too_many_arguments)]
     fn frame_at_sink(
         &self,
         sky: &SkyParams,
@@ -248,13 +278,14 @@ impl RawPipeline {
         attitude: &Attitude,
         frame_index: u64,
         codes: Vec<u16>,
+        lead: usize,
         sink: FastSink,
     ) -> Result<(RawFrame, SceneInfo)> {
         let raw = &self.cfg.raw;
         let psns = self.sensor_cfg.psns.is_some() && !raw.exact;
         if !self.fast() && !psns {
             let (st, info) = self.stokes_in(sky, sun, attitude)?;
-            let opts = FrameOptions::exact().into_codes(codes);
+            let opts = FrameOptions::exact().into_codes_after(codes, lead);
             return Ok((
                 self.sensor
                     .frame(Radiance::Planes(&st), frame_index, opts)?,
@@ -283,7 +314,9 @@ impl RawPipeline {
                 enu_to_camera: Some(cam.enu_to_camera),
             };
             // a PSNS preset takes its own model whichever path is asked
-            let opts = FrameOptions::fast().into_codes(codes).with_sink(sink);
+            let opts = FrameOptions::fast()
+                .into_codes_after(codes, lead)
+                .with_sink(sink);
             let f = self
                 .sensor
                 .frame(Radiance::Rows(&grid), frame_index, opts)?;
@@ -291,9 +324,11 @@ impl RawPipeline {
         }
         let (st, info) = self.stokes_in(sky, sun, attitude)?;
         let opts = if psns {
-            FrameOptions::exact().into_codes(codes)
+            FrameOptions::exact().into_codes_after(codes, lead)
         } else {
-            FrameOptions::fast().into_codes(codes).with_sink(sink)
+            FrameOptions::fast()
+                .into_codes_after(codes, lead)
+                .with_sink(sink)
         };
         let f = self
             .sensor

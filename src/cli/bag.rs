@@ -166,6 +166,25 @@ fn bag_name(dir: &Path) -> Result<String> {
     })
 }
 
+/// Bytes of a bag's raw image message in front of its pixels (the CDR prefix of
+/// [`BagWriter::write_frame_message`]): the same for every frame of a bag.
+pub fn image_prefix_len(encoding: ImageEncoding, width: usize, height: usize) -> Result<usize> {
+    let size = |name: &str, v: usize| {
+        u32::try_from(v).map_err(|_| Error::range(name, v as f64, "1..4294967295"))
+    };
+    let header = Header {
+        stamp: Time::default(),
+        frame_id: FrameId::CameraOptical,
+    };
+    let prefix = Image::cdr_prefix(
+        header,
+        size("width", width)?,
+        size("height", height)?,
+        encoding,
+    )?;
+    Ok(prefix.len())
+}
+
 /// What the bag describes: the image geometry, the lens and the run's own description.
 #[derive(Clone, Debug)]
 pub struct BagSource {
@@ -486,29 +505,76 @@ impl BagWriter {
         image: &[u8],
         truth: Option<(&[f32], &[f32])>,
     ) -> Result<()> {
+        let header = self.image_header(meta)?;
+        let (w, h) = self.size();
+        let buf = std::mem::take(&mut self.buf);
+        let msg = Image::new(header, w, h, self.source.encoding, image)?.to_cdr_in(buf)?;
+        let r = self.write_messages(meta, header, &msg, truth);
+        self.buf = msg;
+        r
+    }
+
+    /// [`Self::write_frame`] of an image message made in place: `message` holds room for the
+    /// image's CDR prefix ([`image_prefix_len`]) and then the pixel bytes; the prefix is
+    /// written into it and the whole is the message, so the pixels are not copied.
+    pub fn write_frame_message(
+        &mut self,
+        meta: &FrameMeta,
+        message: &mut [u8],
+        truth: Option<(&[f32], &[f32])>,
+    ) -> Result<()> {
+        let header = self.image_header(meta)?;
+        let (w, h) = self.size();
+        let enc = self.source.encoding;
+        let prefix = Image::cdr_prefix(header, w, h, enc)?;
+        let need = prefix.len() as u64 + w as u64 * h as u64 * enc.bytes_per_pixel() as u64;
+        if message.len() as u64 != need {
+            return Err(Error::Invalid(format!(
+                "a {w} x {h} {} image message needs {need} bytes, got {}",
+                enc.as_str(),
+                message.len()
+            )));
+        }
+        message[..prefix.len()].copy_from_slice(&prefix);
+        self.write_messages(meta, header, message, truth)
+    }
+
+    /// Image width and height.
+    fn size(&self) -> (u32, u32) {
+        (
+            self.source.intrinsics.width as u32,
+            self.source.intrinsics.height as u32,
+        )
+    }
+
+    /// The image's header: the exposure start in the camera optical frame; refused when the
+    /// bag is broken or the stamp does not fit.
+    fn image_header(&self, meta: &FrameMeta) -> Result<Header> {
         if self.failed {
             return Err(Error::Invalid("the bag could not be written".into()));
         }
-        let stamp = Time::from_unix_ns(meta.exposure_start_ns)?;
-        let header = Header {
-            stamp,
+        Ok(Header {
+            stamp: Time::from_unix_ns(meta.exposure_start_ns)?,
             frame_id: FrameId::CameraOptical,
-        };
-        let (w, h) = (
-            self.source.intrinsics.width as u32,
-            self.source.intrinsics.height as u32,
-        );
+        })
+    }
+
+    /// The frame's messages, `image` the whole CDR image message.
+    fn write_messages(
+        &mut self,
+        meta: &FrameMeta,
+        header: Header,
+        image: &[u8],
+        truth: Option<(&[f32], &[f32])>,
+    ) -> Result<()> {
+        let stamp = header.stamp;
+        let (w, h) = self.size();
         let pose = ros::pose(meta)?.to_cdr()?;
         let sun = ros::sun(meta)?.to_cdr()?;
         self.camera_info.header = header;
         let info = self.camera_info.to_cdr()?;
         let seq = meta.index as u32;
-        let buf = std::mem::take(&mut self.buf);
-        let msg = Image::new(header, w, h, self.source.encoding, image)?.to_cdr_in(buf)?;
-        let ch = self.channels.image;
-        let r = self.put(ch, seq, stamp, &msg);
-        self.buf = msg;
-        r?;
+        self.put(self.channels.image, seq, stamp, image)?;
         self.put(self.channels.camera_info, seq, stamp, &info)?;
         self.put(self.channels.pose, seq, stamp, &pose)?;
         self.put(self.channels.sun, seq, stamp, &sun)?;

@@ -127,9 +127,25 @@ impl CdrWriter {
 
     /// `uint8[]` (an unbounded sequence of bytes).
     pub fn byte_seq(&mut self, b: &[u8]) -> Result<()> {
-        self.length(b.len(), "sequence")?;
+        self.byte_seq_len(b.len())?;
         self.buf.extend_from_slice(b);
         Ok(())
+    }
+
+    /// The front of a `uint8[]` of `n` bytes, its element count: the bytes follow it, where
+    /// the caller puts them (a message's bytes in front of pixels that stay where they are).
+    ///
+    /// ```
+    /// use psns::ros2::cdr::CdrWriter;
+    /// let (mut a, mut b) = (CdrWriter::new(), CdrWriter::new());
+    /// a.u8(1);
+    /// a.byte_seq(&[7, 8, 9]).unwrap();
+    /// b.u8(1);
+    /// b.byte_seq_len(3).unwrap();
+    /// assert_eq!([b.as_bytes(), &[7, 8, 9]].concat(), a.into_bytes());
+    /// ```
+    pub fn byte_seq_len(&mut self, n: usize) -> Result<()> {
+        self.length(n, "sequence")
     }
 
     /// `float64[]` (an unbounded sequence).

@@ -142,6 +142,62 @@ impl<'a> Image<'a> {
     pub fn step(&self) -> u32 {
         self.width * self.encoding.bytes_per_pixel()
     }
+
+    /// The CDR bytes of a `width × height` image message in front of its pixels: the
+    /// encapsulation header, the fields and the pixel byte count. The message is these bytes
+    /// followed by the pixels, the same bytes as [`Message::to_cdr`] of the whole image, so
+    /// pixels made in place behind room for them need no copy. Its length depends on the
+    /// frame id and the encoding name only (a multiple of 4), not on the stamp or the size.
+    ///
+    /// ```
+    /// use psns::ros2::msg::{Header, Image, Message};
+    /// use psns::ros2::{FrameId, ImageEncoding, Time};
+    /// let h = Header { stamp: Time::from_unix_ns(1_500_000_000).unwrap(), frame_id: FrameId::CameraOptical };
+    /// let px = [1u8, 0, 2, 0, 3, 0];
+    /// let pre = Image::cdr_prefix(h, 3, 1, ImageEncoding::Mono16).unwrap();
+    /// let whole = Image::new(h, 3, 1, ImageEncoding::Mono16, &px).unwrap().to_cdr().unwrap();
+    /// assert_eq!([&pre[..], &px[..]].concat(), whole);
+    /// assert_eq!(pre.len() % 4, 0);
+    /// ```
+    pub fn cdr_prefix(
+        header: Header,
+        width: u32,
+        height: u32,
+        encoding: ImageEncoding,
+    ) -> Result<Vec<u8>> {
+        let mut w = CdrWriter::new();
+        let step = Self::encode_fields(&mut w, header, width, height, encoding)?;
+        let len = usize::try_from(step as u64 * height as u64).map_err(|_| {
+            Error::Invalid(format!("a {width} x {height} image does not fit in memory"))
+        })?;
+        w.byte_seq_len(len)?;
+        Ok(w.into_bytes())
+    }
+
+    /// The fields in front of `data`; returns `step`.
+    fn encode_fields(
+        w: &mut CdrWriter,
+        header: Header,
+        width: u32,
+        height: u32,
+        encoding: ImageEncoding,
+    ) -> Result<u32> {
+        let bpp = encoding.bytes_per_pixel() as u64;
+        let step = u32::try_from(width as u64 * bpp).map_err(|_| {
+            Error::range(
+                "image width",
+                width as f64,
+                "a row of at most 4294967295 bytes",
+            )
+        })?;
+        header.encode(w)?;
+        w.u32(height);
+        w.u32(width);
+        w.string(encoding.as_str())?;
+        w.u8(0); // little-endian pixels
+        w.u32(step);
+        Ok(step)
+    }
 }
 
 impl Message for Image<'_> {
@@ -157,12 +213,7 @@ impl Message for Image<'_> {
     );
     fn encode(&self, w: &mut CdrWriter) -> Result<()> {
         w.reserve(self.data.len() + 96);
-        self.header.encode(w)?;
-        w.u32(self.height);
-        w.u32(self.width);
-        w.string(self.encoding.as_str())?;
-        w.u8(0); // little-endian pixels
-        w.u32(self.step());
+        Self::encode_fields(w, self.header, self.width, self.height, self.encoding)?;
         w.byte_seq(self.data)
     }
 }
@@ -393,6 +444,34 @@ mod tests {
         };
         let b = v.to_cdr().unwrap();
         assert_eq!(b.len(), 4 + 32 + 24);
+    }
+
+    #[test]
+    fn image_prefix_and_pixels_are_the_whole_message() {
+        for frame_id in [FrameId::CameraOptical, FrameId::Enu] {
+            let enc = [
+                ImageEncoding::Mono8,
+                ImageEncoding::Mono16,
+                ImageEncoding::Float32,
+            ];
+            for (e, (w, h)) in enc.into_iter().zip([(3, 5), (7, 1), (2, 2)]) {
+                let px: Vec<u8> = (0..w * h * e.bytes_per_pixel()).map(|i| i as u8).collect();
+                for ns in [0, 1_750_500_000_123_456_789] {
+                    let hd = Header {
+                        stamp: Time::from_unix_ns(ns).unwrap(),
+                        frame_id,
+                    };
+                    let pre = Image::cdr_prefix(hd, w, h, e).unwrap();
+                    let whole = Image::new(hd, w, h, e, &px).unwrap().to_cdr().unwrap();
+                    assert_eq!([&pre[..], &px[..]].concat(), whole, "{e:?} {frame_id:?}");
+                    // the length does not depend on the stamp or the size
+                    let other = Image::cdr_prefix(hd, 2448, 2048, e).unwrap();
+                    assert_eq!(other.len(), pre.len());
+                    assert_eq!(pre.len() % 4, 0);
+                }
+            }
+        }
+        assert!(Image::cdr_prefix(header(), u32::MAX, 1, ImageEncoding::Mono16).is_err());
     }
 
     #[test]

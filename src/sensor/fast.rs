@@ -596,6 +596,7 @@ simd_dispatch! {
 
 /// Output of [`render_codes`].
 pub(crate) struct FastCodes {
+    /// The buffer: `lead` elements, then the codes.
     pub codes: Vec<u16>,
     pub saturated: [u32; 4],
     /// CRC-32 of the codes as little-endian bytes, when the sink asked for it.
@@ -609,19 +610,22 @@ const BAND: usize = 16;
 /// asks for: the codes' CRC-32, taken band by band while each band is still in cache (a third of
 /// the time of one pass over the finished 10 MB frame) and combined. (Packing each band here as
 /// well was tried and measured no faster than packing the finished frame, `docs/performance.md`.)
+/// The codes go after the first `lead` elements of `codes` ([`super::FrameOptions::lead`]).
 pub(crate) fn render_codes(
     sensor: &Sensor,
     st: &FastStatics,
     src: &dyn StokesRows,
     fc: &FrameConsts,
-    mut codes: Vec<u16>,
+    codes: Vec<u16>,
+    lead: usize,
     sink: FastSink,
 ) -> FastCodes {
     let (w, h) = (sensor.intrinsics.width, sensor.intrinsics.height);
     // the bytes of a u16 slice are its little-endian bytes only on a little-endian machine
     let crc32 = sink == FastSink::CodesCrc32 && cfg!(target_endian = "little");
     // every code is written below: a reused buffer of the right size is not cleared
-    codes.resize(w * h, 0);
+    let mut buf = super::frame::codes_buffer(codes, lead, w * h);
+    let codes = &mut buf[lead..];
     let folded = fc.folded();
     let mu_hi = fc.mu_high() as f32;
     let bands: Vec<([u32; 4], u32)> = codes
@@ -663,7 +667,7 @@ pub(crate) fn render_codes(
         super::packing::crc32_of_pieces(pieces.map(|(band, (_, crc))| (*crc, 2 * band.len())))
     });
     FastCodes {
-        codes,
+        codes: buf,
         saturated,
         crc32,
     }

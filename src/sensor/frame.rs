@@ -35,6 +35,9 @@ pub struct RawFrame {
     /// the codes were in cache. `None` otherwise. It describes `codes` as the frame was made
     /// (it is stale once a caller changes them).
     pub codes_crc32: Option<u32>,
+    /// With a lead ([`FrameOptions::lead`]): the whole buffer, its first `lead` elements as they
+    /// were given, then the codes (`codes` is then 0 × 0). `None` without a lead.
+    pub lead_buffer: Option<Vec<u16>>,
 }
 
 /// What the fast path also makes of a frame, band by band while the codes are in cache
@@ -79,6 +82,11 @@ pub struct FrameOptions {
     pub codes: Vec<u16>,
     /// What the fast path also makes of the codes.
     pub sink: FastSink,
+    /// Elements of `codes` kept in front of the frame's codes (zeros where the buffer is
+    /// shorter): room for a message header before the pixels, e.g. a ROS 2 `Image`'s CDR
+    /// prefix, so that the pixels need no copy. With a lead > 0 the frame comes back in
+    /// [`RawFrame::lead_buffer`].
+    pub lead: usize,
 }
 
 impl FrameOptions {
@@ -89,6 +97,7 @@ impl FrameOptions {
             truth: false,
             codes: Vec::new(),
             sink: FastSink::None,
+            lead: 0,
         }
     }
 
@@ -112,10 +121,38 @@ impl FrameOptions {
         self
     }
 
+    /// Into the buffer `codes` after its first `lead` elements ([`FrameOptions::lead`]).
+    pub fn into_codes_after(mut self, codes: Vec<u16>, lead: usize) -> Self {
+        self.codes = codes;
+        self.lead = lead;
+        self
+    }
+
     /// Also making what `sink` asks for.
     pub fn with_sink(mut self, sink: FastSink) -> Self {
         self.sink = sink;
         self
+    }
+}
+
+/// The buffer of a frame's codes: `lead` elements kept (zeros where `buf` is shorter), then
+/// `n` elements for the codes (a reused buffer is not cleared: the kernels write every code).
+pub(crate) fn codes_buffer(mut buf: Vec<u16>, lead: usize, n: usize) -> Vec<u16> {
+    buf.resize(lead + n, 0);
+    buf
+}
+
+/// [`RawFrame::codes`] and [`RawFrame::lead_buffer`] of a filled [`codes_buffer`].
+pub(crate) fn split_lead(
+    buf: Vec<u16>,
+    lead: usize,
+    w: usize,
+    h: usize,
+) -> (Image<u16>, Option<Vec<u16>>) {
+    if lead == 0 {
+        (Image::from_vec(w, h, buf), None)
+    } else {
+        (Image::from_vec(0, 0, Vec::new()), Some(buf))
     }
 }
 

@@ -380,10 +380,11 @@ impl Sensor {
             truth,
             codes,
             sink,
+            lead,
         } = opts;
         match (radiance, self.cfg.psns.is_some(), path) {
             (Radiance::Planes(st), true, _) | (Radiance::Planes(st), false, FramePath::Exact) => {
-                self.render(st, frame_index, truth, codes)
+                self.render(st, frame_index, truth, codes, lead)
             }
             (_, _, _) if truth => Err(Error::Invalid(
                 "the ground truth needs the radiance as whole planes".into(),
@@ -396,13 +397,14 @@ impl Sensor {
                     frame_index,
                     false,
                     codes,
+                    lead,
                 )
             }
             (Radiance::Rows(src), false, FramePath::Fast) => {
-                self.frame_fast(src, frame_index, codes, sink)
+                self.frame_fast(src, frame_index, codes, sink, lead)
             }
             (Radiance::Planes(st), false, FramePath::Fast) => {
-                self.frame_fast(st, frame_index, codes, sink)
+                self.frame_fast(st, frame_index, codes, sink, lead)
             }
             (Radiance::Rows(_), false, FramePath::Exact) => Err(Error::Invalid(
                 "the exact path needs the radiance as whole planes".into(),
@@ -411,13 +413,14 @@ impl Sensor {
     }
 
     /// [`FramePath::Fast`]: no ground truth (`truth` is 0 × 0); `sink` as asked (the same codes
-    /// either way).
+    /// either way); the codes after `lead` elements of `codes` ([`FrameOptions::lead`]).
     fn frame_fast(
         &self,
         src: &dyn StokesRows,
         frame_index: u64,
         codes: Vec<u16>,
         sink: FastSink,
+        lead: usize,
     ) -> Result<RawFrame> {
         self.check_rows(src)?;
         let (w, h) = (self.intrinsics.width, self.intrinsics.height);
@@ -461,9 +464,11 @@ impl Sensor {
             shot_key: normal::NoiseKey::new(self.seed, frame_index, noise::STAGE_SHOT),
             read_key: normal::NoiseKey::new(self.seed, frame_index, noise::STAGE_READ),
         };
-        let out = fast::render_codes(self, statics, src, &fc, codes, sink);
+        let out = fast::render_codes(self, statics, src, &fc, codes, lead, sink);
+        let (codes, lead_buffer) = frame::split_lead(out.codes, lead, w, h);
         Ok(RawFrame {
-            codes: Image::from_vec(w, h, out.codes),
+            codes,
+            lead_buffer,
             bit_depth: cfg.bit_depth,
             black_level_dn: cfg.black_level_dn * scale,
             exposure_us: t_us,
@@ -506,13 +511,14 @@ impl Sensor {
     }
 
     /// [`FramePath::Exact`] from planes, or a PSNS preset's frame from planes; with the ground
-    /// truth when `want_truth`; into `codes`.
+    /// truth when `want_truth`; into `codes` after its first `lead` elements.
     fn render(
         &self,
         stokes: &StokesImage,
         frame_index: u64,
         want_truth: bool,
         codes: Vec<u16>,
+        lead: usize,
     ) -> Result<RawFrame> {
         self.check_input(stokes)?;
         if self.cfg.psns.is_some() {
@@ -522,6 +528,7 @@ impl Sensor {
                 frame_index,
                 want_truth,
                 codes,
+                lead,
             );
         }
         let cfg = &self.cfg;
@@ -582,8 +589,9 @@ impl Sensor {
             scale,
             max: adc::max_code(cfg.bit_depth),
         };
-        let mut codes = codes;
-        codes.resize(w * h, 0); // no clearing: the kernel writes every code
+        // no clearing: the kernel writes every code
+        let mut buf = frame::codes_buffer(codes, lead, w * h);
+        let codes = &mut buf[lead..];
         let mut analog = (!st.quantize).then(|| vec![0f32; w * h]);
         let seed = self.seed;
         let layout = &cfg.layout;
@@ -640,8 +648,10 @@ impl Sensor {
         } else {
             StokesImage::zeros(0, 0)
         };
+        let (codes, lead_buffer) = frame::split_lead(buf, lead, w, h);
         Ok(RawFrame {
-            codes: Image::from_vec(w, h, codes),
+            codes,
+            lead_buffer,
             bit_depth: cfg.bit_depth,
             black_level_dn: black * scale,
             exposure_us: t_us,

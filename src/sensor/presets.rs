@@ -18,7 +18,7 @@ use super::normal::BLOCK;
 use super::optics::RelativeIllumination;
 use super::{adc, noise, nominal_axis, RawFrame, Sensor, SensorConfig, Stages};
 use crate::error::{check_range, Error, Result};
-use crate::image::{Image, StokesImage, StokesRows};
+use crate::image::{StokesImage, StokesRows};
 use crate::sky::clouds;
 use rayon::prelude::*;
 use serde::{Deserialize, Serialize};
@@ -351,6 +351,7 @@ pub(crate) fn psns_frame(
     frame_index: u64,
     want_truth: bool,
     codes: Vec<u16>,
+    lead: usize,
 ) -> Result<RawFrame> {
     if want_truth && matches!(src, PsnsSource::Rows(_)) {
         return Err(Error::Invalid(
@@ -366,9 +367,10 @@ pub(crate) fn psns_frame(
         .kappa
         .unwrap_or_else(|| kappa_of(src, s.ri.as_deref(), full));
     let sigma = p.noise_fraction * full;
-    let mut codes = codes;
-    codes.clear();
-    codes.resize(w * h, 0);
+    let mut buf = codes;
+    buf.truncate(lead);
+    let mut buf = super::frame::codes_buffer(buf, lead, w * h);
+    let codes = &mut buf[lead..];
     // Gaussian noise from the fast path's counter-based generator (one keyed hash of the pixel
     // index per draw, inverted exactly to f32 precision): the frame does not depend on rows,
     // threads or blocks, and costs a few ns per pixel instead of ChaCha + ziggurat
@@ -439,8 +441,10 @@ pub(crate) fn psns_frame(
             })
         });
     }
+    let (codes, lead_buffer) = super::frame::split_lead(buf, lead, w, h);
     Ok(RawFrame {
-        codes: Image::from_vec(w, h, codes),
+        codes,
+        lead_buffer,
         bit_depth: cfg.bit_depth,
         black_level_dn: 0.0,
         exposure_us: match cfg.exposure {

@@ -70,3 +70,40 @@ fn payload_and_crc_match_the_codes() {
         }
     }
 }
+
+#[test]
+fn frame_after_a_lead_keeps_the_lead_and_makes_the_same_codes() {
+    for (exact, preset) in [
+        (false, Preset::Camera),
+        (true, Preset::Camera),
+        (false, Preset::Gniipi),
+    ] {
+        let mut cfg = SceneConfig::default();
+        cfg.raw.preset = preset;
+        cfg.camera.intrinsics = Intrinsics {
+            pixel_pitch_um: 3.45 * 16.0,
+            ..Intrinsics::with_size(152, 36)
+        };
+        cfg.raw.exact = exact;
+        let pipe = RawPipeline::new(&cfg).unwrap();
+        let sun = SunPosition::new(40.0, 120.0);
+        let att = Attitude::enu(30.0, 50.0, 0.0);
+        let (want, _) = pipe.frame_at(sun, &att, 3, Vec::new()).unwrap();
+        let n = want.codes.data.len();
+        // a fresh buffer shorter than the lead, then a reused one holding stale codes
+        let mut buf = vec![7u16, 8];
+        for lead in [32usize, 32, 0, 5] {
+            let (f, _) = pipe.frame_at_after(sun, &att, 3, buf, lead).unwrap();
+            assert_eq!((f.codes.width, f.codes.height), (0, 0));
+            let b = f.lead_buffer.expect("the buffer comes back");
+            assert_eq!(b.len(), lead + n, "exact {exact} {preset:?} lead {lead}");
+            assert_eq!(&b[lead..], &want.codes.data[..], "exact {exact} {preset:?}");
+            if lead >= 2 {
+                assert_eq!(&b[..2], &[7, 8], "the lead is kept");
+            }
+            assert_eq!(f.saturated, want.saturated);
+            buf = b;
+            buf[..2].copy_from_slice(&[7, 8]);
+        }
+    }
+}

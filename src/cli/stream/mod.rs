@@ -230,17 +230,21 @@ struct Rendered {
     truth: Option<(Vec<f32>, Vec<f32>)>,
 }
 
-/// A frame's payload: packed bytes, or (little-endian Mono16) the codes themselves.
+/// A frame's payload: packed bytes, or (little-endian Mono16) the codes themselves, or a bag's
+/// Mono16 image message: room for its CDR prefix (`.1` elements), then the codes.
 enum Payload {
     Bytes(Vec<u8>),
     Codes(Vec<u16>),
+    Message(Vec<u16>, usize),
 }
 
 impl Payload {
+    /// The pixel bytes.
     fn as_bytes(&self) -> &[u8] {
         match self {
             Payload::Bytes(b) => b,
             Payload::Codes(c) => bytemuck::cast_slice(c),
+            Payload::Message(m, lead) => bytemuck::cast_slice(&m[*lead..]),
         }
     }
 }
@@ -262,6 +266,9 @@ struct FrameMaker {
     spare: Option<Receiver<Payload>>,
     /// Payload buffers made so far (at most [`PAYLOAD_BUFFERS`]).
     made: usize,
+    /// A bag's Mono16 image: u16 elements of room for the message's CDR prefix in front of the
+    /// codes, which the bag fills in place (no copy of the pixels); 0 otherwise.
+    lead: usize,
     /// A bag's frames (`None`: the psns format); `Some(true)`: also the ground-truth DoLP and
     /// AoLP.
     truth: Option<bool>,
@@ -296,27 +303,30 @@ impl FrameMaker {
         let mut bytes = Vec::new();
         if let Some(p) = self.spare_payload() {
             match p {
-                Payload::Codes(c) => self.codes = c,
+                Payload::Codes(c) | Payload::Message(c, _) => self.codes = c,
                 Payload::Bytes(b) => bytes = b,
             }
         }
         let codes = std::mem::take(&mut self.codes);
         // the payload and its CRC come with the frame (the fast path takes the Mono16 CRC band
         // by band, packing takes it chunk by chunk)
-        let (mut frame, info, crc) = if self.truth.is_some() && packing::codes_are_payload(self.fmt)
-        {
-            // a bag's mono16 image needs no payload CRC
-            let (f, i) = self.pipe.frame_at(sun, &pose.attitude, index, codes)?;
+        let (mut frame, info, crc) = if self.lead > 0 {
+            // a bag's mono16 image: the codes behind room for the message's CDR prefix, no CRC
+            let (f, i) = self
+                .pipe
+                .frame_at_after(sun, &pose.attitude, index, codes, self.lead)?;
             (f, i, None)
         } else {
             self.pipe
                 .frame_payload_at(sun, &pose.attitude, index, codes, self.fmt, &mut bytes)?
         };
         // little-endian Mono16 is the code buffer itself: no packing pass
-        let payload = if packing::codes_are_payload(self.fmt) {
-            Payload::Codes(std::mem::take(&mut frame.codes.data))
-        } else {
-            Payload::Bytes(bytes)
+        let payload = match frame.lead_buffer.take() {
+            Some(m) => Payload::Message(m, self.lead),
+            None if packing::codes_are_payload(self.fmt) => {
+                Payload::Codes(std::mem::take(&mut frame.codes.data))
+            }
+            None => Payload::Bytes(bytes),
         };
         let m = pose.attitude.enu_to_camera(sun.azimuth_deg);
         let sun_c = m * sun.vector();
@@ -633,9 +643,18 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
         codes: Vec::new(),
         spare: None,
         made: 0,
+        lead: 0,
         truth: opts.bag.as_ref().map(|b| b.truth_images),
         pipe,
     };
+    if opts.bag.is_some() && packing::codes_are_payload(fmt) {
+        let i = &maker.pipe.config().camera.intrinsics;
+        maker.lead = super::bag::image_prefix_len(
+            psns::ros2::ImageEncoding::of_pixel_format(fmt),
+            i.width,
+            i.height,
+        )? / 2;
+    }
     // render thread: pose k+1 while frame k is written; written payloads come back for reuse
     let (tx, rx) = sync_channel::<Result<Rendered>>(1);
     let (spare_tx, spare_rx) = sync_channel::<Payload>(PAYLOAD_BUFFERS);
@@ -820,7 +839,7 @@ fn write_loop(
         if opts.stamp_host_time {
             r.meta.host_time_ns = host_monotonic_ns();
         }
-        if let Err(e) = out.write(&r) {
+        if let Err(e) = out.write(&mut r) {
             return Err((n, late, e));
         }
         let _ = spare.try_send(r.payload);

@@ -47,13 +47,19 @@ impl Output {
             Ok(Output::Path(w))
         }
     }
-    pub(super) fn write(&mut self, r: &Rendered) -> Result<()> {
+    /// Writes a frame; a bag's image message is completed in its payload buffer.
+    pub(super) fn write(&mut self, r: &mut Rendered) -> Result<()> {
         match self {
             Output::Stdout(w) => w.write_payload_crc(&r.meta, r.payload.as_bytes(), r.crc),
             Output::Path(w) => w.write_payload_crc(&r.meta, r.payload.as_bytes(), r.crc),
             Output::Bag(w) => {
                 let truth = r.truth.as_ref().map(|(d, a)| (&d[..], &a[..]));
-                w.write_frame(&r.meta, r.payload.as_bytes(), truth)
+                match &mut r.payload {
+                    Payload::Message(m, _) => {
+                        w.write_frame_message(&r.meta, bytemuck::cast_slice_mut(m), truth)
+                    }
+                    p => w.write_frame(&r.meta, p.as_bytes(), truth),
+                }
             }
         }
     }
