@@ -37,7 +37,7 @@ pub fn run(cmd: DatasetCmd) -> anyhow::Result<()> {
 fn merge_cmd(dir: &Path) -> anyhow::Result<()> {
     let cfg = open_dataset(dir)?;
     let plan = cfg.plan()?;
-    match merge(dir, &cfg, &plan)? {
+    match merge(dir, &plan)? {
         Merged::Written { files } => {
             eprintln!(
                 "psns dataset merge: wrote {} ({files} files of {} samples)",

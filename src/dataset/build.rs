@@ -16,10 +16,10 @@
 //! has on disk, and renders the others again.
 
 use super::manifest::{
-    complete, known_entries, manifest_line, merge, size_crc, write_shared, Merged, DESCRIPTION,
-    EXTRAS, LABELS, MANIFEST, PARTS,
+    complete, known_entries, manifest_line, merge, size_crc, write_shared, write_shared_with,
+    Merged, DESCRIPTION, EXTRAS, LABELS, MANIFEST, PARTS,
 };
-use super::{DatasetConfig, Sample, Shard, Split, LABEL_HEADER};
+use super::{DatasetConfig, Sample, Shard, Split};
 use crate::config::SceneConfig;
 use crate::image::Image;
 use crate::io::create_dir;
@@ -424,19 +424,9 @@ pub fn build(
         memory_need(cfg.width * cfg.height * jobs, BYTES_PER_PIXEL),
         memory_available(),
     )?;
-    // every sample's parameters and name (a sun_time that keeps the sun down fails here)
+    // every sample can be drawn (a sun_time that keeps the sun down fails here); samples are
+    // drawn again from their position when needed, so the plan holds nothing per sample
     let plan = cfg.plan()?;
-    let mut labels = String::with_capacity(plan.len() * 200);
-    labels.push_str(LABEL_HEADER);
-    labels.push('\n');
-    let mut mine = Vec::new();
-    for (j, s) in plan.iter().enumerate() {
-        labels.push_str(&s.label_row_with(cfg.outputs.raw12));
-        labels.push('\n');
-        if shard.contains(j as u64) {
-            mine.push(s.clone());
-        }
-    }
     // everything is checked: from here on files are written
     let mut dirs: Vec<PathBuf> = vec![dir.join(PARTS)];
     for (s, _) in cfg.split_counts() {
@@ -452,8 +442,8 @@ pub fn build(
     let lock = ShardLock::take(&dir, shard)?;
     remove_stale_staging(&dir);
     write_shared(&dir.join(DESCRIPTION), &cfg_toml)?;
-    write_shared(&dir.join(LABELS), &labels)?;
-    drop(labels);
+    let labels = dir.join(LABELS);
+    write_shared_with(&labels, |w| plan.write_labels(w, &labels).map(|_| true))?;
     let part_path = dir
         .join(PARTS)
         .join(format!("manifest-{}-of-{}.csv", shard.k, shard.n));
@@ -461,29 +451,34 @@ pub fn build(
         .num_threads(jobs)
         .build()
         .map_err(|e| Error::io(format!("starting {jobs} threads"), std::io::Error::other(e)))?;
-    let n_mine = mine.len();
-    let todo: Vec<Sample> = if resume {
+    let n_mine = plan.shard_positions(shard).len();
+    // --resume: the positions still to render, 4 bytes each (positions are below 2^32: a
+    // description holds at most 6 · 10⁷ samples); None: every position of the shard
+    let todo: Option<Vec<u32>> = if resume {
         let (known, _) = known_entries(&dir);
         // reading every file back takes a while on a big dataset: show it
         let checked = Mutex::new(progress.start(
             "psns dataset: --resume: checking",
             Unit::Images,
-            Some(mine.len() as u64),
+            Some(n_mine as u64),
             false,
         ));
-        pool.install(|| {
-            mine.into_par_iter()
-                .filter(|s| {
-                    let whole = complete(&dir, &cfg.files(s), &known);
+        let todo: Result<Vec<u32>> = pool.install(|| {
+            plan.shard_positions(shard)
+                .map(|j| {
+                    let whole = complete(&dir, &cfg.files(&plan.sample(j)?), &known);
                     checked.lock().unwrap().inc(1);
-                    !whole
+                    Ok((!whole).then_some(j as u32))
                 })
+                .filter_map(|r: Result<Option<u32>>| r.transpose())
                 .collect()
-        })
+        });
+        Some(todo?)
     } else {
-        mine
+        None
     };
-    let skipped = n_mine - todo.len();
+    let n_todo = todo.as_ref().map_or(n_mine, |t| t.len());
+    let skipped = n_mine - n_todo;
     let part = std::fs::OpenOptions::new()
         .create(true)
         .append(resume)
@@ -504,7 +499,7 @@ pub fn build(
         .join(format!("tmp-{}-{}", hostname(), std::process::id()));
     create_dir(&staging)?;
     let progress =
-        Mutex::new(progress.start("psns dataset", Unit::Images, Some(todo.len() as u64), true));
+        Mutex::new(progress.start("psns dataset", Unit::Images, Some(n_todo as u64), true));
     if skipped > 0 {
         progress.lock().unwrap().println(&format!(
             "psns dataset: --resume: {skipped} samples already complete"
@@ -512,35 +507,40 @@ pub fn build(
     }
     let cache = PipelineCache::default();
     let t1 = Instant::now();
-    let result: Result<()> = pool.install(|| {
-        todo.par_iter().try_for_each_init(
-            || Worker {
-                cfg,
-                dir: &dir,
-                staging: &staging,
-                cache: &cache,
-            },
-            |w, s| {
-                let lines = w.sample(s)?;
-                part.lock()
-                    .unwrap()
-                    .write_all(lines.as_bytes())
-                    .map_err(|e| Error::io(format!("writing {}", part_path.display()), e))?;
-                let mut p = progress.lock().unwrap();
-                p.set_message(s.split.name());
-                p.inc(1);
-                Ok(())
-            },
-        )
+    let render_one = |w: &mut Worker, j: u64| -> Result<()> {
+        let s = plan.sample(j)?;
+        let lines = w.sample(&s)?;
+        part.lock()
+            .unwrap()
+            .write_all(lines.as_bytes())
+            .map_err(|e| Error::io(format!("writing {}", part_path.display()), e))?;
+        let mut p = progress.lock().unwrap();
+        p.set_message(s.split.name());
+        p.inc(1);
+        Ok(())
+    };
+    let worker = || Worker {
+        cfg,
+        dir: &dir,
+        staging: &staging,
+        cache: &cache,
+    };
+    let result: Result<()> = pool.install(|| match &todo {
+        Some(t) => t
+            .par_iter()
+            .try_for_each_init(worker, |w, &j| render_one(w, j as u64)),
+        None => plan
+            .shard_positions(shard)
+            .try_for_each_init(worker, render_one),
     });
     drop(progress);
     let _ = std::fs::remove_dir(&staging);
     result?;
     let seconds = t1.elapsed().as_secs_f64();
-    let built = todo.len();
-    let files = built * cfg.files(&plan[0]).len();
+    let built = n_todo;
+    let files = built * cfg.files(&plan.sample(0)?).len();
     let total_seconds = t0.elapsed().as_secs_f64();
-    let merged = merge(&dir, cfg, &plan)?;
+    let merged = merge(&dir, &plan)?;
     lock.release();
     Ok(BuildSummary {
         dir,

@@ -2,12 +2,12 @@
 //! the build into per-shard parts (`.parts/manifest-K-of-N.csv`, one line per finished file) and
 //! merged into `manifest.csv` when every sample is present; and the check of a dataset against it.
 
-use super::{DatasetConfig, Sample};
-use crate::io::write_text;
+use super::{DatasetConfig, Plan};
 use crate::{Error, Result};
 use rayon::prelude::*;
 use std::collections::HashMap;
-use std::io::Read;
+use std::fs::File;
+use std::io::{BufReader, BufWriter, Read, Write};
 use std::path::{Path, PathBuf};
 
 /// The description in force.
@@ -24,10 +24,79 @@ pub const EXTRAS: &str = "extras";
 /// Writes a file every shard writes with the same content (atomically), unless it is already
 /// there with that content: shards starting or finishing together then rarely write at once.
 pub(crate) fn write_shared(path: &Path, text: &str) -> Result<()> {
-    if std::fs::read(path).is_ok_and(|b| b == text.as_bytes()) {
-        return Ok(());
+    write_shared_with(path, |w| {
+        w.write_all(text.as_bytes())
+            .map_err(|e| Error::io(format!("writing {}", path.display()), e))?;
+        Ok(true)
+    })
+    .map(|_| ())
+}
+
+/// [`write_shared`] for content written piece by piece by `body` (into a temporary file next to
+/// `path`, compared with the file already there as it goes): the content is never held whole.
+/// `Ok(false)` if `body` declined (returned `Ok(false)`): nothing is written then.
+pub(crate) fn write_shared_with(
+    path: &Path,
+    body: impl FnOnce(&mut dyn Write) -> Result<bool>,
+) -> Result<bool> {
+    let name = path.file_name().map(|n| n.to_string_lossy().into_owned());
+    let name = name.unwrap_or_default();
+    // the temporary name of io::write_atomic, which remove_stale_staging knows
+    let tmp = path.with_file_name(format!(".{name}.tmp-{}", std::process::id()));
+    let ctx = || format!("writing {}", path.display());
+    let result = (|| {
+        let f = File::create(&tmp).map_err(|e| Error::io(ctx(), e))?;
+        let mut w = Tee {
+            out: BufWriter::with_capacity(1 << 20, f),
+            old: File::open(path)
+                .ok()
+                .map(|f| BufReader::with_capacity(1 << 20, f)),
+            buf: Vec::new(),
+        };
+        if !body(&mut w)? {
+            return Ok(None);
+        }
+        w.out.flush().map_err(|e| Error::io(ctx(), e))?;
+        // the same content only if the old file ends here too
+        let same = w
+            .old
+            .as_mut()
+            .is_some_and(|r| r.read(&mut [0u8]).is_ok_and(|n| n == 0));
+        Ok(Some(same))
+    })();
+    match result {
+        Ok(Some(false)) => std::fs::rename(&tmp, path)
+            .map(|_| true)
+            .map_err(|e| Error::io(ctx(), e)),
+        other => {
+            let _ = std::fs::remove_file(&tmp);
+            other.map(|w| w.is_some())
+        }
     }
-    write_text(path, text)
+}
+
+/// Writes into `out` and compares with `old` (dropped at the first difference).
+struct Tee {
+    out: BufWriter<File>,
+    old: Option<BufReader<File>>,
+    buf: Vec<u8>,
+}
+
+impl Write for Tee {
+    fn write(&mut self, b: &[u8]) -> std::io::Result<usize> {
+        self.out.write_all(b)?;
+        if let Some(r) = &mut self.old {
+            self.buf.resize(b.len(), 0);
+            if r.read_exact(&mut self.buf).is_err() || self.buf != b {
+                self.old = None;
+            }
+        }
+        Ok(b.len())
+    }
+
+    fn flush(&mut self) -> std::io::Result<()> {
+        self.out.flush()
+    }
 }
 
 /// Size and CRC32 of a file.
@@ -129,41 +198,56 @@ pub enum Merged {
 }
 
 /// Writes `manifest.csv` when every file of every sample has an entry; then removes `.parts`.
-pub fn merge(dir: &Path, cfg: &DatasetConfig, plan: &[Sample]) -> Result<Merged> {
+/// The manifest is written as the plan is walked (and dropped at the first missing file), so
+/// its text is never held whole.
+pub fn merge(dir: &Path, plan: &Plan) -> Result<Merged> {
+    let cfg = plan.config();
     let (known, parts) = known_entries(dir);
-    let mut text = String::from("file,size,crc32\n");
-    for name in [DESCRIPTION, LABELS] {
-        let p = dir.join(name);
-        let (size, crc) =
-            size_crc(&p).map_err(|e| Error::io(format!("reading {}", p.display()), e))?;
-        text.push_str(&manifest_line(name, size, crc));
-    }
+    let path = dir.join(MANIFEST);
+    let ctx = || format!("writing {}", path.display());
     let (mut missing, mut first) = (0u64, String::new());
     let mut files = 2;
-    for s in plan {
-        let fs = cfg.files(s);
-        let mut whole = true;
-        for f in &fs {
-            match known.get(f) {
-                Some(&(size, crc)) => text.push_str(&manifest_line(f, size, crc)),
-                None => whole = false,
-            }
+    let written = write_shared_with(&path, |w| {
+        w.write_all(b"file,size,crc32\n")
+            .map_err(|e| Error::io(ctx(), e))?;
+        for name in [DESCRIPTION, LABELS] {
+            let p = dir.join(name);
+            let (size, crc) =
+                size_crc(&p).map_err(|e| Error::io(format!("reading {}", p.display()), e))?;
+            w.write_all(manifest_line(name, size, crc).as_bytes())
+                .map_err(|e| Error::io(ctx(), e))?;
         }
-        if !whole {
-            if missing == 0 {
-                first = fs[0].clone();
-            }
-            missing += 1;
-        }
-        files += fs.len();
-    }
-    if missing > 0 {
+        plan.walk(
+            |s| cfg.files(&s),
+            |fs| {
+                let mut whole = true;
+                for f in &fs {
+                    match known.get(f) {
+                        Some(&(size, crc)) if missing == 0 => w
+                            .write_all(manifest_line(f, size, crc).as_bytes())
+                            .map_err(|e| Error::io(ctx(), e))?,
+                        Some(_) => {}
+                        None => whole = false,
+                    }
+                }
+                if !whole {
+                    if missing == 0 {
+                        first = fs[0].clone();
+                    }
+                    missing += 1;
+                }
+                files += fs.len();
+                Ok(())
+            },
+        )?;
+        Ok(missing == 0)
+    })?;
+    if !written {
         return Ok(Merged::Missing {
             samples: missing,
             first,
         });
     }
-    write_shared(&dir.join(MANIFEST), &text)?;
     for p in parts {
         let _ = std::fs::remove_file(p);
     }
@@ -238,25 +322,28 @@ pub fn verify(dir: &Path) -> Result<VerifyReport> {
     }
     // what the description says the dataset holds
     let listed: std::collections::HashSet<&str> = entries.iter().map(|e| e.0.as_str()).collect();
-    let mut expected = vec![DESCRIPTION.to_string(), LABELS.to_string()];
+    let mut unlisted = Vec::new();
+    let mut expect = |f: &str| {
+        if manifest.is_ok() && !listed.contains(f) {
+            unlisted.push(format!("{f}: not in the manifest"));
+        }
+    };
+    expect(DESCRIPTION);
+    expect(LABELS);
     match open_dataset(dir) {
         Ok(cfg) => match cfg.plan() {
-            Ok(plan) => {
-                for s in &plan {
-                    expected.extend(cfg.files(s));
-                }
-            }
+            Ok(plan) => plan.walk(
+                |s| cfg.files(&s),
+                |fs| {
+                    fs.iter().for_each(|f| expect(f));
+                    Ok(())
+                },
+            )?,
             Err(e) => problems.push(format!("{DESCRIPTION}: {e}")),
         },
         Err(e) => problems.push(format!("{DESCRIPTION}: damaged or missing ({e})")),
     }
-    if manifest.is_ok() {
-        for f in &expected {
-            if !listed.contains(f.as_str()) {
-                problems.push(format!("{f}: not in the manifest"));
-            }
-        }
-    }
+    problems.extend(unlisted);
     let bad: Vec<String> = entries
         .par_iter()
         .filter_map(|(f, size, crc)| match size_crc(&dir.join(f)) {

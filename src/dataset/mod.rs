@@ -27,20 +27,17 @@ use std::collections::BTreeMap;
 use std::fmt;
 
 mod dist;
+mod plan;
 mod sample;
 #[cfg(test)]
 mod tests;
 pub use dist::*;
+pub use plan::*;
 pub use sample::*;
-
-/// Peak bytes per sample of a build's plan: its index, the drawn sample and its result, the
-/// shard's copy and its label row.
-const PLAN_BYTES_PER_SAMPLE: u64 = 16 + 3 * std::mem::size_of::<Result<Sample>>() as u64 + 256;
 
 /// Frame-index stride between splits: sample `n` of split id `s` is frame `s · STRIDE + n`.
 pub const SPLIT_STRIDE: u64 = 1_000_000_000;
-/// Most samples in one split (so a description holds at most six times as many): the plan of
-/// a build holds every sample's parameters, a few hundred bytes each.
+/// Most samples in one split (so a description holds at most six times as many).
 pub const MAX_SAMPLES_PER_SPLIT: u64 = 10_000_000;
 
 /// One of the six PSNS folders.
@@ -523,30 +520,12 @@ impl DatasetConfig {
             .flat_map(move |(s, n)| (1..=n).map(move |k| self.sample(s, k)))
     }
 
-    /// Every sample in canonical order, or the first that cannot be drawn.
-    ///
-    /// The plan's memory is checked against what the process may use before it is allocated: a
-    /// description too big for this machine is bad input, not an allocation abort.
-    pub fn plan(&self) -> Result<Vec<Sample>> {
-        use rayon::prelude::*;
-        crate::memory::check_memory(
-            &format!("the plan of {} samples", self.total()),
-            self.total().saturating_mul(PLAN_BYTES_PER_SAMPLE),
-            crate::memory::memory_available(),
-        )?;
-        // SPA draws (with `sun_time`) cost a few microseconds each: spread them over the cores
-        let ids: Vec<(Split, u64)> = self
-            .split_counts()
-            .into_iter()
-            .flat_map(|(s, n)| (1..=n).map(move |k| (s, k)))
-            .collect();
-        // a description that keeps the sun down fails on its first sample: fail fast there
-        if let Some(&(s, k)) = ids.first() {
-            self.sample(s, k)?;
-        }
-        let all: Vec<Result<Sample>> = ids.par_iter().map(|&(s, k)| self.sample(s, k)).collect();
-        // the first sample that fails, in order (not whichever thread failed first)
-        all.into_iter().collect()
+    /// The plan of every sample in canonical order, each drawn when needed ([`Plan`]), after
+    /// checking that every sample can be drawn (the first that cannot is the error).
+    pub fn plan(&self) -> Result<Plan<'_>> {
+        let plan = Plan::new(self);
+        plan.check()?;
+        Ok(plan)
     }
 
     /// The files of one sample, relative to the dataset directory: the 8-bit mosaic first, then

@@ -49,8 +49,9 @@ fn default_is_psns_at_full_size_and_round_trips() {
 #[test]
 fn draws_depend_on_seed_and_index_only() {
     let c = tiny();
-    let all: Vec<Sample> = c.plan().unwrap();
-    assert_eq!(all.len(), 5);
+    let plan = c.plan().unwrap();
+    assert_eq!(plan.len(), 5);
+    let all: Vec<Sample> = (0..5).map(|j| plan.sample(j).unwrap()).collect();
     // the same sample drawn alone, in another order, equals the one in the full list
     assert_eq!(c.sample(Split::Tgniicpi, 2).unwrap(), all[4]);
     assert_eq!(all[4].frame_index, 5 * SPLIT_STRIDE + 2);
@@ -187,7 +188,8 @@ fn sun_from_times_and_places() {
     let c = DatasetConfig::from_toml(text, "t").unwrap();
     assert_eq!(DatasetConfig::from_toml(&c.to_toml(), "again").unwrap(), c);
     let plan = c.plan().unwrap();
-    for s in &plan {
+    for s in c.samples().map(Result::unwrap) {
+        assert_eq!(plan.sample(s.number - 1).unwrap(), s);
         let w = s.when.as_ref().unwrap();
         assert!(s.sun_altitude_deg >= 20.0 && s.sun_altitude_deg <= 90.0);
         assert_eq!(s.sun_altitude_deg, round_decimal(s.sun_altitude_deg, 3));
@@ -241,4 +243,174 @@ fn sun_from_times_and_places() {
     assert!(e
         .to_string()
         .contains("sun_time.lat_deg = 95 is out of range (allowed -90..90)"));
+}
+
+/// The plan as it was before samples were drawn on demand: every sample drawn up front, in
+/// canonical order. Kept here only as the oracle of [`Plan`].
+fn eager_plan(c: &DatasetConfig) -> Result<Vec<Sample>> {
+    let ids: Vec<(Split, u64)> = c
+        .split_counts()
+        .into_iter()
+        .flat_map(|(s, n)| (1..=n).map(move |k| (s, k)))
+        .collect();
+    ids.iter().map(|&(s, k)| c.sample(s, k)).collect()
+}
+
+/// `labels.csv` as the build wrote it from the eager plan: held whole in memory.
+fn eager_labels(c: &DatasetConfig, plan: &[Sample]) -> String {
+    let mut labels = String::new();
+    labels.push_str(LABEL_HEADER);
+    labels.push('\n');
+    for s in plan {
+        labels.push_str(&s.label_row_with(c.outputs.raw12));
+        labels.push('\n');
+    }
+    labels
+}
+
+/// A description drawn from the parameters of a proptest case: a subset of the splits with
+/// small counts, seed, distributions, clouds, the 12-bit frame's exposure and the sun from
+/// times and places.
+fn random_description(
+    seed: u64,
+    counts: [u64; 6],
+    yaw_step: f64,
+    clouds: f64,
+    raw12: bool,
+    sun_time: bool,
+) -> DatasetConfig {
+    let mut c = DatasetConfig {
+        seed,
+        width: 64,
+        height: 48,
+        yaw_deg: uniform(-30.0, 30.0, yaw_step),
+        pitch_deg: Dist::Choice(vec![-2.5, 0.0, 7.25]),
+        roll_deg: Dist::Uniform {
+            min: -1.0,
+            max: 1.0,
+            step: Some(0.0),
+        },
+        soft_clouds: clouds,
+        ..Default::default()
+    };
+    c.splits = Split::ALL
+        .iter()
+        .zip(counts)
+        .filter(|&(_, n)| n > 0)
+        .map(|(s, n)| (s.name().to_string(), n))
+        .collect();
+    if c.splits.is_empty() {
+        c.splits.insert("TGNIIPI".into(), 3);
+    }
+    c.outputs.raw12 = raw12;
+    if raw12 {
+        c.outputs.raw12_exposure_us = Some(uniform(100.0, 5000.0, 10.0));
+    }
+    if sun_time {
+        c.sun_time = Some(SunTime {
+            start: "2024-03-01T00:00:00Z".into(),
+            end: "2024-09-30T23:59:59Z".into(),
+            lat_deg: uniform(-40.0, 40.0, 0.01),
+            lon_deg: default_lon(),
+            min_altitude_deg: 5.0,
+        });
+    }
+    c.validate().unwrap();
+    c
+}
+
+proptest::proptest! {
+    #![proptest_config(proptest::prelude::ProptestConfig::with_cases(48))]
+    /// Sample `j` drawn on demand is sample `j` of the eager plan, the labels written as the
+    /// plan is walked are the eager labels byte for byte, and a shard's positions are those of
+    /// `Shard::contains`, for random descriptions, seeds and shards.
+    #[test]
+    fn lazy_plan_equals_the_eager_plan(
+        seed in proptest::prelude::any::<u64>(),
+        counts in proptest::array::uniform6(0u64..40),
+        yaw_step in proptest::sample::select(vec![0.0, 0.1, 0.25, 1.0]),
+        clouds in proptest::sample::select(vec![0.0, 0.3, 1.0]),
+        raw12 in proptest::prelude::any::<bool>(),
+        sun_time in proptest::prelude::any::<bool>(),
+        shard_n in 1u64..9,
+        shard_k in 1u64..9,
+    ) {
+        let c = random_description(seed, counts, yaw_step, clouds, raw12, sun_time);
+        let eager = eager_plan(&c).unwrap();
+        let plan = c.plan().unwrap();
+        proptest::prop_assert_eq!(plan.len(), eager.len() as u64);
+        for (j, s) in eager.iter().enumerate() {
+            proptest::prop_assert_eq!(&plan.sample(j as u64).unwrap(), s);
+            proptest::prop_assert_eq!(plan.id(j as u64), (s.split, s.number));
+        }
+        let mut labels = Vec::new();
+        plan.write_labels(&mut labels, std::path::Path::new("labels.csv")).unwrap();
+        proptest::prop_assert_eq!(String::from_utf8(labels).unwrap(), eager_labels(&c, &eager));
+        let shard = Shard { k: shard_k.min(shard_n), n: shard_n };
+        let lazy: Vec<u64> = {
+            use rayon::prelude::*;
+            plan.shard_positions(shard).collect()
+        };
+        let old: Vec<u64> = (0..eager.len() as u64).filter(|&j| shard.contains(j)).collect();
+        proptest::prop_assert_eq!(lazy, old);
+    }
+}
+
+/// A plan is the description and one entry per split, whatever the number of samples: six
+/// splits at the cap (60,000,000 samples) plan instantly in a few hundred bytes, and any
+/// position maps to its split and number (the eager plan took about 850 bytes a sample).
+#[test]
+fn a_plan_holds_nothing_per_sample() {
+    use rayon::prelude::*;
+    let mut c = tiny();
+    c.splits = Split::ALL
+        .iter()
+        .map(|s| (s.name().to_string(), MAX_SAMPLES_PER_SPLIT))
+        .collect();
+    c.validate().unwrap();
+    let plan = c.plan().unwrap();
+    let n = MAX_SAMPLES_PER_SPLIT;
+    assert_eq!(plan.len(), 6 * n);
+    // what the plan owns besides the description: its fixed fields and one entry per split
+    let owned = std::mem::size_of_val(&plan) + 6 * std::mem::size_of::<(Split, u64, u64)>();
+    assert!(owned < 512, "{owned} bytes");
+    for (i, s) in Split::ALL.into_iter().enumerate() {
+        let first = i as u64 * n;
+        assert_eq!(plan.id(first), (s, 1));
+        assert_eq!(plan.id(first + n - 1), (s, n));
+        assert_eq!(plan.sample(first + n - 1).unwrap(), c.sample(s, n).unwrap());
+    }
+    let mut rng = crate::rng::dataset_rng(3, 0, 0);
+    for _ in 0..200 {
+        let j = rng.random_range(0..6 * n);
+        let (s, k) = plan.id(j);
+        assert_eq!(s.id() * n + k - 1, j);
+        assert_eq!(
+            plan.sample(j).unwrap().frame_index,
+            s.id() * SPLIT_STRIDE + k
+        );
+    }
+    let shard = Shard {
+        k: 17,
+        n: MAX_SHARDS,
+    };
+    assert_eq!(plan.shard_positions(shard).len(), 60);
+    let last: Vec<u64> = plan.shard_positions(shard).collect();
+    assert_eq!(last.last(), Some(&(59 * MAX_SHARDS + 16)));
+    // walking a plan holds one chunk of drawn samples at a time, in order
+    let mut c = tiny();
+    c.splits = [("NFPI".to_string(), 20_000)].into();
+    let mut next = 1;
+    c.plan()
+        .unwrap()
+        .walk(
+            |s| s.number,
+            |k| {
+                assert_eq!(k, next);
+                next += 1;
+                Ok(())
+            },
+        )
+        .unwrap();
+    assert_eq!(next, 20_001);
 }
