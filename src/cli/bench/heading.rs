@@ -1133,7 +1133,11 @@ fn tolerance_markdown(rows: &[ToleranceRow], scan: &[ScanRow]) -> String {
                 }
             });
             let res = p.iter().map(|r| r.residual).sum::<f64>() / p.len().max(1) as f64;
-            format!("{cmin:.2}–{cmax:.2}, {e:.2}° (residual {res:.1}°)")
+            if cmax == 0.0 && e.is_nan() {
+                "no estimate".to_string()
+            } else {
+                format!("{cmin:.2}–{cmax:.2}, {e:.2}° (residual {res:.1}°)")
+            }
         };
         s += &format!(
             "| {i} | {} | {} | {} |\n",
