@@ -258,10 +258,11 @@ pub(super) fn rayleigh_residuals(
 pub struct Residual {
     /// RMS of the wrapped AoLP residuals over the pixels used ([`HeadingEstimate::residual_deg`]).
     pub rms_deg: f64,
-    /// The systematic part: √max(0, RMS² − noise²), the noise² being half the mean square
-    /// difference of the residuals of neighbouring samples. Noise differs from pixel to pixel,
-    /// while a sky that does not fit the inputs (wrong tilt, sun or lens) leaves a residual that
-    /// varies smoothly across the frame, which the difference cancels.
+    /// The systematic part: √max(0, mean r_k r_k′) over pairs of neighbouring samples k, k′.
+    /// A sky that does not fit the inputs (wrong tilt, sun or lens) leaves a residual that varies
+    /// smoothly across the frame, so neighbours share it (r_k r_k′ ≈ m²), while pixel noise is
+    /// independent from one sample to the next and averages out of the product; noise so large
+    /// that the AoLP is uniformly random in (−90°, 90°] averages out too.
     pub systematic_deg: f64,
 }
 
@@ -275,32 +276,22 @@ impl Residual {
             ss += x * x;
             n += 1;
         }
-        let rms = (ss / n as f64).sqrt();
         let mut gaps: Vec<f64> = rays.windows(2).map(|w| w[0].angle_between(w[1])).collect();
-        let noise2 = if gaps.is_empty() {
-            0.0
-        } else {
+        let (mut cov, mut m) = (0.0, 0usize);
+        if !gaps.is_empty() {
             let lim = 1.5 * median_of(&mut gaps);
-            let (mut dd, mut m) = (0.0, 0usize);
             for k in 1..r.len().min(rays.len()) {
-                let d = r[k] - r[k - 1];
-                if d.is_finite() && rays[k].angle_between(rays[k - 1]) <= lim {
-                    // wrapped to ±90° (AoLP is axial)
-                    let h = std::f64::consts::FRAC_PI_2;
-                    let d = (d + h).rem_euclid(std::f64::consts::PI) - h;
-                    dd += d * d;
+                let p = r[k] * r[k - 1];
+                if p.is_finite() && rays[k].angle_between(rays[k - 1]) <= lim {
+                    cov += p;
                     m += 1;
                 }
             }
-            if m > 0 {
-                0.5 * dd / m as f64
-            } else {
-                0.0
-            }
-        };
+        }
+        let cov = if m > 0 { cov / m as f64 } else { 0.0 };
         Residual {
-            rms_deg: rms.to_degrees(),
-            systematic_deg: (rms * rms - noise2).max(0.0).sqrt().to_degrees(),
+            rms_deg: (ss / n as f64).sqrt().to_degrees(),
+            systematic_deg: cov.max(0.0).sqrt().to_degrees(),
         }
     }
 }

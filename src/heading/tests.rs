@@ -629,7 +629,7 @@ fn residual_splits_noise_from_a_smooth_misfit() {
         (r.rms_deg - 5.0).abs() < 1e-9 && (r.systematic_deg - 5.0).abs() < 1e-6,
         "{r:?}"
     );
-    // alternating ±5°: all noise
+    // alternating ±5°: all noise (neighbours never share it)
     let noise: Vec<f64> = (0..400)
         .map(|k| if k % 2 == 0 { 5f64 } else { -5.0 }.to_radians())
         .collect();
