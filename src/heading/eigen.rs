@@ -157,8 +157,9 @@ pub fn eigenvector_heading(
     // bias of a few tenths of a degree in the sun's direction on the Berry sky, so its
     // confidence falls below sin 45° of horizontal sun component (with a 5° tilt and the sun at
     // 70° its error reaches 2-3° in the bench).
-    // The free sun fits whatever tilt is given (it is found in the camera frame); the Rayleigh
-    // sky of the given sun and tilt at this yaw shows whether the inputs fit.
+    // The residual of the Rayleigh sky of the given sun and tilt at this yaw: reported, and its
+    // RMS lowers the confidence of a picture of no sky. Its systematic part is not used: the
+    // Berry sky's own misfit to Rayleigh's (≈ 10° RMS) is larger than a wrong tilt adds.
     let view = PolarView {
         aolp_deg,
         dolp,

@@ -155,7 +155,7 @@ pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEs
     // The share of the votes on the line is a ratio: it stays high when clouds hide most of the
     // meridian and a handful of votes elsewhere make the peak (13 votes at 75 % cloud cover gave
     // a 5.4° error at share 0.51), so the line's support, its number of votes, counts too.
-    // how well the Rayleigh sky of the given sun and tilt at this yaw fits the usable pixels
+    // the Rayleigh residual at this yaw, as in the eigenvector method (RMS factor only)
     let res = rayleigh_residual(view, setup, yaw_deg);
     let residual_deg = res.rms_deg;
     let confidence = (share
