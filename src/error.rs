@@ -27,6 +27,9 @@ pub enum Error {
     HeaderDamaged(String),
     /// Too few usable pixels (saturated, unpolarized, off the sky) for a heading estimate.
     TooFewPixels(String),
+    /// The inputs cannot determine the answer, e.g. a heading with the sun at the zenith (its
+    /// azimuth fixes no yaw).
+    Undetermined(String),
     /// An input file the user named that is missing, not permitted or a directory (bad input;
     /// the Python package raises `FileNotFoundError`, `PermissionError`, `IsADirectoryError`).
     Input {
@@ -91,6 +94,7 @@ impl Error {
                 | Error::Format(_)
                 | Error::HeaderDamaged(_)
                 | Error::TooFewPixels(_)
+                | Error::Undetermined(_)
                 | Error::Input { .. }
         )
     }
@@ -110,7 +114,10 @@ impl fmt::Display for Error {
                 allowed,
             } => write!(f, "{name} = {value} is out of range (allowed {allowed})"),
             Error::Invalid(m) => write!(f, "{m}"),
-            Error::Format(m) | Error::HeaderDamaged(m) | Error::TooFewPixels(m) => {
+            Error::Format(m)
+            | Error::HeaderDamaged(m)
+            | Error::TooFewPixels(m)
+            | Error::Undetermined(m) => {
                 write!(f, "{m}")
             }
             Error::Io { context, source } => write!(f, "{context}: {source}"),

@@ -173,8 +173,10 @@ def heading(raw: np.ndarray, **sun_and_tilt: Any) -> Dict[str, float]:
     ``method`` (model-fit, eigen, hough), ``demosaic``, ``bits``, and ``preset`` (the sensor
     preset the frame was made with: its lens and edge falloff) or ``vignetting_cos_power`` (the
     falloff's cos^N law, for the 180 degree decision near the horizon). The estimate uses nothing
-    else. Returns ``yaw_deg`` (NaN when too few pixels are usable), ``confidence`` (0..1),
-    ``pixels`` and ``saturated_pixels``.
+    else. Returns ``yaw_deg`` (NaN when too few pixels are usable or the sun is within 0.27
+    degrees of the zenith), ``confidence`` (0..1), ``pixels``, ``saturated_pixels`` and
+    ``residual_deg`` (RMS AoLP residual against the estimator's sky model at that yaw, DoLP^2
+    weighted; NaN without a yaw; large when the tilt, sun or lens given do not fit the sky).
     """
     return _psns.heading(raw, **sun_and_tilt)
 

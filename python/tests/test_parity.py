@@ -76,7 +76,27 @@ def test_heading_matches_cli(psns_bin, tmp_path):
     assert f"{py['yaw_deg']:.4f}" == want["yaw_deg"]
     assert f"{py['confidence']:.4f}" == want["confidence"]
     assert str(py["pixels"]) == want["pixels"]
+    assert f"{py['residual_deg']:.4f}" == want["residual_deg"]
     assert abs(py["yaw_deg"] - 33) < 0.5
+
+
+def test_heading_residual_flags_wrong_inputs():
+    # the attitude and sun given explicitly: a level camera at ENU yaw 30, the sun 40 deg up
+    sun = dict(sun_zenith=50, sun_azimuth=200)
+    geom = dict(width=612, height=512, pixel_pitch=13.8)
+    raw = psns.render_raw(**geom, **sun, frame="enu", yaw=30, pitch=0, roll=0,
+                          auto_exposure=True, seed=2)["raw"]
+    right = psns.heading(raw, **geom, **sun, pitch=0, roll=0)
+    assert abs(right["yaw_deg"] - 30) < 0.1 and right["confidence"] > 0.85, right
+    assert 0 < right["residual_deg"] < 3, right
+    wrong = psns.heading(raw, **geom, **sun, pitch=0, roll=40)
+    assert abs(wrong["yaw_deg"] - 30) > 5, wrong  # the roll moves the yaw
+    assert wrong["confidence"] < 0.5 and wrong["residual_deg"] > 2 * right["residual_deg"], wrong
+    # the sun at the zenith: no yaw, as for too few pixels
+    raw = psns.render_raw(**geom, sun_zenith=0, sun_azimuth=200, frame="enu", yaw=30,
+                          auto_exposure=True, seed=2)["raw"]
+    z = psns.heading(raw, **geom, sun_zenith=0, sun_azimuth=200)
+    assert np.isnan(z["yaw_deg"]) and z["confidence"] == 0 and np.isnan(z["residual_deg"]), z
 
 
 @pytest.mark.parametrize(

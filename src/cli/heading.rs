@@ -24,8 +24,8 @@ use std::io::Write;
 use std::path::Path;
 use std::time::Instant;
 
-/// Runs `psns heading`: one row `yaw_deg,confidence,pixels,saturated_pixels` for an image, or a
-/// row per frame of a stream (see [`STREAM_HEADER`]) and a summary on stderr.
+/// Runs `psns heading`: one row of [`IMAGE_HEADER`] for an image, or a row per frame of a stream
+/// (see [`STREAM_HEADER`]) and a summary on stderr.
 pub fn run(a: HeadingArgs) -> anyhow::Result<()> {
     a.check_method_options()?;
     if is_stream(&a.input)? {
@@ -34,7 +34,7 @@ pub fn run(a: HeadingArgs) -> anyhow::Result<()> {
     a.check_image_options()?;
     let row = heading_row(&a)?;
     let mut out = std::io::stdout().lock();
-    writeln!(out, "yaw_deg,confidence,pixels,saturated_pixels\n{row}")?;
+    writeln!(out, "{IMAGE_HEADER}\n{row}")?;
     Ok(())
 }
 
@@ -63,6 +63,9 @@ fn is_stream(input: &Path) -> Result<bool> {
     Ok(n == 8 && head == psns::stream::FILE_MAGIC)
 }
 
+/// Columns of the CSV row of an image.
+pub const IMAGE_HEADER: &str = "yaw_deg,confidence,pixels,saturated_pixels,residual_deg";
+
 fn heading_row(a: &HeadingArgs) -> Result<String> {
     let setup = a.image_setup()?; // option problems before reading the file
     let raw = load_raw(&a.input, MosaicLayout::default(), a.index)?;
@@ -73,16 +76,16 @@ fn heading_row(a: &HeadingArgs) -> Result<String> {
     let saturated = r.saturated;
     Ok(match r.estimate {
         Some(e) => format!(
-            "{:.4},{:.4},{},{saturated}",
-            e.yaw_deg, e.confidence, e.pixels
+            "{:.4},{:.4},{},{saturated},{:.4}",
+            e.yaw_deg, e.confidence, e.pixels, e.residual_deg
         ),
-        None => format!("nan,0,0,{saturated}"),
+        None => format!("nan,0,0,{saturated},nan"),
     })
 }
 
 /// Columns of the per-frame CSV of a stream.
 pub const STREAM_HEADER: &str =
-    "frame_index,yaw_deg,confidence,pixels,true_yaw_deg,error_deg,saturated_pixels,ms";
+    "frame_index,yaw_deg,confidence,pixels,true_yaw_deg,error_deg,saturated_pixels,ms,residual_deg";
 
 /// Intrinsics of a stream, its header's, each overridden by an option given; and the relative
 /// illumination of its frames: `--vignetting-cos-power`, else the header's `optics` record, else
@@ -270,13 +273,13 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
                 let err = wrap180(e.yaw_deg - truth);
                 errors.push(err);
                 format!(
-                    "{},{:.4},{:.4},{},{truth:.4},{err:.4},{sat},{ms:.1}",
-                    m.index, e.yaw_deg, e.confidence, e.pixels
+                    "{},{:.4},{:.4},{},{truth:.4},{err:.4},{sat},{ms:.1},{:.4}",
+                    m.index, e.yaw_deg, e.confidence, e.pixels, e.residual_deg
                 )
             }
             (None, sat) => {
                 none += 1;
-                format!("{},nan,0,0,{truth:.4},nan,{sat},{ms:.1}", m.index)
+                format!("{},nan,0,0,{truth:.4},nan,{sat},{ms:.1},nan", m.index)
             }
         };
         w(&mut out, &line)?;

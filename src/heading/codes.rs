@@ -172,8 +172,8 @@ pub fn polar_for_estimate(
 }
 
 /// The estimate from one mosaic: demosaic (see [`polar_for_estimate`]), mask clipped pixels,
-/// estimate. Without enough usable pixels there is no estimate and [`CodesEstimate::reason`]
-/// says why.
+/// estimate. Without enough usable pixels, or with the sun at the zenith, there is no estimate
+/// and [`CodesEstimate::reason`] says why.
 pub fn estimate_codes(
     codes: &Image<u16>,
     black_level: f64,
@@ -197,8 +197,9 @@ pub fn estimate_codes(
             info,
             reason: None,
         }),
-        // too few usable pixels (saturated, unpolarized): no heading, zero confidence
-        Err(Error::TooFewPixels(m)) => Ok(CodesEstimate {
+        // too few usable pixels (saturated, unpolarized) or a sun at the zenith: no heading,
+        // zero confidence
+        Err(Error::TooFewPixels(m) | Error::Undetermined(m)) => Ok(CodesEstimate {
             estimate: None,
             saturated,
             info: None,
@@ -211,7 +212,8 @@ pub fn estimate_codes(
 /// The estimate from one mosaic ([`estimate_codes`]).
 #[derive(Clone, Debug)]
 pub struct CodesEstimate {
-    /// The estimate; `None` when too few pixels are usable.
+    /// The estimate; `None` when too few pixels are usable or the sun is at the zenith
+    /// ([`check_sun_defines_yaw`]).
     pub estimate: Option<HeadingEstimate>,
     /// Pixels masked as within one pixel of a code at full scale.
     pub saturated: usize,

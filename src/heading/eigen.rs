@@ -86,6 +86,7 @@ pub fn eigenvector_heading(
     check_range("roll", setup.roll_deg, -90.0, 90.0)?;
     check_range("min-dolp", setup.min_dolp, 0.0, 1.0)?;
     setup.sun.check_up()?;
+    check_sun_defines_yaw(&setup.sun)?;
     let step = sample_step(setup);
     let mut samples: Vec<(DVec3, f64)> = Vec::new();
     for row in (0..i.height).step_by(step) {
@@ -156,15 +157,27 @@ pub fn eigenvector_heading(
     // bias of a few tenths of a degree in the sun's direction on the Berry sky, so its
     // confidence falls below sin 45° of horizontal sun component (with a 5° tilt and the sun at
     // 70° its error reaches 2-3° in the bench).
+    // The residual of the Rayleigh sky of the given sun and tilt at this yaw: reported, and its
+    // RMS lowers the confidence of a picture of no sky. Its systematic part is not used: the
+    // Berry sky's own misfit to Rayleigh's (≈ 10° RMS) is larger than a wrong tilt adds.
+    let view = PolarView {
+        aolp_deg,
+        dolp,
+        s0: None,
+    };
+    let res = rayleigh_residual(&view, setup, yaw_deg);
+    let residual_deg = res.rms_deg;
     let confidence = (separation
         * (horiz / EIGEN_FULL_HORIZ).min(1.0)
         * spread_factor(spread_deg)
-        * (samples.len() as f64 / 500.0).min(1.0))
+        * (samples.len() as f64 / 500.0).min(1.0)
+        * rms_factor(res.rms_deg))
     .clamp(0.0, 1.0);
     Ok(HeadingEstimate {
         yaw_deg,
         confidence,
         pixels: samples.len(),
         sun_camera: s_c,
+        residual_deg,
     })
 }

@@ -27,6 +27,7 @@ pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEs
         )));
     }
     setup.sun.check_up()?;
+    check_sun_defines_yaw(&setup.sun)?;
     let tilt = rot_y(setup.roll_deg.to_radians()) * rot_x(setup.pitch_deg.to_radians());
     let tt = tilt.transpose();
     let tol = 3f64.to_radians().cos();
@@ -154,15 +155,20 @@ pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEs
     // The share of the votes on the line is a ratio: it stays high when clouds hide most of the
     // meridian and a handful of votes elsewhere make the peak (13 votes at 75 % cloud cover gave
     // a 5.4° error at share 0.51), so the line's support, its number of votes, counts too.
+    // the Rayleigh residual at this yaw, as in the eigenvector method (RMS factor only)
+    let res = rayleigh_residual(view, setup, yaw_deg);
+    let residual_deg = res.rms_deg;
     let confidence = (share
         * (horiz / 0.17).min(1.0)
         * (side.abs() / 0.2).min(1.0)
-        * (nline as f64 / HOUGH_FULL_VOTES).min(1.0))
+        * (nline as f64 / HOUGH_FULL_VOTES).min(1.0)
+        * rms_factor(res.rms_deg))
     .clamp(0.0, 1.0);
     Ok(HeadingEstimate {
         yaw_deg,
         confidence,
         pixels: votes.len(),
         sun_camera: s_c,
+        residual_deg,
     })
 }

@@ -89,8 +89,8 @@ impl SensorBasis {
     }
 
     /// Observed minus predicted AoLP of E-vector `e` (camera frame), wrapped to (−π/2, π/2]
-    /// (what [`fit_residuals`] computes from per-pixel constants; the tests' reference).
-    #[cfg(test)]
+    /// (what [`fit_residuals`] computes from per-pixel constants; the tests' reference, and the
+    /// Rayleigh residual of the eigen and Hough estimates).
     pub(super) fn residual(&self, e: DVec3) -> f64 {
         let (a, b) = (e.dot(self.m), e.dot(self.s));
         // doubled predicted angle: (a² − b², 2ab) ∝ (cos 2θ, sin 2θ)
@@ -364,6 +364,7 @@ pub fn model_fit_heading(
     fit_elevation: bool,
 ) -> Result<(HeadingEstimate, ModelFitInfo)> {
     let i = &setup.intrinsics;
+    check_sun_defines_yaw(&setup.sun)?;
     let samples = fit_samples(aolp_deg, dolp, setup, model_fit_step(setup));
     if samples.len() < 10 {
         return Err(Error::TooFewPixels(format!(
@@ -506,6 +507,16 @@ pub fn model_fit_heading(
     let dsum: f64 = samples.iter().map(|s| s.2 * s.2).sum();
     let rms = (cost(&r, &w) / wsum.max(1e-300)).sqrt().to_degrees();
     let inlier = wsum / dsum.max(1e-300);
+    // the residual of every pixel used (above the level horizon), without the robust weights:
+    // inputs the sky does not fit show here, while the Tukey weights drop the misfits
+    let rr: Vec<f64> = pixels
+        .iter()
+        .zip(&r)
+        .map(|(q, &x)| if q.up { x } else { f64::NAN })
+        .collect();
+    let rays: Vec<DVec3> = samples.iter().map(|s| s.0).collect();
+    let res = Residual::of(&rr, &rays);
+    let residual_deg = res.rms_deg;
     // the camera-frame sun of the fitted attitude
     let c = tilt * crate::camera::rot_z(p[0].to_radians());
     let sun = SunPosition::new(p[3], az);
@@ -518,7 +529,8 @@ pub fn model_fit_heading(
         * inlier
         * spread_factor(rms)
         * (samples.len() as f64 / 300.0).min(1.0)
-        * (0.5 + 0.5 * start.confidence.clamp(0.0, 1.0)))
+        * (0.5 + 0.5 * start.confidence.clamp(0.0, 1.0))
+        * residual_factor(&res))
     .clamp(0.0, 1.0);
     Ok((
         HeadingEstimate {
@@ -526,6 +538,7 @@ pub fn model_fit_heading(
             confidence,
             pixels: samples.len(),
             sun_camera: s_c,
+            residual_deg,
         },
         ModelFitInfo {
             babinet_deg: p[1],

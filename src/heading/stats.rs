@@ -113,3 +113,50 @@ pub(super) fn step_for_samples(setup: &HeadingSetup, samples: f64) -> usize {
 /// The horizontal sun component (sin of the sun's zenith angle) from which the eigenvector
 /// method's confidence is not reduced: sin 45°.
 pub const EIGEN_FULL_HORIZ: f64 = std::f64::consts::FRAC_1_SQRT_2;
+
+/// The systematic residual at which [`residual_factor`] halves the confidence, degrees.
+pub const SYSTEMATIC_HALF_DEG: f64 = 3.0;
+/// The residual RMS at which [`rms_factor`] halves the confidence, degrees.
+pub const RESIDUAL_HALF_DEG: f64 = 30.0;
+
+/// Confidence factor of the model fit's [`Residual`]: 1 / (1 + (systematic /
+/// [`SYSTEMATIC_HALF_DEG`])⁴) × [`rms_factor`]. The first falls when the sky does not fit the
+/// inputs (a misfit that varies smoothly across the frame: wrong tilt, lens, or a picture that is
+/// not of the sky), the second when the residual is noise as large as a picture of no sky gives.
+///
+/// ```
+/// use psns::heading::{residual_factor, Residual};
+/// let r = |rms_deg, systematic_deg| Residual { rms_deg, systematic_deg };
+/// assert!(residual_factor(&r(2.0, 0.5)) > 0.99);
+/// assert!((residual_factor(&r(3.0, 3.0)) - 0.5).abs() < 0.01);
+/// assert!(residual_factor(&r(52.0, 0.0)) < 0.2); // uniformly random AoLP
+/// assert_eq!(residual_factor(&r(f64::NAN, f64::NAN)), 0.0);
+/// ```
+pub fn residual_factor(r: &Residual) -> f64 {
+    let f = rms_factor(r.rms_deg) / (1.0 + (r.systematic_deg / SYSTEMATIC_HALF_DEG).powi(4));
+    if f.is_nan() {
+        0.0
+    } else {
+        f
+    }
+}
+
+/// Confidence factor of a residual RMS alone: 1 / (1 + (RMS / [`RESIDUAL_HALF_DEG`])⁴), 0.1 for
+/// uniformly random AoLP (RMS 90°/√3 ≈ 52°), 0 for NaN. The eigenvector and Hough methods take
+/// only this factor: their model, the Rayleigh sky, misses the Berry sky near its neutral points
+/// by more (≈ 10° RMS on the default sky) than a wrong tilt adds.
+///
+/// ```
+/// use psns::heading::rms_factor;
+/// assert!(rms_factor(10.0) > 0.98);
+/// assert!(rms_factor(52.0) < 0.11);
+/// assert_eq!(rms_factor(f64::NAN), 0.0);
+/// ```
+pub fn rms_factor(rms_deg: f64) -> f64 {
+    let f = 1.0 / (1.0 + (rms_deg / RESIDUAL_HALF_DEG).powi(4));
+    if f.is_nan() {
+        0.0
+    } else {
+        f
+    }
+}

@@ -518,3 +518,128 @@ fn mismatched_sizes_and_unpolarized_frames_are_errors() {
     let small = Image::from_vec(10, 10, vec![0f32; 100]);
     assert!(eigenvector_heading(&small, &d, &setup).is_err());
 }
+
+/// Inputs the sky does not fit lower the confidence: a roll 40° wrong moved the model fit's yaw
+/// by about 30° at confidence 0.91; its residual now says so. The right inputs keep a high
+/// confidence and a residual near zero (ideal images).
+#[test]
+fn a_wrong_tilt_lowers_the_confidence() {
+    let sun = SunPosition::new(50.0, 200.0);
+    for yaw in [30.0, 200.0] {
+        let (im, setup) = ideal(PolarizationModel::Wang, sun, yaw, 0.0, 0.0);
+        let v = view(&im);
+        let right = estimate_heading(HeadingMethod::ModelFit, &v, &setup).unwrap();
+        eprintln!("yaw {yaw} right: {right:?}");
+        assert!(axial360(right.yaw_deg, yaw) < 0.01, "{right:?}");
+        assert!(right.confidence > 0.85, "{right:?}");
+        assert!(right.residual_deg < 0.5, "{right:?}");
+        for roll in [40.0, -40.0] {
+            let mut wrong = setup;
+            wrong.roll_deg = roll;
+            let e = estimate_heading(HeadingMethod::ModelFit, &v, &wrong).unwrap();
+            eprintln!("yaw {yaw} roll {roll}: {e:?}");
+            assert!(
+                axial360(e.yaw_deg, yaw) > 5.0,
+                "the test needs a wrong yaw: {e:?}"
+            );
+            assert!(e.confidence < 0.5, "roll {roll}: {e:?}");
+            assert!(e.residual_deg > 3.0, "roll {roll}: {e:?}");
+        }
+    }
+}
+
+/// With the sun within the solar disc's radius of the zenith no method gives a yaw (the front
+/// ends print NaN at confidence 0 with the reason); just outside it they do.
+#[test]
+fn a_zenith_sun_gives_no_yaw() {
+    for zen in [0.0, 0.2] {
+        let sun = SunPosition::new(zen, 200.0);
+        let (im, setup) = ideal(PolarizationModel::Wang, sun, 40.0, 0.0, 0.0);
+        for m in HeadingMethod::ALL {
+            match estimate_heading(m, &view(&im), &setup) {
+                Err(Error::Undetermined(msg)) => assert!(msg.contains("zenith"), "{msg}"),
+                other => panic!("{m} with the sun {zen} deg from the zenith: {other:?}"),
+            }
+        }
+    }
+    let sun = SunPosition::new(1.0, 200.0);
+    let (im, setup) = ideal(PolarizationModel::Wang, sun, 40.0, 0.0, 0.0);
+    let e = estimate_heading(HeadingMethod::ModelFit, &view(&im), &setup).unwrap();
+    assert!(e.yaw_deg.is_finite() && e.confidence < 0.2, "{e:?}");
+}
+
+/// Pictures that are not of the sky: uniformly random AoLP (residual RMS ≈ 52°), and one AoLP
+/// everywhere (a polarizing filter in front of a flat field). No method is confident on them.
+#[test]
+fn a_picture_of_no_sky_has_low_confidence() {
+    let sun = SunPosition::new(50.0, 200.0);
+    let (im, setup) = ideal(PolarizationModel::Wang, sun, 40.0, 0.0, 0.0);
+    let n = im.aop_deg.data.len();
+    let mut state = 0x9e37_79b9_7f4a_7c15u64;
+    let random: Vec<f32> = (0..n)
+        .map(|_| {
+            // splitmix64: a fixed sequence, uniform over ±90°
+            state = state.wrapping_add(0x9e37_79b9_7f4a_7c15);
+            let mut z = state;
+            z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+            ((z ^ (z >> 31)) >> 11) as f32 / (1u64 << 53) as f32 * 180.0 - 90.0
+        })
+        .collect();
+    let w = im.aop_deg.width;
+    let h = im.aop_deg.height;
+    let dolp = Image::from_vec(w, h, vec![0.3f32; n]);
+    for (name, aolp) in [
+        ("random", Image::from_vec(w, h, random)),
+        ("uniform", Image::from_vec(w, h, vec![30.0f32; n])),
+    ] {
+        let v = PolarView {
+            aolp_deg: &aolp,
+            dolp: &dolp,
+            s0: Some(&im.li),
+        };
+        for m in HeadingMethod::ALL {
+            let c = match estimate_heading(m, &v, &setup) {
+                Ok(e) => {
+                    eprintln!("{name} {m}: {e:?}");
+                    if name == "random" {
+                        assert!(e.residual_deg > 40.0, "{e:?}");
+                    }
+                    e.confidence
+                }
+                Err(e) => {
+                    eprintln!("{name} {m}: {e}");
+                    0.0
+                }
+            };
+            assert!(c < 0.5, "{name}: {m} confidence {c}");
+        }
+    }
+}
+
+#[test]
+fn residual_splits_noise_from_a_smooth_misfit() {
+    let rays: Vec<DVec3> = (0..400)
+        .map(|k| DVec3::new(0.01 * k as f64, 0.0, 1.0).normalize())
+        .collect();
+    // a smooth misfit of 5°: all systematic
+    let smooth: Vec<f64> = (0..400).map(|_| 5f64.to_radians()).collect();
+    let r = Residual::of(&smooth, &rays);
+    assert!(
+        (r.rms_deg - 5.0).abs() < 1e-9 && (r.systematic_deg - 5.0).abs() < 1e-6,
+        "{r:?}"
+    );
+    // alternating ±5°: all noise (neighbours never share it)
+    let noise: Vec<f64> = (0..400)
+        .map(|k| if k % 2 == 0 { 5f64 } else { -5.0 }.to_radians())
+        .collect();
+    let r = Residual::of(&noise, &rays);
+    assert!(
+        (r.rms_deg - 5.0).abs() < 1e-9 && r.systematic_deg < 1e-6,
+        "{r:?}"
+    );
+    // NaN (no prediction) is left out
+    let mut gap = smooth.clone();
+    gap[7] = f64::NAN;
+    assert!((Residual::of(&gap, &rays).rms_deg - 5.0).abs() < 1e-9);
+}

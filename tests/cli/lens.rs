@@ -114,8 +114,9 @@ fn scene_json_records_lens_and_projection() {
 
 /// A whole-sky fisheye stream (1.8 mm equidistant, the image circle inside 128 x 128 pixels of
 /// 45 µm) records its optics in the header; `psns heading STREAM` reads them and recovers the
-/// yaw (measured 0.53 and 0.42 deg off, confidence 0.64), while the wrong camera model fits far
-/// worse (rectilinear pinhole: confidence 0.31 and 0.28; pinhole lens: 0.19).
+/// yaw (measured 0.53 and 0.42 deg off, confidence 0.61 and 0.62), while the wrong camera model
+/// fits far worse (rectilinear pinhole: confidence 0.002, residual 21-23 deg against 11-12;
+/// pinhole lens: 0.0003).
 #[test]
 fn heading_uses_the_streams_projection_and_lens() {
     let d = tempfile::tempdir().unwrap();
@@ -263,7 +264,7 @@ fn heading_on_an_image_takes_the_projection_and_lens_options() {
         "the default lens is the camera preset's, ideal"
     );
     let wrong = run(&[]);
-    // measured: stereographic 0.33 deg at confidence 0.76, rectilinear 1.06 deg at 0.52
+    // measured: stereographic 0.32 deg at confidence 0.70, rectilinear 1.07 deg at 0.03
     assert!(
         wrong.0 > 2.0 * good.0 && wrong.1 + 0.15 < good.1,
         "rectilinear {wrong:?}, stereographic {good:?}"

@@ -129,7 +129,7 @@ fn heading_command_recovers_the_rendered_yaw_and_refuses_a_clipped_frame() {
     let mut lines = text.lines();
     assert_eq!(
         lines.next(),
-        Some("yaw_deg,confidence,pixels,saturated_pixels")
+        Some("yaw_deg,confidence,pixels,saturated_pixels,residual_deg")
     );
     let v: Vec<f64> = lines
         .next()
@@ -221,7 +221,7 @@ fn stream_estimates_never_read_the_true_yaw() {
     let (head, rows) = run(&stream);
     assert_eq!(
         head,
-        "frame_index,yaw_deg,confidence,pixels,true_yaw_deg,error_deg,saturated_pixels,ms"
+        "frame_index,yaw_deg,confidence,pixels,true_yaw_deg,error_deg,saturated_pixels,ms,residual_deg"
     );
     assert_eq!(rows.len(), 3);
     for (r, truth) in rows.iter().zip([20.0, 137.0, 290.0]) {
@@ -322,6 +322,140 @@ fn stream_piped_into_heading() {
     }
     let e = common::stderr(&consumer);
     assert!(e.contains("3 frames") && e.contains("RMS"), "{e}");
+}
+
+/// `psns heading IMAGE` reports the fit's residual, and inputs the sky does not fit lower the
+/// confidence: on a default-sky frame (yaw 30°, level) a roll given 40° wrong moved the yaw by
+/// 27° at confidence 0.917, and a sun at the zenith gave a yaw at confidence 0. Now the wrong
+/// roll reads below 0.5 with a larger residual, and the zenith sun gives `nan` with the reason.
+#[test]
+fn heading_command_flags_inputs_that_do_not_fit_the_sky() {
+    let dir = tempfile::tempdir().unwrap();
+    let geom = ["--width", "612", "--height", "512", "--pixel-pitch", "13.8"];
+    let render = |name: &str, zenith: &str| {
+        let out = dir.path().join(name);
+        let mut a = vec![
+            "render",
+            "--raw",
+            "--frame",
+            "enu",
+            "--yaw",
+            "30",
+            "--pitch",
+            "0",
+            "--roll",
+            "0",
+            "--sun-zenith",
+            zenith,
+            "--sun-azimuth",
+            "200",
+            "--auto-exposure",
+            "--out",
+            out.to_str().unwrap(),
+        ];
+        a.extend(geom);
+        let o = common::psns(&a);
+        assert!(o.status.success(), "{}", common::stderr(&o));
+        out.join("raw.png").to_str().unwrap().to_string()
+    };
+    // (columns by name, stderr)
+    let heading = |raw: &str, zenith: &str, extra: &[&str]| {
+        let mut a = vec![
+            "heading",
+            raw,
+            "--sun-zenith",
+            zenith,
+            "--sun-azimuth",
+            "200",
+        ];
+        a.extend(geom);
+        a.extend(extra);
+        let o = common::psns(&a);
+        assert!(o.status.success(), "{}", common::stderr(&o));
+        let text = String::from_utf8(o.stdout.clone()).unwrap();
+        let mut lines = text.lines();
+        let head: Vec<String> = lines.next().unwrap().split(',').map(String::from).collect();
+        let row: Vec<f64> = lines
+            .next()
+            .unwrap()
+            .split(',')
+            .map(|x| x.parse().unwrap())
+            .collect();
+        let col = |name: &str| row[head.iter().position(|h| h == name).unwrap()];
+        (
+            [col("yaw_deg"), col("confidence"), col("residual_deg")],
+            common::stderr(&o),
+        )
+    };
+    let raw = render("sky", "50");
+    let ([yaw, conf, res], _) = heading(&raw, "50", &["--pitch", "0", "--roll", "0"]);
+    eprintln!("right inputs: yaw {yaw} confidence {conf} residual {res}");
+    assert!((yaw - 30.0).abs() < 0.1, "{yaw}");
+    assert!(conf > 0.85, "right inputs: confidence {conf}");
+    assert!(res > 0.0 && res < 3.0, "right inputs: residual {res}");
+    for roll in ["40", "-40"] {
+        let ([y, c, r], _) = heading(&raw, "50", &["--pitch", "0", "--roll", roll]);
+        eprintln!("roll {roll}: yaw {y} confidence {c} residual {r}");
+        assert!((y - 30.0).abs() > 5.0, "the test needs a wrong yaw: {y}");
+        assert!(c < 0.5, "roll {roll}: yaw {y} at confidence {c}");
+        assert!(r > 2.0 * res, "roll {roll}: residual {r}, right {res}");
+    }
+    let raw = render("zenith", "0");
+    let ([y, c, r], err) = heading(&raw, "0", &[]);
+    assert!(y.is_nan() && c == 0.0 && r.is_nan(), "{y} {c} {r}");
+    assert!(err.contains("zenith"), "{err}");
+}
+
+/// `psns bench heading --tolerance --quick`: every input, side and method gets a row; a wrong
+/// roll lowers the model fit's confidence within the scan, a wrong sun azimuth never does (the
+/// sky turns with the sun: a yaw error of the same size); a quick run never writes into docs/.
+#[test]
+fn bench_heading_tolerance_quick() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("t");
+    let o = common::psns(&[
+        "bench",
+        "heading",
+        "--tolerance",
+        "--quick",
+        "--out",
+        out.to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let text = std::fs::read_to_string(out.join("tolerance.csv")).unwrap();
+    let rows: Vec<Vec<String>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(String::from).collect())
+        .collect();
+    assert_eq!(rows.len(), 7 * 2 * 3, "{text}");
+    let row = |input: &str, side: &str, m: &str| {
+        rows.iter()
+            .find(|r| r[0] == input && r[1] == side && r[2] == m)
+            .unwrap_or_else(|| panic!("{input} {side} {m}: {text}"))
+            .clone()
+    };
+    for side in ["+", "-"] {
+        let r = row("roll (deg)", side, "model-fit");
+        let from: f64 = r[3].parse().unwrap();
+        assert!(from > 0.0 && from < 40.0, "{r:?}");
+        let r = row("sun azimuth (deg)", side, "model-fit");
+        assert!(r[3].is_empty() && r[5] == "1", "{r:?}");
+        let err: f64 = r[7].parse().unwrap();
+        assert!((err - 20.0).abs() < 0.5, "{r:?}");
+    }
+    for f in ["tolerance.md", "tolerance_scan.csv"] {
+        assert!(out.join(f).metadata().unwrap().len() > 500, "{f}");
+    }
+    let o = common::psns(&[
+        "bench",
+        "heading",
+        "--tolerance",
+        "--quick",
+        "--out",
+        "docs/bench",
+    ]);
+    assert_eq!(o.status.code(), Some(2), "{}", common::stderr(&o));
 }
 
 /// `psns bench heading --quick`: every factor and method gets a cell; the default method meets

@@ -528,7 +528,7 @@ pub fn run_budget(
                         wrap180(est.yaw_deg - yaw),
                         info.map(|i| (i.babinet_deg, i.brewster_deg)),
                     ),
-                    Err(Error::TooFewPixels(_)) => (f64::NAN, None),
+                    Err(Error::TooFewPixels(_) | Error::Undetermined(_)) => (f64::NAN, None),
                     Err(e) => return Err(e),
                 };
                 let contribution = match sc.reference {

@@ -47,6 +47,12 @@ pub enum BenchCmd {
         /// budget_summary.csv, budget_frames.csv, budget_panfit.csv and budget.svg.
         #[arg(long)]
         budget: bool,
+        /// How far each input of `psns heading` (tilt, sun, focal length, principal point,
+        /// projection, lens, bit depth) can be wrong before the confidence falls below 0.5, and
+        /// the yaw error there, on the default scene; writes tolerance.csv, tolerance.md and
+        /// tolerance_scan.csv.
+        #[arg(long, conflicts_with = "budget")]
+        tolerance: bool,
     },
     /// Frames/s an Aravis receiver (arv-camera-test-0.8 -f 200 -i 8192) gets from psns gige on
     /// this machine, Mono8, Mono16 and under DeviceLinkThroughputLimit, against Aravis's fake
@@ -140,9 +146,16 @@ pub fn run(what: BenchCmd) -> anyhow::Result<()> {
                 eprintln!("wrote {f}");
             }
         }
-        BenchCmd::Heading { out, quick, budget } => {
+        BenchCmd::Heading {
+            out,
+            quick,
+            budget,
+            tolerance,
+        } => {
             let written = if budget {
                 budget::bench_budget(&budget::BudgetOptions { out, quick })?
+            } else if tolerance {
+                heading::bench_tolerance(&heading::ToleranceOptions { out, quick })?
             } else {
                 heading::bench_heading(&heading::HeadingBenchOptions { out, quick })?
             };
