@@ -305,7 +305,7 @@ fn ideal(
 }
 
 /// The model fit removes the eigenvector method's bias on the default (Berry) sky: noise-free
-/// images give the yaw to well under the 0.1° (the eigenvector answer is off by
+/// images give the yaw to well under the 0.1° target (the eigenvector answer is off by
 /// 0.1-0.5° on the same images), and the fitted neutral-point distances are the sky's 25°.
 #[test]
 fn model_fit_removes_the_berry_bias() {

@@ -62,7 +62,7 @@ fn chain_error(
 /// Camera preset, 12 bit, auto-exposure, every noise source on, bilinear demosaic, tilt up to 5°
 /// compensated. Measured (2026-11-25): eigenvector method, Rayleigh sky 0.0002-0.008°; default
 /// sky 0.16-0.32°, the eigenvector method's bias on the Berry field (the same from the noise-free
-/// truth); the model fit (the default method) on the default sky: under the 0.1°.
+/// truth); the model fit (the default method) on the default sky: under the 0.1° target.
 fn raw_frames_give_the_true_yaw() {
     use HeadingMethod::{Eigen, Hough, ModelFit};
     for (yaw, pitch, roll) in [(0.0, 0.0, 0.0), (137.0, 3.0, -4.0), (290.0, -5.0, 2.0)] {
@@ -459,7 +459,7 @@ fn bench_heading_tolerance_quick() {
 }
 
 /// `psns bench heading --quick`: every factor and method gets a cell; the default method meets
-/// the 0.1° at the baseline; a quick run never writes into docs/.
+/// the 0.1° target at the baseline; a quick run never writes into docs/.
 #[test]
 fn bench_heading_quick_writes_cells_and_charts() {
     let dir = tempfile::tempdir().unwrap();

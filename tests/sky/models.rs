@@ -57,7 +57,7 @@ fn depolarized_rayleigh_reference_values() {
     assert!((d90 - 0.945714564).abs() < 1e-8, "{d90}");
     let (d60, _) = dop_chi(&p, 0.0, 0.0, 60.0, 10.0);
     assert!((d60 - 0.573656982).abs() < 1e-8, "{d60}");
-    // the figure: 0.9457 at D = 0.0279
+    // the reference figure: 0.9457 at D = 0.0279
     assert_eq!(
         format!("{:.4}", psns::sky::depolarized::peak_dop(1.0, 0.0279)),
         "0.9457"

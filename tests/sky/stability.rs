@@ -58,9 +58,9 @@ fn default_dop_is_stable_over_the_domain() {
     );
 }
 
-/// The issue's cases, measured with the published formula: the statistics this module reports.
+/// The failing cases, measured with the published formula: the statistics this module reports.
 #[test]
-fn paper_formula_fails_where_the_issue_says() {
+fn paper_formula_fails_in_the_known_cases() {
     let paper =
         |t, z| stability(z, &params(DopModel::WangPaper, t, 450.0), Grid::default()).unwrap();
     let s = paper(4.0, 85.0);

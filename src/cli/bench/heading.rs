@@ -168,7 +168,7 @@ fn factors(quick: bool) -> Vec<(&'static str, Vec<(String, Case)>)> {
             .collect(),
         ),
     ));
-    // the target cells: sun 10..70° with both tilts at 5° (compensated), clear and cloudy
+    // the target cells: sun 10..70° with both tilts at 5° (compensated), clear and cloudy
     let mut combined = Vec::new();
     for clouds in [0usize, 20] {
         for e in [10.0, 40.0, 70.0] {
