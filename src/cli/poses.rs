@@ -4,7 +4,9 @@
 use psns::error::{Error, Result};
 use psns::trajectory::{turning, CsvTrajectory, Pose};
 use std::io::BufReader;
-use std::path::Path;
+use std::path::{Path, PathBuf};
+
+use psns::options::finite;
 
 /// Poses in order.
 pub type Poses = Box<dyn Iterator<Item = Result<Pose>> + Send>;
@@ -17,6 +19,34 @@ pub struct Trajectory {
     pub lookahead: bool,
     /// Every pose carries a place.
     pub has_place: bool,
+}
+
+/// Where the poses come from: the trajectory options of `psns stream` and `psns gige`.
+#[derive(clap::Args)]
+pub struct TrajectoryArgs {
+    /// Trajectory CSV (t_s, yaw_deg,pitch_deg,roll_deg or qw,qx,qy,qz [, lat_deg,lon_deg,height_m]); - for stdin. Default: built-in turning camera.
+    #[arg(long, value_name = "PATH|-")]
+    pub trajectory: Option<PathBuf>,
+    /// Time zero of the trajectory, ISO 8601 UTC.
+    #[arg(long, value_name = "TIME")]
+    pub start_time: Option<String>,
+    /// Built-in trajectory: yaw rate, degrees per second.
+    #[arg(long, value_parser = finite, allow_negative_numbers = true, default_value_t = 10.0)]
+    pub yaw_rate: f64,
+    /// Built-in trajectory: frame interval, ms.
+    #[arg(long, value_parser = finite, default_value_t = 50.0)]
+    pub frame_interval_ms: f64,
+}
+
+impl TrajectoryArgs {
+    /// The trajectory these options name ([`open_trajectory`]).
+    pub fn open(&self) -> Result<Trajectory> {
+        open_trajectory(
+            self.trajectory.as_deref(),
+            self.yaw_rate,
+            self.frame_interval_ms,
+        )
+    }
 }
 
 /// Opens `path` (a CSV file, `-` for stdin), or with no path the built-in turning camera at

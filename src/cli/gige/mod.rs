@@ -14,7 +14,7 @@
 //!
 //! SIGINT or SIGTERM ends it with exit code 0.
 
-use super::poses::{open_trajectory, Poses};
+use super::poses::{Poses, TrajectoryArgs};
 use super::progress::{Progress, Unit};
 use psns::camera::camera_to_enu_quaternion;
 use psns::config::SceneConfig;
@@ -57,18 +57,8 @@ pub struct GigeArgs {
     /// GVCP port (GigE Vision clients use 3956; 0: any free port, printed at start).
     #[arg(long, default_value_t = gvcp::GVCP_PORT, value_name = "PORT")]
     port: u16,
-    /// Trajectory CSV (t_s, yaw_deg,pitch_deg,roll_deg or qw,qx,qy,qz [, lat_deg,lon_deg,height_m]); - for stdin. Default: built-in turning camera.
-    #[arg(long, value_name = "PATH|-")]
-    trajectory: Option<PathBuf>,
-    /// Time zero of the trajectory, ISO 8601 UTC.
-    #[arg(long, value_name = "TIME")]
-    start_time: Option<String>,
-    /// Built-in trajectory: yaw rate, degrees per second.
-    #[arg(long, value_parser = finite, allow_negative_numbers = true, default_value_t = 10.0)]
-    yaw_rate: f64,
-    /// Built-in trajectory: frame interval, ms.
-    #[arg(long, value_parser = finite, default_value_t = 50.0)]
-    frame_interval_ms: f64,
+    #[command(flatten)]
+    trajectory: TrajectoryArgs,
     /// Drop this fraction (0..1) of the stream's data packets on their first transmission,
     /// chosen from the camera seed, block and packet (resent packets are never dropped).
     #[arg(long, value_parser = finite, default_value_t = 0.0, value_name = "P")]
@@ -218,8 +208,8 @@ pub fn run(a: GigeArgs) -> anyhow::Result<()> {
         }
     }
     // everything the frames need is validated before a socket is opened
-    let start = SceneClock::start_time(&cfg, a.start_time.as_deref())?;
-    let traj = open_trajectory(a.trajectory.as_deref(), a.yaw_rate, a.frame_interval_ms)?;
+    let start = SceneClock::start_time(&cfg, a.trajectory.start_time.as_deref())?;
+    let traj = a.trajectory.open()?;
     let clock = SceneClock::new(&cfg, start, traj.has_place)?;
     // the camera powers up in Mono8, with an 8-bit ADC
     if let Some(s) = cfg.raw.sensor.as_mut() {

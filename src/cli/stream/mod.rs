@@ -20,7 +20,7 @@
 //! Concurrency: a render thread turns pose k+1 into a packed payload while the calling thread
 //! writes frame k (`sync_channel(1)`); the order and bytes do not depend on the timing.
 
-use super::poses::{open_trajectory, Trajectory};
+use super::poses::{open_trajectory, Trajectory, TrajectoryArgs};
 use super::progress::{Progress, Unit};
 use glam::DMat3;
 use psns::camera::camera_to_enu_quaternion;
@@ -55,9 +55,8 @@ pub struct StreamArgs {
     scene: SceneArgs,
     #[command(flatten)]
     raw: RawArgs,
-    /// Trajectory CSV (t_s, yaw_deg,pitch_deg,roll_deg or qw,qx,qy,qz [, lat_deg,lon_deg,height_m]); - for stdin. Default: built-in turning camera.
-    #[arg(long, value_name = "PATH|-")]
-    trajectory: Option<PathBuf>,
+    #[command(flatten)]
+    trajectory: TrajectoryArgs,
     /// Output file, FIFO, or - for stdout.
     #[arg(long, default_value = "-", value_name = "PATH|-")]
     out: PathBuf,
@@ -67,15 +66,6 @@ pub struct StreamArgs {
     /// Pace output in real time at FPS against the trajectory clock (default: unpaced).
     #[arg(long, value_parser = finite, value_name = "FPS")]
     rate: Option<f64>,
-    /// Time zero of the trajectory, ISO 8601 UTC.
-    #[arg(long, value_name = "TIME")]
-    start_time: Option<String>,
-    /// Built-in trajectory: yaw rate, degrees per second.
-    #[arg(long, value_parser = finite, allow_negative_numbers = true, default_value_t = 10.0)]
-    yaw_rate: f64,
-    /// Built-in trajectory: frame interval, ms.
-    #[arg(long, value_parser = finite, default_value_t = 50.0)]
-    frame_interval_ms: f64,
     /// Stamp the host monotonic clock into frame headers (output no longer byte-identical).
     #[arg(long)]
     stamp_host_time: bool,
@@ -121,13 +111,13 @@ pub fn run(a: StreamArgs) -> anyhow::Result<()> {
         pin_workers();
     }
     let opts = StreamOptions {
-        trajectory: a.trajectory,
+        trajectory: a.trajectory.trajectory,
         out: a.out,
         frames: a.frames,
         rate_fps: a.rate,
-        start_time: a.start_time,
-        yaw_rate_deg_s: a.yaw_rate,
-        frame_interval_ms: a.frame_interval_ms,
+        start_time: a.trajectory.start_time,
+        yaw_rate_deg_s: a.trajectory.yaw_rate,
+        frame_interval_ms: a.trajectory.frame_interval_ms,
         stamp_host_time: a.stamp_host_time,
         bag,
     };
