@@ -26,7 +26,7 @@
 //! camera preset with auto-exposure and no sun disc, pitch 5° and roll −5° (compensated), sun
 //! elevation 15°, 35°, 55° at azimuth 200°, yaws 17° + 90° k.
 
-use super::demosaic::check_quick_out;
+use super::demosaic::BenchFiles;
 use super::heading::csv_field;
 use psns::camera::{Attitude, Intrinsics, Lens};
 use psns::config::SceneConfig;
@@ -36,7 +36,6 @@ use psns::heading::{
     error_stats, estimate_heading_info, wrap180, HeadingMethod, HeadingSetup, PolarView,
 };
 use psns::image::Image;
-use psns::io::create_dir;
 use psns::sensor::{Exposure, SensorConfig, Stages};
 use psns::sky::cie::Radiance;
 use psns::sky::clouds::SoftClouds;
@@ -46,7 +45,7 @@ use psns::{Error, Result};
 use rand::SeedableRng;
 use rand_distr::{Distribution, Normal};
 use std::collections::HashMap;
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 
 /// Options of `psns bench heading --budget`.
 #[derive(Clone, Debug)]
@@ -774,8 +773,7 @@ pub fn budget_svg(rows: &[BudgetRow]) -> Result<String> {
 
 /// `psns bench heading --budget`; returns the files written.
 pub fn bench_budget(opts: &BudgetOptions) -> Result<Vec<String>> {
-    check_quick_out(opts.quick, &opts.out)?;
-    create_dir(&opts.out)?;
+    let mut files = BenchFiles::create(opts.quick, &opts.out)?;
     let t0 = std::time::Instant::now();
     let (frames, rows) = run_budget(opts, &mut |s| {
         eprintln!(
@@ -783,13 +781,6 @@ pub fn bench_budget(opts: &BudgetOptions) -> Result<Vec<String>> {
             t0.elapsed().as_secs_f64()
         )
     })?;
-    let mut written = Vec::new();
-    let mut put = |name: &str, text: &str| -> Result<()> {
-        let p: &Path = &opts.out.join(name);
-        psns::io::write_text(p, text)?;
-        written.push(p.display().to_string());
-        Ok(())
-    };
     let mut c = String::from(
         "source,detail,method,assumes,frames,no_estimate,rms_deg,p95_deg,max_deg,mean_deg\n",
     );
@@ -808,7 +799,7 @@ pub fn bench_budget(opts: &BudgetOptions) -> Result<Vec<String>> {
             r.mean
         );
     }
-    put("budget.csv", &c)?;
+    files.put("budget.csv", &c)?;
     let mut s = String::from("method,source,rms_deg,p95_deg,max_deg\n");
     for (m, items) in summary(&rows) {
         let mut rss = 0.0;
@@ -833,7 +824,7 @@ pub fn bench_budget(opts: &BudgetOptions) -> Result<Vec<String>> {
             rss.sqrt()
         );
     }
-    put("budget_summary.csv", &s)?;
+    files.put("budget_summary.csv", &s)?;
     let mut f = String::from(
         "source,detail,method,sun_elevation_deg,yaw_deg,error_deg,contribution_deg,fit_babinet_deg,fit_brewster_deg\n",
     );
@@ -853,7 +844,7 @@ pub fn bench_budget(opts: &BudgetOptions) -> Result<Vec<String>> {
             r.contribution
         );
     }
-    put("budget_frames.csv", &f)?;
+    files.put("budget_frames.csv", &f)?;
     // the model fit on Pan's sky: does it find Pan's distances?
     let mut pf = String::from(
         "sky,sun_elevation_deg,frames,pan_babinet_deg,pan_brewster_deg,fit_babinet_deg,fit_brewster_deg,rms_error_deg\n",
@@ -890,7 +881,7 @@ pub fn bench_budget(opts: &BudgetOptions) -> Result<Vec<String>> {
             );
         }
     }
-    put("budget_panfit.csv", &pf)?;
-    put("budget.svg", &budget_svg(&rows)?)?;
-    Ok(written)
+    files.put("budget_panfit.csv", &pf)?;
+    files.put("budget.svg", &budget_svg(&rows)?)?;
+    Ok(files.into_written())
 }

@@ -801,7 +801,7 @@ pub fn inside_docs(out: &Path) -> bool {
 
 /// `--quick` with an output directory inside `docs/` is bad input: quick numbers never land in
 /// the docs (the tracked files are regenerated only by a full run with an explicit `--out`).
-pub fn check_quick_out(quick: bool, out: &Path) -> Result<()> {
+fn check_quick_out(quick: bool, out: &Path) -> Result<()> {
     if quick && inside_docs(out) {
         return Err(Error::Invalid(format!(
             "--quick with --out {}: quick numbers never land in docs; drop --quick, or write \
@@ -810,6 +810,37 @@ pub fn check_quick_out(quick: bool, out: &Path) -> Result<()> {
         )));
     }
     Ok(())
+}
+
+/// A bench's output directory and the files written into it, in order.
+pub struct BenchFiles<'a> {
+    dir: &'a Path,
+    written: Vec<String>,
+}
+
+impl<'a> BenchFiles<'a> {
+    /// Refuses a quick run into docs/ ([`check_quick_out`]), then creates `out`.
+    pub fn create(quick: bool, out: &'a Path) -> Result<Self> {
+        check_quick_out(quick, out)?;
+        create_dir(out)?;
+        Ok(BenchFiles {
+            dir: out,
+            written: Vec::new(),
+        })
+    }
+
+    /// Writes `text` into the file `name` of the directory.
+    pub fn put(&mut self, name: &str, text: &str) -> Result<()> {
+        let p = self.dir.join(name);
+        write_text(&p, text)?;
+        self.written.push(p.display().to_string());
+        Ok(())
+    }
+
+    /// The files written, in order.
+    pub fn into_written(self) -> Vec<String> {
+        self.written
+    }
 }
 
 /// `psns bench demosaic`; returns the files written.

@@ -3,7 +3,7 @@
 //! 95th percentile and maximum error, mean confidence, confident-wrong frames and time per frame,
 //! as CSV and SVG charts.
 
-use super::demosaic::check_quick_out;
+use super::demosaic::BenchFiles;
 use psns::camera::{Attitude, Intrinsics, Lens, Projection};
 use psns::config::SceneConfig;
 use psns::demosaic::Method;
@@ -12,13 +12,12 @@ use psns::heading::{
     HeadingSetup, PolarView,
 };
 use psns::image::StokesImage;
-use psns::io::create_dir;
 use psns::sensor::{Exposure, SensorConfig};
 use psns::sky::clouds::SoftClouds;
 use psns::sky::PolarizationModel;
 use psns::sun::SunPosition;
 use psns::{Error, Result};
-use std::path::{Path, PathBuf};
+use std::path::PathBuf;
 use std::time::Instant;
 
 /// Options of `psns bench heading`.
@@ -637,8 +636,7 @@ pub(super) fn csv_field(s: &str) -> String {
 
 /// `psns bench heading`; returns the files written.
 pub fn bench_heading(opts: &HeadingBenchOptions) -> Result<Vec<String>> {
-    check_quick_out(opts.quick, &opts.out)?;
-    create_dir(&opts.out)?;
+    let mut files = BenchFiles::create(opts.quick, &opts.out)?;
     let t0 = Instant::now();
     let (frames, cells) = run_sweep(opts, &mut |s| {
         eprintln!(
@@ -646,13 +644,6 @@ pub fn bench_heading(opts: &HeadingBenchOptions) -> Result<Vec<String>> {
             t0.elapsed().as_secs_f64()
         )
     })?;
-    let mut written = Vec::new();
-    let mut put = |name: &str, text: &str| -> Result<()> {
-        let p: &Path = &opts.out.join(name);
-        psns::io::write_text(p, text)?;
-        written.push(p.display().to_string());
-        Ok(())
-    };
     let mut c = String::from(
         "factor,value,method,frames,no_estimate,rms_deg,p95_deg,max_deg,mean_confidence,confident_wrong,ms_per_frame,cloud_cover\n",
     );
@@ -673,7 +664,7 @@ pub fn bench_heading(opts: &HeadingBenchOptions) -> Result<Vec<String>> {
             r.cloud_cover
         );
     }
-    put("heading.csv", &c)?;
+    files.put("heading.csv", &c)?;
     let mut f = String::from("factor,value,yaw_deg,method,error_deg,confidence,ms\n");
     for r in &frames {
         f += &format!(
@@ -687,10 +678,10 @@ pub fn bench_heading(opts: &HeadingBenchOptions) -> Result<Vec<String>> {
             r.ms
         );
     }
-    put("heading_frames.csv", &f)?;
-    put("heading_factors.svg", &factors_svg(&cells)?)?;
-    put("heading_time.svg", &time_svg(&cells)?)?;
-    Ok(written)
+    files.put("heading_frames.csv", &f)?;
+    files.put("heading_factors.svg", &factors_svg(&cells)?)?;
+    files.put("heading_time.svg", &time_svg(&cells)?)?;
+    Ok(files.into_written())
 }
 
 /// Options of `psns bench heading --tolerance`.
@@ -1004,8 +995,7 @@ fn tolerance_rows(scan: &[ScanRow]) -> Vec<ToleranceRow> {
 /// `psns bench heading --tolerance`: how far each input of `psns heading` can be wrong before
 /// the confidence falls below 0.5, and the yaw error there; returns the files written.
 pub fn bench_tolerance(opts: &ToleranceOptions) -> Result<Vec<String>> {
-    check_quick_out(opts.quick, &opts.out)?;
-    create_dir(&opts.out)?;
+    let mut files = BenchFiles::create(opts.quick, &opts.out)?;
     let t0 = Instant::now();
     let scan = tolerance_scan(opts, &mut |s| {
         eprintln!(
@@ -1014,13 +1004,6 @@ pub fn bench_tolerance(opts: &ToleranceOptions) -> Result<Vec<String>> {
         )
     })?;
     let rows = tolerance_rows(&scan);
-    let mut written = Vec::new();
-    let mut put = |name: &str, text: &str| -> Result<()> {
-        let p: &Path = &opts.out.join(name);
-        psns::io::write_text(p, text)?;
-        written.push(p.display().to_string());
-        Ok(())
-    };
     let num = |v: f64| {
         if v.is_finite() {
             format!("{v:.4}")
@@ -1047,7 +1030,7 @@ pub fn bench_tolerance(opts: &ToleranceOptions) -> Result<Vec<String>> {
             num(r.residual_at_fall)
         );
     }
-    put("tolerance.csv", &c)?;
+    files.put("tolerance.csv", &c)?;
     let mut f = String::from("input,offset,yaw_deg,method,abs_error_deg,confidence,residual_deg\n");
     for r in &scan {
         f += &format!(
@@ -1061,9 +1044,9 @@ pub fn bench_tolerance(opts: &ToleranceOptions) -> Result<Vec<String>> {
             num(r.residual)
         );
     }
-    put("tolerance_scan.csv", &f)?;
-    put("tolerance.md", &tolerance_markdown(&rows, &scan))?;
-    Ok(written)
+    files.put("tolerance_scan.csv", &f)?;
+    files.put("tolerance.md", &tolerance_markdown(&rows, &scan))?;
+    Ok(files.into_written())
 }
 
 /// The tolerance table as Markdown: per input and side, for each method, where the confidence
