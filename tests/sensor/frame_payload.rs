@@ -10,22 +10,30 @@ use psns::sensor::packing::{self, PixelFormat};
 use psns::sensor::Preset;
 use psns::sun::SunPosition;
 
+/// The fast path, the exact path and a PSNS preset: (exact, preset).
+const PATHS: [(bool, Preset); 3] = [
+    (false, Preset::Camera),
+    (true, Preset::Camera),
+    (false, Preset::Gniipi),
+];
+
+/// A 152 x 36 frame with the full sensor's field of view; 36 rows: two full 16-row bands and a
+/// short one.
+fn small_pipeline(exact: bool, preset: Preset) -> RawPipeline {
+    let mut cfg = SceneConfig::default();
+    cfg.raw.preset = preset;
+    cfg.camera.intrinsics = Intrinsics {
+        pixel_pitch_um: 3.45 * 16.0,
+        ..Intrinsics::with_size(152, 36)
+    };
+    cfg.raw.exact = exact;
+    RawPipeline::new(&cfg).unwrap()
+}
+
 #[test]
 fn payload_and_crc_match_the_codes() {
-    for (exact, preset) in [
-        (false, Preset::Camera),
-        (true, Preset::Camera),
-        (false, Preset::Gniipi),
-    ] {
-        let mut cfg = SceneConfig::default();
-        cfg.raw.preset = preset;
-        // 36 rows: two full 16-row bands and a short one
-        cfg.camera.intrinsics = Intrinsics {
-            pixel_pitch_um: 3.45 * 16.0,
-            ..Intrinsics::with_size(152, 36)
-        };
-        cfg.raw.exact = exact;
-        let pipe = RawPipeline::new(&cfg).unwrap();
+    for (exact, preset) in PATHS {
+        let pipe = small_pipeline(exact, preset);
         let sun = SunPosition::new(40.0, 120.0);
         let att = Attitude::enu(30.0, 50.0, 0.0);
         let (want, _) = pipe.frame_at(sun, &att, 3, Vec::new()).unwrap();
@@ -73,19 +81,8 @@ fn payload_and_crc_match_the_codes() {
 
 #[test]
 fn frame_after_a_lead_keeps_the_lead_and_makes_the_same_codes() {
-    for (exact, preset) in [
-        (false, Preset::Camera),
-        (true, Preset::Camera),
-        (false, Preset::Gniipi),
-    ] {
-        let mut cfg = SceneConfig::default();
-        cfg.raw.preset = preset;
-        cfg.camera.intrinsics = Intrinsics {
-            pixel_pitch_um: 3.45 * 16.0,
-            ..Intrinsics::with_size(152, 36)
-        };
-        cfg.raw.exact = exact;
-        let pipe = RawPipeline::new(&cfg).unwrap();
+    for (exact, preset) in PATHS {
+        let pipe = small_pipeline(exact, preset);
         let sun = SunPosition::new(40.0, 120.0);
         let att = Attitude::enu(30.0, 50.0, 0.0);
         let (want, _) = pipe.frame_at(sun, &att, 3, Vec::new()).unwrap();
