@@ -14,6 +14,7 @@ pub mod output;
 pub mod poses;
 pub mod progress;
 pub mod render;
+pub mod signals;
 pub mod sky;
 pub mod stream;
 pub mod sun;

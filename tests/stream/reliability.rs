@@ -249,8 +249,9 @@ fn stream_on_a_full_disk_reads_aborted() {
     }
 }
 
-/// SIGINT, SIGTERM and SIGHUP stop the stream between frames, mark it aborted, and end psns by
-/// the same signal.
+/// SIGINT, SIGTERM and SIGHUP stop a run of `--frames N` between frames, mark it aborted, and
+/// end psns by the same signal (a run without `--frames` is finished instead:
+/// `recordings::ctrl_c_finishes_an_open_ended_stream_cleanly`).
 #[test]
 fn stream_stopped_by_a_signal_reads_aborted() {
     use std::os::unix::process::ExitStatusExt;
@@ -259,6 +260,7 @@ fn stream_stopped_by_a_signal_reads_aborted() {
         let out = d.path().join(format!("{name}.psns"));
         let child = Command::new(env!("CARGO_BIN_EXE_psns"))
             .args(["stream", "--width", "64", "--height", "64", "--rate", "20"])
+            .args(["--frames", "1000000"])
             .args(["--out", s(&out)])
             .stderr(Stdio::piped())
             .spawn()

@@ -6,6 +6,7 @@ the test venv's interpreter; every check is an assert, and the last line says wh
     ros2_check.py bag BAG STREAM [--truth] a bag (rosbag2 dir or .mcap) against a psns stream
     ros2_check.py truth BAG DIR           frame 0's truth images against DIR/truth_*.npy
     ros2_check.py unfinished BAG          both readers refuse or flag the bag
+    ros2_check.py chunks MCAP             the topics of each chunk, one line per chunk
 """
 
 import json
@@ -244,6 +245,22 @@ def cmd_unfinished(bag):
     print("refused: " + " | ".join(errors))
 
 
+def cmd_chunks(path):
+    from mcap.records import Chunk, Message
+    from mcap.stream_reader import StreamReader, breakup_chunk
+    with open(path, "rb") as f:
+        names = {}
+        for rec in StreamReader(f, emit_chunks=True).records:
+            if isinstance(rec, Chunk):
+                topics = []
+                for r in breakup_chunk(rec):
+                    if hasattr(r, "topic"):
+                        names[r.id] = r.topic
+                    if isinstance(r, Message):
+                        topics.append(names[r.channel_id])
+                print(" ".join(topics))
+
+
 if __name__ == "__main__":
     cmd, *args = sys.argv[1:]
     if cmd == "cdr":
@@ -254,5 +271,7 @@ if __name__ == "__main__":
         cmd_truth(*args)
     elif cmd == "unfinished":
         cmd_unfinished(*args)
+    elif cmd == "chunks":
+        cmd_chunks(*args)
     else:
         sys.exit(f"unknown command {cmd}")
