@@ -383,6 +383,14 @@ impl McapBag {
         }
     }
 
+    /// Messages written per topic, in channel order.
+    pub fn counts(&self) -> Vec<(String, u64)> {
+        self.topics
+            .iter()
+            .map(|t| (t.name.clone(), t.count))
+            .collect()
+    }
+
     /// Finishes the bag: the `rosbag2` metadata record, the MCAP summary and footer, a sync,
     /// then (rosbag2) `metadata.yaml`. After a failed write nothing more is written.
     pub fn finish(mut self) -> Result<()> {

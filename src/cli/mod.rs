@@ -13,6 +13,7 @@ pub mod heading;
 pub mod output;
 pub mod poses;
 pub mod progress;
+pub mod recover;
 pub mod render;
 pub mod signals;
 pub mod sky;

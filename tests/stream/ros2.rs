@@ -803,3 +803,68 @@ fn convert_partial_makes_a_bag_of_an_aborted_stream() {
     let r = check(&["bag", s(&bag), s(&run)]);
     assert!(r.starts_with("ok: "), "{r}");
 }
+
+/// `kill -9` leaves a bag without footer and metadata.yaml; `psns recover` makes a finished bag
+/// of every complete message, which both readers open and which holds the stream's frames.
+#[test]
+fn recover_finishes_a_killed_bag_with_every_complete_message() {
+    let d = tempfile::tempdir().unwrap();
+    for (fmt, name, comp) in [("rosbag2", "k", "none"), ("mcap", "k.mcap", "zstd")] {
+        let bag = d.path().join(name);
+        let mut child = Command::new(env!("CARGO_BIN_EXE_psns"))
+            .args([
+                "stream",
+                "--format",
+                fmt,
+                "--compression",
+                comp,
+                "--seed",
+                "5",
+            ])
+            .args(SMALL)
+            .args(["--out", s(&bag)])
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let file = if fmt == "mcap" {
+            bag.clone()
+        } else {
+            bag.join("k_0.mcap")
+        };
+        // past the first 1 MiB the writer hands the file: inside the first, still open chunk
+        let t = Instant::now();
+        while std::fs::metadata(&file).map_or(0, |m| m.len()) < 1 << 20 {
+            assert!(t.elapsed() < Duration::from_secs(60), "producer too slow");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        child.kill().unwrap();
+        child.wait().unwrap();
+        let r = check(&["unfinished", s(&bag)]);
+        assert!(r.starts_with("refused: "), "{r}");
+        let rec = d.path().join(format!("rec-{name}"));
+        let o = psns(&["recover", s(&bag), "--out", s(&rec)]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let e = stderr(&o);
+        let images: u64 = e
+            .split("/psns/image_raw ")
+            .nth(1)
+            .and_then(|r| r.split([',', ')']).next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("{e}"));
+        assert!(images > 10, "{e}");
+        if fmt == "rosbag2" {
+            assert!(rec.join("metadata.yaml").exists());
+        }
+        let psns_file = d.path().join(format!("{fmt}.psns"));
+        let nf = images.to_string();
+        stream(
+            &[
+                &SMALL[..],
+                &["--seed", "5", "--frames", &nf, "--out", s(&psns_file)],
+            ]
+            .concat(),
+        );
+        let r = check(&["recovered", s(&rec), s(&psns_file)]);
+        assert!(r.starts_with("ok: "), "{r}");
+    }
+}

@@ -7,7 +7,7 @@
 //! knows nothing of the output.
 
 use super::place::{Landing, Place};
-use crate::cli::bag::{image_prefix_len, BagOptions, BagSource, BagWriter};
+use crate::cli::bag::{image_prefix_len, BagOptions, BagSource, BagWriter, Compression, McapBag};
 use psns::error::{Error, Result};
 use psns::ros2::ImageEncoding;
 use psns::sensor::packing::{self, PixelFormat};
@@ -144,6 +144,63 @@ impl OutputSpec {
                 Err(e)
             }
         }
+    }
+}
+
+impl OutputSpec {
+    /// Opens a bag whose topics and messages the caller writes (`psns recover`), with
+    /// `custom_data` for `metadata.yaml`.
+    pub(crate) fn open_bag(
+        self,
+        compression: Compression,
+        custom_data: Vec<(String, String)>,
+    ) -> Result<RawBag> {
+        if let Some(note) = self.place.replacing_note() {
+            eprintln!("psns: {note}");
+        }
+        let (file, landing) = self.place.open()?;
+        let Some(file) = file else {
+            return Err(Error::Invalid("a bag is not written to stdout".into()));
+        };
+        match McapBag::create(landing.bag_file(file), compression, custom_data) {
+            Ok(bag) => Ok(RawBag { bag, landing }),
+            Err(e) => {
+                landing.discard();
+                Err(e)
+            }
+        }
+    }
+}
+
+/// A bag of the caller's topics and messages, at its place.
+pub(crate) struct RawBag {
+    pub bag: McapBag,
+    landing: Landing,
+}
+
+impl RawBag {
+    /// The MCAP file as the finished bag has it.
+    pub(crate) fn final_path(&self) -> std::path::PathBuf {
+        self.landing.final_path()
+    }
+
+    /// Finishes the bag and puts it in place.
+    pub(crate) fn finish(self) -> Result<()> {
+        let RawBag { bag, landing } = self;
+        match bag.finish() {
+            Ok(()) => landing.commit(),
+            Err(e) => {
+                landing.discard();
+                Err(e)
+            }
+        }
+    }
+
+    /// Gives the bag up: removes what was written.
+    pub(crate) fn abandon(self) {
+        let RawBag { bag, landing } = self;
+        drop(bag);
+        landing.discard();
     }
 }
 
