@@ -809,7 +809,11 @@ fn convert_partial_makes_a_bag_of_an_aborted_stream() {
 #[test]
 fn recover_finishes_a_killed_bag_with_every_complete_message() {
     let d = tempfile::tempdir().unwrap();
-    for (fmt, name, comp) in [("rosbag2", "k", "none"), ("mcap", "k.mcap", "zstd")] {
+    // killed after its first whole chunks (4 MiB each), and inside its first chunk
+    for (fmt, name, comp, at) in [
+        ("rosbag2", "k", "none", 9 << 20),
+        ("mcap", "k.mcap", "zstd", 1 << 20),
+    ] {
         let bag = d.path().join(name);
         let mut child = Command::new(env!("CARGO_BIN_EXE_psns"))
             .args([
@@ -831,9 +835,8 @@ fn recover_finishes_a_killed_bag_with_every_complete_message() {
         } else {
             bag.join("k_0.mcap")
         };
-        // past the first 1 MiB the writer hands the file: inside the first, still open chunk
         let t = Instant::now();
-        while std::fs::metadata(&file).map_or(0, |m| m.len()) < 1 << 20 {
+        while std::fs::metadata(&file).map_or(0, |m| m.len()) < at {
             assert!(t.elapsed() < Duration::from_secs(60), "producer too slow");
             std::thread::sleep(Duration::from_millis(5));
         }
