@@ -34,6 +34,9 @@ enum Cmd {
     Gige(cli::gige::GigeArgs),
     /// Check a frame stream: frame count, drops, corrupt and truncated frames. Exit 0 only if clean.
     Verify(cli::verify::VerifyArgs),
+    /// Finish what a killed or stopped run left: an unfinished MCAP file or rosbag2 directory
+    /// into a finished bag of every complete message, a stream into one of its intact frames.
+    Recover(cli::recover::RecoverArgs),
     /// Write one frame of a stream as PNG and TIFF plus its metadata as JSON.
     Extract(cli::verify::ExtractArgs),
     /// Demosaic a raw mosaic (PNG/TIFF) or a stream frame into S0, S1, S2, DoLP, AoLP.
@@ -63,6 +66,7 @@ fn run(cli: Cli) -> anyhow::Result<()> {
         Cmd::Convert(a) => cli::convert::run(a),
         Cmd::Gige(a) => cli::gige::run(a),
         Cmd::Verify(a) => cli::verify::run_verify(a),
+        Cmd::Recover(a) => cli::recover::run(a),
         Cmd::Extract(a) => cli::verify::run_extract(a),
         Cmd::Demosaic(a) => cli::demosaic::run(a),
         Cmd::Heading(a) => cli::heading::run(a),

@@ -1,13 +1,15 @@
-//! ROS 2 bags as an output of `psns stream` and `psns convert`: a rosbag2 directory
-//! (`metadata.yaml` + one MCAP file) or a bare MCAP file, with profile `ros2`, `ros2msg` schemas
-//! and `cdr` messages (`docs/ros2.md`). The messages come from the library (`psns::ros2`); this
-//! file owns the files.
+//! ROS 2 bags as an output of `psns stream`, `psns convert` and `psns recover`: a rosbag2
+//! directory (`metadata.yaml` + one MCAP file) or a bare MCAP file, with profile `ros2`,
+//! `ros2msg` schemas and `cdr` messages (`docs/ros2.md`). The messages come from the library
+//! (`psns::ros2`); [`McapBag`] writes the MCAP file and `metadata.yaml` of any bag, and
+//! [`BagWriter`] the psns topics into one. Where the files go (in place, or replacing an
+//! earlier bag) is the output's choice (`src/cli/stream/place.rs`).
 //!
-//! Whole or clearly unfinished, by rosbag2's and MCAP's own rules: the MCAP file is written in
-//! place and gets its summary and footer only when the last frame is in; a bag directory gets
-//! its `metadata.yaml` (written atomically) only after that file is complete and synced. A run
-//! that fails or is killed leaves a directory without `metadata.yaml` and an MCAP file without a
-//! footer, which every reader refuses or reports as unfinished.
+//! Whole or clearly unfinished, by rosbag2's and MCAP's own rules: the MCAP file gets its
+//! summary and footer only when the last frame is in; a bag directory gets its `metadata.yaml`
+//! (written atomically) only after that file is complete and synced. A run that fails or is
+//! killed leaves a directory without `metadata.yaml` and an MCAP file without a footer, which
+//! every reader refuses or reports as unfinished (`psns recover` finishes it).
 
 use clap::ValueEnum;
 use psns::camera::Intrinsics;
@@ -102,70 +104,6 @@ impl BagArgs {
     }
 }
 
-/// Checks `--out` for a bag before anything is rendered: a rosbag2 directory must be new or
-/// empty, a bare MCAP file must not be a directory; stdout cannot hold either.
-pub fn check_out(kind: &BagKind, out: &Path) -> Result<()> {
-    if out.as_os_str() == "-" {
-        return Err(Error::Invalid(
-            "a ROS 2 bag is written to a path, not stdout: give --out DIR (rosbag2) or --out \
-             FILE.mcap (mcap)"
-                .into(),
-        ));
-    }
-    match kind {
-        BagKind::Rosbag2 => {
-            if let Ok(m) = std::fs::symlink_metadata(out) {
-                if !m.is_dir() {
-                    return Err(Error::Invalid(format!(
-                        "--out {}: exists and is not a directory (a rosbag2 bag is a new or \
-                         empty directory)",
-                        out.display()
-                    )));
-                }
-                let mut it = std::fs::read_dir(out)
-                    .map_err(|e| Error::io(format!("reading {}", out.display()), e))?;
-                if it.next().is_some() {
-                    return Err(Error::Invalid(format!(
-                        "--out {}: the directory is not empty (a rosbag2 bag is a new or empty \
-                         directory)",
-                        out.display()
-                    )));
-                }
-            }
-            bag_name(out).map(|_| ())
-        }
-        BagKind::Mcap => {
-            if out.is_dir() {
-                return Err(Error::Invalid(format!(
-                    "--out {}: is a directory (--format mcap writes one file; --format rosbag2 \
-                     writes a directory)",
-                    out.display()
-                )));
-            }
-            Ok(())
-        }
-    }
-}
-
-/// The bag's name: the directory's last component (rosbag2 names its file `<name>_0.mcap`).
-fn bag_name(dir: &Path) -> Result<String> {
-    let abs = std::path::absolute(dir).map_err(|e| Error::io("resolving --out", e))?;
-    let name = abs
-        .components()
-        .filter_map(|c| match c {
-            std::path::Component::Normal(s) => Some(s.to_string_lossy().into_owned()),
-            _ => None,
-        })
-        .next_back()
-        .filter(|n| dir.file_name().is_some() && !n.is_empty());
-    name.ok_or_else(|| {
-        Error::Invalid(format!(
-            "--out {}: name the bag's directory (e.g. --out run1)",
-            dir.display()
-        ))
-    })
-}
-
 /// Bytes of a bag's raw image message in front of its pixels (the CDR prefix of
 /// [`BagWriter::write_frame_message`]): the same for every frame of a bag.
 pub fn image_prefix_len(encoding: ImageEncoding, width: usize, height: usize) -> Result<usize> {
@@ -229,6 +167,277 @@ impl BagSource {
     }
 }
 
+/// The MCAP file of a bag, opened by the output (`src/cli/stream/place.rs`).
+#[derive(Debug)]
+pub struct BagFile {
+    /// The file, open for writing at its start.
+    pub file: File,
+    /// Where it is.
+    pub path: PathBuf,
+    /// A rosbag2 bag: the directory where `metadata.yaml` goes.
+    pub dir: Option<PathBuf>,
+    /// The file's name in the finished bag (`relative_file_paths` of `metadata.yaml`).
+    pub file_name: String,
+}
+
+/// MCAP chunk target size. A chunk is closed before the message that finds it over this size,
+/// so a full-size raw image ends its chunk, and small frames share one.
+const CHUNK_SIZE: u64 = 4 << 20;
+
+fn mcap_err(context: String, e: mcap::McapError) -> Error {
+    match e {
+        mcap::McapError::Io(io) => Error::io(context, io),
+        e => Error::io(context, std::io::Error::other(e.to_string())),
+    }
+}
+
+fn writing(path: &Path) -> String {
+    format!("writing {}", path.display())
+}
+
+/// Writes a small file atomically and durably: a temporary name beside it, synced, renamed.
+fn write_synced(path: &Path, text: &str) -> Result<()> {
+    let tmp = path.with_file_name(format!(
+        ".{}.tmp-{}",
+        path.file_name().unwrap_or_default().to_string_lossy(),
+        std::process::id()
+    ));
+    let r = (|| {
+        let mut f = File::create(&tmp)?;
+        f.write_all(text.as_bytes())?;
+        f.sync_all()?;
+        std::fs::rename(&tmp, path)
+    })();
+    r.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        Error::io(writing(path), e)
+    })
+}
+
+/// A topic of a bag: name, type, channel, messages written.
+#[derive(Clone, Debug)]
+struct BagTopic {
+    name: String,
+    msg_type: String,
+    channel: u16,
+    count: u64,
+}
+
+/// Writes the MCAP file of a bag, and `metadata.yaml` for a rosbag2 directory: topics (a
+/// `ros2msg` schema and a `cdr` channel each), messages into chunks, and at the end the
+/// `rosbag2` metadata record, summary and footer.
+pub struct McapBag {
+    mcap: Option<mcap::Writer<Sink>>,
+    path: PathBuf,
+    dir: Option<PathBuf>,
+    file_name: String,
+    custom_data: Vec<(String, String)>,
+    /// In channel order.
+    topics: Vec<BagTopic>,
+    start_ns: Option<u64>,
+    end_ns: u64,
+    /// A write failed: the bag cannot be finished.
+    failed: bool,
+}
+
+impl McapBag {
+    /// Starts the MCAP file in `file`; `custom_data` goes into `metadata.yaml` and the
+    /// `rosbag2` metadata record.
+    pub fn create(
+        file: BagFile,
+        compression: Compression,
+        custom_data: Vec<(String, String)>,
+    ) -> Result<Self> {
+        let BagFile {
+            file,
+            path,
+            dir,
+            file_name,
+        } = file;
+        let regular = file.metadata().map(|m| m.is_file()).unwrap_or(false);
+        let w = BufWriter::with_capacity(1 << 20, file);
+        let sink = if regular {
+            Sink::File(w)
+        } else {
+            Sink::Stream(mcap::write::NoSeek::new(w))
+        };
+        let wopts = mcap::WriteOptions::new()
+            .profile("ros2")
+            .library(format!("psns {}", env!("CARGO_PKG_VERSION")))
+            .chunk_size(Some(CHUNK_SIZE))
+            .disable_seeking(!regular)
+            .compression(match compression {
+                Compression::None => None,
+                Compression::Zstd => Some(mcap::Compression::Zstd),
+            })
+            .compression_level(1)
+            // the chunk CRCs would read every frame twice more on the writer's thread
+            .calculate_chunk_crcs(false)
+            .calculate_data_section_crc(false);
+        let mcap = wopts
+            .create(sink)
+            .map_err(|e| mcap_err(writing(&path), e))?;
+        Ok(McapBag {
+            mcap: Some(mcap),
+            path,
+            dir,
+            file_name,
+            custom_data,
+            topics: Vec::new(),
+            start_ns: None,
+            end_ns: 0,
+            failed: false,
+        })
+    }
+
+    /// Adds a topic: its `ros2msg` schema and its `cdr` channel with `metadata` (rosbag2's
+    /// `offered_qos_profiles`); returns the channel id.
+    pub fn add_topic(
+        &mut self,
+        name: &str,
+        msg_type: &str,
+        schema: &[u8],
+        metadata: &BTreeMap<String, String>,
+    ) -> Result<u16> {
+        let m = self.writer()?;
+        let r = m
+            .add_schema(msg_type, "ros2msg", schema)
+            .and_then(|s| m.add_channel(s, name, "cdr", metadata));
+        let channel = r.map_err(|e| self.io_error(e))?;
+        self.topics.push(BagTopic {
+            name: name.into(),
+            msg_type: msg_type.into(),
+            channel,
+            count: 0,
+        });
+        Ok(channel)
+    }
+
+    /// A psns topic, offering rosbag2's QoS profile.
+    fn add_psns_topic(&mut self, name: &str, msg_type: &str, schema: &str) -> Result<u16> {
+        let meta = BTreeMap::from([(
+            "offered_qos_profiles".to_string(),
+            OFFERED_QOS_V8.to_string(),
+        )]);
+        self.add_topic(name, msg_type, schema.as_bytes(), &meta)
+    }
+
+    fn writer(&mut self) -> Result<&mut mcap::Writer<Sink>> {
+        if self.failed {
+            return Err(Error::Invalid("the bag could not be written".into()));
+        }
+        self.mcap
+            .as_mut()
+            .ok_or_else(|| Error::Invalid("the bag is closed".into()))
+    }
+
+    fn io_error(&mut self, e: mcap::McapError) -> Error {
+        self.failed = true;
+        mcap_err(writing(&self.path), e)
+    }
+
+    /// Writes one message on `channel` (log time `log_ns`, publish time `publish_ns`).
+    pub fn put(
+        &mut self,
+        channel: u16,
+        sequence: u32,
+        log_ns: u64,
+        publish_ns: u64,
+        data: &[u8],
+    ) -> Result<()> {
+        let header = mcap::records::MessageHeader {
+            channel_id: channel,
+            sequence,
+            log_time: log_ns,
+            publish_time: publish_ns,
+        };
+        let m = self.writer()?;
+        if let Err(e) = m.write_to_known_channel(&header, data) {
+            return Err(self.io_error(e));
+        }
+        if let Some(t) = self.topics.iter_mut().find(|t| t.channel == channel) {
+            t.count += 1;
+        }
+        self.start_ns = Some(self.start_ns.map_or(log_ns, |s| s.min(log_ns)));
+        self.end_ns = self.end_ns.max(log_ns);
+        Ok(())
+    }
+
+    /// What metadata.yaml says.
+    fn info(&self) -> BagInfo {
+        BagInfo {
+            file: self.file_name.clone(),
+            start_ns: self.start_ns.unwrap_or(0),
+            end_ns: self.end_ns,
+            topics: self
+                .topics
+                .iter()
+                .map(|t| Topic {
+                    name: t.name.clone(),
+                    msg_type: t.msg_type.clone(),
+                    count: t.count,
+                })
+                .collect(),
+            custom_data: self.custom_data.clone(),
+            ros_distro: String::new(),
+        }
+    }
+
+    /// Messages written per topic, in channel order.
+    pub fn counts(&self) -> Vec<(String, u64)> {
+        self.topics
+            .iter()
+            .map(|t| (t.name.clone(), t.count))
+            .collect()
+    }
+
+    /// Finishes the bag: the `rosbag2` metadata record, the MCAP summary and footer, a sync,
+    /// then (rosbag2) `metadata.yaml`. After a failed write nothing more is written.
+    pub fn finish(mut self) -> Result<()> {
+        if self.failed {
+            return Err(Error::Invalid("the bag could not be written".into()));
+        }
+        let info = self.info();
+        let meta = mcap::records::Metadata {
+            name: "rosbag2".into(),
+            metadata: BTreeMap::from([
+                ("serialized_metadata".to_string(), info.serialized()),
+                ("ROS_DISTRO".to_string(), String::new()),
+            ]),
+        };
+        let mut m = self.mcap.take().expect("open until finish");
+        if let Err(e) = m.write_metadata(&meta).and_then(|_| m.finish().map(|_| ())) {
+            drop(m.into_inner());
+            return Err(self.io_error(e));
+        }
+        let (w, stream) = match m.into_inner() {
+            Sink::File(w) => (w, false),
+            Sink::Stream(w) => (w.into_inner(), true),
+        };
+        let f = w
+            .into_inner()
+            .map_err(|e| Error::io(writing(&self.path), e.into_error()))?;
+        // the data is on disk before metadata.yaml says the bag is whole
+        if !stream {
+            f.sync_all()
+                .map_err(|e| Error::io(writing(&self.path), e))?;
+        }
+        if let Some(dir) = &self.dir {
+            write_synced(&dir.join("metadata.yaml"), &info.yaml())?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for McapBag {
+    /// A bag dropped unfinished stays unfinished: no footer (the MCAP writer would add one).
+    fn drop(&mut self) {
+        if let Some(m) = self.mcap.take() {
+            drop(m.into_inner());
+        }
+    }
+}
+
 /// The MCAP file: seekable (a regular file, chunk headers patched in place) or not (a device or
 /// FIFO: chunks are assembled in memory).
 enum Sink {
@@ -275,150 +484,31 @@ struct Channels {
     truth: Option<(u16, u16)>,
 }
 
-/// Writes frames into a bag.
+/// Writes psns frames into a bag: per frame the raw image, camera info, pose and sun (and the
+/// truth images).
 pub struct BagWriter {
-    mcap: Option<mcap::Writer<Sink>>,
-    /// The bag directory (rosbag2), where metadata.yaml goes.
-    dir: Option<PathBuf>,
-    /// The directory was made by this run (so an abandoned bag removes it).
-    made_dir: bool,
-    path: PathBuf,
-    file_name: String,
+    bag: McapBag,
     source: BagSource,
     camera_info: CameraInfo,
     channels: Channels,
-    /// (topic, type, channel, count) in channel order.
-    topics: Vec<(&'static str, &'static str, u16, u64)>,
-    start_ns: Option<u64>,
-    end_ns: u64,
     /// A reused buffer for the image message.
     buf: Vec<u8>,
-    /// A write failed: the bag cannot be finished.
-    failed: bool,
-}
-
-/// MCAP chunk target size: one raw frame per chunk, the small messages with it.
-const CHUNK_SIZE: u64 = 4 << 20;
-
-fn mcap_err(context: String, e: mcap::McapError) -> Error {
-    match e {
-        mcap::McapError::Io(io) => Error::io(context, io),
-        e => Error::io(context, std::io::Error::other(e.to_string())),
-    }
-}
-
-fn writing(path: &Path) -> String {
-    format!("writing {}", path.display())
-}
-
-/// Writes a small file atomically and durably: a temporary name beside it, synced, renamed.
-fn write_synced(path: &Path, text: &str) -> Result<()> {
-    let tmp = path.with_file_name(format!(
-        ".{}.tmp-{}",
-        path.file_name().unwrap_or_default().to_string_lossy(),
-        std::process::id()
-    ));
-    let r = (|| {
-        let mut f = File::create(&tmp)?;
-        f.write_all(text.as_bytes())?;
-        f.sync_all()?;
-        std::fs::rename(&tmp, path)
-    })();
-    r.map_err(|e| {
-        let _ = std::fs::remove_file(&tmp);
-        Error::io(writing(path), e)
-    })
 }
 
 impl BagWriter {
-    /// Creates the bag at `out` (already [`check_out`]ed): the directory and its MCAP file, or
-    /// the bare MCAP file; schemas and channels are written at once.
-    pub fn create(opts: &BagOptions, out: &Path, source: BagSource) -> Result<Self> {
-        check_out(&opts.kind, out)?;
-        let mut made_dir = false;
-        let (dir, path, file_name) = match opts.kind {
-            BagKind::Rosbag2 => {
-                let name = bag_name(out)?;
-                made_dir = !out.exists();
-                psns::io::create_dir(out)?;
-                let file = format!("{name}_0.mcap");
-                (Some(out.to_path_buf()), out.join(&file), file)
-            }
-            BagKind::Mcap => {
-                let name = out
-                    .file_name()
-                    .map(|n| n.to_string_lossy().into_owned())
-                    .unwrap_or_default();
-                (None, out.to_path_buf(), name)
-            }
-        };
-        let f = File::create(&path)
-            .map_err(|e| Error::io(format!("creating {}", path.display()), e))?;
-        let regular = f.metadata().map(|m| m.is_file()).unwrap_or(false);
-        let w = BufWriter::with_capacity(1 << 20, f);
-        let sink = if regular {
-            Sink::File(w)
-        } else {
-            Sink::Stream(mcap::write::NoSeek::new(w))
-        };
-        let wopts = mcap::WriteOptions::new()
-            .profile("ros2")
-            .library(format!("psns {}", env!("CARGO_PKG_VERSION")))
-            .chunk_size(Some(CHUNK_SIZE))
-            .disable_seeking(!regular)
-            .compression(match opts.compression {
-                Compression::None => None,
-                Compression::Zstd => Some(mcap::Compression::Zstd),
-            })
-            .compression_level(1)
-            // the chunk CRCs would read every frame twice more on the writer's thread
-            .calculate_chunk_crcs(false)
-            .calculate_data_section_crc(false);
-        let mut mcap = wopts
-            .create(sink)
-            .map_err(|e| mcap_err(writing(&path), e))?;
-        let mut topics = Vec::new();
-        let mut add = |mcap: &mut mcap::Writer<Sink>,
-                       topic: &'static str,
-                       ty: &'static str,
-                       schema: &'static str|
-         -> Result<u16> {
-            let s = mcap
-                .add_schema(ty, "ros2msg", schema.as_bytes())
-                .map_err(|e| mcap_err(writing(&path), e))?;
-            let meta = BTreeMap::from([(
-                "offered_qos_profiles".to_string(),
-                OFFERED_QOS_V8.to_string(),
-            )]);
-            let c = mcap
-                .add_channel(s, topic, "cdr", &meta)
-                .map_err(|e| mcap_err(writing(&path), e))?;
-            topics.push((topic, ty, c, 0u64));
-            Ok(c)
-        };
-        let image = add(&mut mcap, ros::TOPIC_IMAGE, Image::TYPE, Image::SCHEMA)?;
-        let info_ch = add(
-            &mut mcap,
-            ros::TOPIC_CAMERA_INFO,
-            CameraInfo::TYPE,
-            CameraInfo::SCHEMA,
-        )?;
-        let pose = add(
-            &mut mcap,
-            ros::TOPIC_POSE,
-            PoseStamped::TYPE,
-            PoseStamped::SCHEMA,
-        )?;
-        let sun = add(
-            &mut mcap,
-            ros::TOPIC_SUN,
-            Vector3Stamped::TYPE,
-            Vector3Stamped::SCHEMA,
-        )?;
+    /// Starts the bag in `file`; schemas and channels are written at once.
+    pub fn create(opts: &BagOptions, file: BagFile, source: BagSource) -> Result<Self> {
+        let mut bag = McapBag::create(file, opts.compression, source.custom_data.clone())?;
+        let image = bag.add_psns_topic(ros::TOPIC_IMAGE, Image::TYPE, Image::SCHEMA)?;
+        let info_ch =
+            bag.add_psns_topic(ros::TOPIC_CAMERA_INFO, CameraInfo::TYPE, CameraInfo::SCHEMA)?;
+        let pose = bag.add_psns_topic(ros::TOPIC_POSE, PoseStamped::TYPE, PoseStamped::SCHEMA)?;
+        let sun =
+            bag.add_psns_topic(ros::TOPIC_SUN, Vector3Stamped::TYPE, Vector3Stamped::SCHEMA)?;
         let truth = if opts.truth_images {
             Some((
-                add(&mut mcap, ros::TOPIC_TRUTH_DOLP, Image::TYPE, Image::SCHEMA)?,
-                add(&mut mcap, ros::TOPIC_TRUTH_AOLP, Image::TYPE, Image::SCHEMA)?,
+                bag.add_psns_topic(ros::TOPIC_TRUTH_DOLP, Image::TYPE, Image::SCHEMA)?,
+                bag.add_psns_topic(ros::TOPIC_TRUTH_AOLP, Image::TYPE, Image::SCHEMA)?,
             ))
         } else {
             None
@@ -429,11 +519,7 @@ impl BagWriter {
         };
         let camera_info = ros::camera_info(header, &source.intrinsics)?;
         Ok(BagWriter {
-            mcap: Some(mcap),
-            dir,
-            made_dir,
-            path,
-            file_name,
+            bag,
             source,
             camera_info,
             channels: Channels {
@@ -443,56 +529,13 @@ impl BagWriter {
                 sun,
                 truth,
             },
-            topics,
-            start_ns: None,
-            end_ns: 0,
             buf: Vec::new(),
-            failed: false,
         })
     }
 
-    /// Where the MCAP file is.
-    pub fn path(&self) -> &Path {
-        &self.path
-    }
-
-    /// What an I/O failure leaves behind, for its message.
-    fn unfinished(&self) -> String {
-        match &self.dir {
-            Some(d) => format!(
-                "writing {} (the bag {} is left unfinished: no metadata.yaml)",
-                self.path.display(),
-                d.display()
-            ),
-            None => format!(
-                "writing {} (left unfinished: no MCAP footer)",
-                self.path.display()
-            ),
-        }
-    }
-
-    fn io_error(&mut self, e: mcap::McapError) -> Error {
-        self.failed = true;
-        mcap_err(self.unfinished(), e)
-    }
-
     fn put(&mut self, channel: u16, sequence: u32, t: Time, data: &[u8]) -> Result<()> {
-        let header = mcap::records::MessageHeader {
-            channel_id: channel,
-            sequence,
-            log_time: t.unix_ns(),
-            publish_time: t.unix_ns(),
-        };
-        let Some(m) = self.mcap.as_mut() else {
-            return Err(Error::Invalid("the bag is closed".into()));
-        };
-        if let Err(e) = m.write_to_known_channel(&header, data) {
-            return Err(self.io_error(e));
-        }
-        if let Some(t) = self.topics.iter_mut().find(|t| t.2 == channel) {
-            t.3 += 1;
-        }
-        Ok(())
+        self.bag
+            .put(channel, sequence, t.unix_ns(), t.unix_ns(), data)
     }
 
     /// Writes one frame: the raw image (`image`: the pixel bytes of the bag's encoding), the
@@ -550,7 +593,7 @@ impl BagWriter {
     /// The image's header: the exposure start in the camera optical frame; refused when the
     /// bag is broken or the stamp does not fit.
     fn image_header(&self, meta: &FrameMeta) -> Result<Header> {
-        if self.failed {
+        if self.bag.failed {
             return Err(Error::Invalid("the bag could not be written".into()));
         }
         Ok(Header {
@@ -585,107 +628,11 @@ impl BagWriter {
                 self.put(ch, seq, stamp, &m)?;
             }
         }
-        let t = stamp.unix_ns();
-        self.start_ns = Some(self.start_ns.map_or(t, |s| s.min(t)));
-        self.end_ns = self.end_ns.max(t);
         Ok(())
     }
 
-    /// What metadata.yaml says.
-    fn info(&self) -> BagInfo {
-        BagInfo {
-            file: self.file_name.clone(),
-            start_ns: self.start_ns.unwrap_or(0),
-            end_ns: self.end_ns,
-            topics: self
-                .topics
-                .iter()
-                .map(|&(name, ty, _, count)| Topic {
-                    name: name.into(),
-                    msg_type: ty.into(),
-                    count,
-                })
-                .collect(),
-            custom_data: self.source.custom_data.clone(),
-            ros_distro: String::new(),
-        }
-    }
-
-    /// Finishes the bag: the `rosbag2` metadata record, the MCAP summary and footer, a sync,
-    /// then (rosbag2) `metadata.yaml`. After a failed write nothing more is written.
-    pub fn finish(mut self) -> Result<()> {
-        if self.failed {
-            return Err(Error::Invalid("the bag could not be written".into()));
-        }
-        let info = self.info();
-        let meta = mcap::records::Metadata {
-            name: "rosbag2".into(),
-            metadata: BTreeMap::from([
-                ("serialized_metadata".to_string(), info.serialized()),
-                ("ROS_DISTRO".to_string(), String::new()),
-            ]),
-        };
-        let mut m = self.mcap.take().expect("open until finish");
-        if let Err(e) = m.write_metadata(&meta).and_then(|_| m.finish().map(|_| ())) {
-            drop(m.into_inner());
-            return Err(self.io_error(e));
-        }
-        let sink = m.into_inner();
-        let (w, stream) = match sink {
-            Sink::File(w) => (w, false),
-            Sink::Stream(w) => (w.into_inner(), true),
-        };
-        let f = w
-            .into_inner()
-            .map_err(|e| Error::io(self.unfinished(), e.into_error()))?;
-        // the data is on disk before metadata.yaml says the bag is whole
-        if !stream {
-            f.sync_all().map_err(|e| Error::io(self.unfinished(), e))?;
-        }
-        if let Some(dir) = &self.dir {
-            write_synced(&dir.join("metadata.yaml"), &info.yaml()).map_err(|e| match e {
-                Error::Io { context, source } => Error::Io {
-                    context: format!("{context} (the bag {} is left unfinished)", dir.display()),
-                    source,
-                },
-                e => e,
-            })?;
-        }
-        Ok(())
-    }
-
-    /// Stops writing the bag of a run that failed or was stopped: no summary, footer or
-    /// `metadata.yaml` are written, so it reads as unfinished; returns a note saying so.
-    pub fn leave_unfinished(self) -> String {
-        let note = match &self.dir {
-            Some(d) => format!(
-                "the bag {} is left unfinished: no metadata.yaml",
-                d.display()
-            ),
-            None => format!("{} is left unfinished: no MCAP footer", self.path.display()),
-        };
-        drop(self);
-        note
-    }
-
-    /// Gives the bag up (the input turned out bad): removes the MCAP file, and the directory if
-    /// this run made it, so nothing is left of it.
-    pub fn abandon(mut self) {
-        if let Some(m) = self.mcap.take() {
-            drop(m.into_inner());
-        }
-        let _ = std::fs::remove_file(&self.path);
-        if let (Some(d), true) = (&self.dir, self.made_dir) {
-            let _ = std::fs::remove_dir(d);
-        }
-    }
-}
-
-impl Drop for BagWriter {
-    /// A bag dropped unfinished stays unfinished: no footer (the MCAP writer would add one).
-    fn drop(&mut self) {
-        if let Some(m) = self.mcap.take() {
-            drop(m.into_inner());
-        }
+    /// Finishes the bag ([`McapBag::finish`]).
+    pub fn finish(self) -> Result<()> {
+        self.bag.finish()
     }
 }

@@ -64,12 +64,12 @@ pub struct OutDir {
 
 /// True when the process `pid` no longer runs (Linux `/proc`; elsewhere never, so nothing of
 /// another run is removed).
-fn dead(pid: u32) -> bool {
+pub(crate) fn dead(pid: u32) -> bool {
     Path::new("/proc/self").exists() && !Path::new(&format!("/proc/{pid}")).exists()
 }
 
 /// The PID of a hidden temporary `.{base}.tmp-PID` or `.{base}.old-PID`.
-fn temp_pid(name: &str, base: &str) -> Option<u32> {
+pub(crate) fn temp_pid(name: &str, base: &str) -> Option<u32> {
     let rest = name.strip_prefix('.')?.strip_prefix(base)?;
     let pid = rest
         .strip_prefix(".tmp-")

@@ -43,11 +43,13 @@ impl RecoverArgs {
 
 /// Exit codes of `psns verify`, shown by `psns verify --help`.
 const VERIFY_EXIT_CODES: &str = "Exit status: 0 clean (one stream, nothing damaged, finished: the last frame carries \
-the LAST flag or the header frame count matches); 1 damaged (corrupt, truncated or dropped frames, skipped bytes, \
-a frame-count mismatch, a damaged file header, or more than one stream in the input: concatenated files or a \
-producer restart); 2 bad input (usage error, not a psns stream, or --recover cannot infer the geometry); \
-3 intact but unfinished (header frame count 0 and no LAST flag: the producer was killed or is still writing) \
-or aborted (the producer marked the stream aborted, with its reason: bad input, an I/O error or a signal).";
+the LAST flag or the header frame count matches); 1 damaged (corrupt, truncated or dropped frames between intact \
+ones, skipped bytes, a frame-count mismatch, a cut-short end of a stream whose header counts its frames, a damaged \
+file header, or more than one stream in the input: concatenated files or a producer restart); 2 bad input (usage \
+error, not a psns stream, or --recover cannot infer the geometry); 3 intact but unfinished (header frame count 0 \
+and no LAST flag: the producer was killed, also while writing its last record, which is then cut short, or is \
+still writing; psns recover makes a finished stream of its intact frames) or aborted (the producer marked the \
+stream aborted, with its reason: bad input, an I/O error or a signal).";
 
 /// Options of `psns verify`.
 #[derive(Args)]

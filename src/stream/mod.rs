@@ -10,6 +10,7 @@
 //! [`FrameMeta::host_time_ns`].
 
 mod reader;
+mod salvage;
 mod writer;
 
 pub use reader::{
@@ -17,6 +18,7 @@ pub use reader::{
     FindOptions, Frame, FrameLocation, RecoverHint, Recovery, StreamReader, VerifyReport,
     VerifyStatus, VerifyTally, HEADER_DAMAGED, REASON_NOT_RECORDED,
 };
+pub use salvage::Salvage;
 pub use writer::{FileStreamWriter, StreamWriter};
 
 use crate::error::{Error, Result};

@@ -224,8 +224,14 @@ impl FileStreamWriter {
             .truncate(true)
             .open(path)
             .map_err(|e| Error::io(format!("creating {}", path.display()), e))?;
+        Self::new(f, header)
+    }
+
+    /// Writes the file header into `file`, already opened for writing at its start (a new or
+    /// emptied file, a FIFO or a device), and returns the writer.
+    pub fn new(file: File, header: &FileHeader) -> Result<Self> {
         Ok(FileStreamWriter {
-            inner: StreamWriter::new(f, header)?,
+            inner: StreamWriter::new(file, header)?,
         })
     }
 

@@ -176,3 +176,50 @@ fn dataset_preview_on_a_full_disk_exits_1() {
     let out = mnt.path().join("p.png");
     assert_full_disk_exit_1(&mnt, 0, &["dataset", "preview", s(&ds), "--out", s(&out)]);
 }
+
+/// A recording that replaces an earlier one and runs out of room leaves the earlier one as it
+/// was (exit 1, no temporary left).
+#[test]
+fn a_replacement_that_does_not_fit_keeps_the_earlier_recording() {
+    let mnt = Tmpfs::new(1024);
+    for (fmt, name) in [
+        ("psns", "run.psns"),
+        ("mcap", "run.mcap"),
+        ("rosbag2", "run"),
+    ] {
+        let out = mnt.path().join(name);
+        // 256 x 256 Mono16: 3 frames fit in 1 MiB, 20 do not
+        let args = |frames: &'static str, seed: &'static str| {
+            vec![
+                "stream", "--frames", frames, "--seed", seed, "--width", "256", "--height", "256",
+                "--format", fmt,
+            ]
+        };
+        let o = psns(&[&args("3", "1")[..], &["--out", s(&out)]].concat());
+        assert!(o.status.success(), "{}", stderr(&o));
+        let file = if fmt == "rosbag2" {
+            out.join("run_0.mcap")
+        } else {
+            out.clone()
+        };
+        let before = std::fs::read(&file).unwrap();
+        let o = psns(&[&args("20", "2")[..], &["--out", s(&out)]].concat());
+        let e = stderr(&o);
+        assert_eq!(o.status.code(), Some(1), "{fmt}: {e}");
+        assert!(
+            e.contains("No space left") && e.contains("kept as it was"),
+            "{e}"
+        );
+        assert_eq!(std::fs::read(&file).unwrap(), before, "{fmt}");
+        let left: Vec<String> = std::fs::read_dir(mnt.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        assert!(left.iter().all(|n| !n.contains(".tmp-")), "{fmt}: {left:?}");
+        if fmt == "rosbag2" {
+            std::fs::remove_dir_all(&out).unwrap();
+        } else {
+            std::fs::remove_file(&out).unwrap();
+        }
+    }
+}

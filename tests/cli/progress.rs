@@ -5,7 +5,9 @@
 use std::process::{Command, Output};
 
 fn stream(dir: &std::path::Path, extra: &[&str], env: &[(&str, &str)]) -> Output {
+    // a new path each run: replacing an earlier stream says so on stderr
     let out = dir.join("s.psns");
+    let _ = std::fs::remove_file(&out);
     let mut c = Command::new(env!("CARGO_BIN_EXE_psns"));
     c.args([
         "stream",

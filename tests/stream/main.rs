@@ -8,6 +8,7 @@ mod common;
 
 mod cli;
 mod readers;
+mod recordings;
 mod reliability;
 mod ros2;
 mod roundtrip;

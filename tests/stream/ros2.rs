@@ -642,6 +642,8 @@ fn a_full_disk_leaves_a_clearly_unfinished_bag_exit_1() {
             e.contains("unfinished") && e.contains("No space left"),
             "{e}"
         );
+        // said once, in the error
+        assert_eq!(e.matches("left unfinished").count(), 1, "{e}");
         if fmt == "rosbag2" {
             assert!(!out.join("metadata.yaml").exists());
         }
@@ -679,4 +681,193 @@ fn a_killed_run_leaves_an_unfinished_bag() {
     assert!(r.contains("metadata"), "{r}");
     let r = check(&["unfinished", s(&mcap)]);
     assert!(r.starts_with("refused: "), "{r}");
+}
+
+/// The chunks are what docs/ros2.md says: a chunk is closed before the message that finds it
+/// over 4 MiB, so a full-size image ends its chunk (the next one opens with that frame's small
+/// messages), and small frames share one.
+#[test]
+fn chunks_hold_an_image_after_the_frame_before_s_small_messages() {
+    let d = tempfile::tempdir().unwrap();
+    let full = d.path().join("full.mcap");
+    stream(&["--frames", "3", "--format", "mcap", "--out", s(&full)]);
+    let out = check(&["chunks", s(&full)]);
+    let small = "/psns/camera_info /psns/pose /psns/sun";
+    assert_eq!(
+        out,
+        format!("/psns/image_raw\n{small} /psns/image_raw\n{small} /psns/image_raw\n{small}\n")
+    );
+    let m = d.path().join("small.mcap");
+    stream(
+        &[
+            &SMALL[..],
+            &["--frames", "5", "--format", "mcap", "--out", s(&m)],
+        ]
+        .concat(),
+    );
+    assert_eq!(check(&["chunks", s(&m)]).lines().count(), 1);
+}
+
+/// SIGINT ends a bag run without --frames as `ros2 bag record` does: a finished bag (footer,
+/// metadata.yaml) of the frames written, exit 0, that both readers open.
+#[test]
+fn ctrl_c_finishes_a_bag_both_readers_open() {
+    let d = tempfile::tempdir().unwrap();
+    for (fmt, name) in [("rosbag2", "c"), ("mcap", "c.mcap")] {
+        let bag = d.path().join(name);
+        let child = Command::new(env!("CARGO_BIN_EXE_psns"))
+            .args([
+                "stream",
+                "--rate",
+                "40",
+                "--format",
+                fmt,
+                "--compression",
+                "zstd",
+            ])
+            .args(SMALL)
+            .args(["--out", s(&bag)])
+            .stderr(Stdio::piped())
+            .spawn()
+            .unwrap();
+        std::thread::sleep(Duration::from_millis(700));
+        let st = Command::new("kill")
+            .args(["-INT", &child.id().to_string()])
+            .status()
+            .unwrap();
+        assert!(st.success());
+        let o = common::wait_deadline(child, 30);
+        assert_eq!(o.status.code(), Some(0), "{}", stderr(&o));
+        let e = stderr(&o);
+        let n: u64 = e
+            .split("streamed ")
+            .nth(1)
+            .and_then(|r| r.split(' ').next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("{e}"));
+        assert!(n >= 2, "{e}");
+        if fmt == "rosbag2" {
+            assert!(bag.join("metadata.yaml").exists());
+        }
+        // the frames of the same options, as a stream
+        let psns_file = d.path().join(format!("{fmt}.psns"));
+        let nf = n.to_string();
+        stream(&[&SMALL[..], &["--frames", &nf, "--out", s(&psns_file)]].concat());
+        let r = check(&["bag", s(&bag), s(&psns_file)]);
+        assert!(r.contains(&format!("ok: {n} frames")), "{r}");
+    }
+}
+
+/// A run of N frames stopped early is aborted, and `psns convert` refuses it; with `--partial`
+/// it makes a bag of the intact frames.
+#[test]
+fn convert_partial_makes_a_bag_of_an_aborted_stream() {
+    let d = tempfile::tempdir().unwrap();
+    let run = d.path().join("a.psns");
+    let child = Command::new(env!("CARGO_BIN_EXE_psns"))
+        .args(["stream", "--frames", "1000000", "--rate", "40"])
+        .args(SMALL)
+        .args(["--out", s(&run)])
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(500));
+    let st = Command::new("kill")
+        .args(["-INT", &child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(st.success());
+    common::wait_deadline(child, 30);
+    let v = psns(&["verify", s(&run)]);
+    assert_eq!(v.status.code(), Some(3), "aborted");
+    let bag = d.path().join("p");
+    let o = psns(&["convert", s(&run), "--format", "rosbag2", "--out", s(&bag)]);
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(stderr(&o).contains("--partial"), "{}", stderr(&o));
+    assert!(!bag.exists());
+    let o = psns(&[
+        "convert",
+        s(&run),
+        "--partial",
+        "--format",
+        "rosbag2",
+        "--out",
+        s(&bag),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("aborted it: stopped by SIGINT"),
+        "{}",
+        stderr(&o)
+    );
+    let r = check(&["bag", s(&bag), s(&run)]);
+    assert!(r.starts_with("ok: "), "{r}");
+}
+
+/// `kill -9` leaves a bag without footer and metadata.yaml; `psns recover` makes a finished bag
+/// of every complete message, which both readers open and which holds the stream's frames.
+#[test]
+fn recover_finishes_a_killed_bag_with_every_complete_message() {
+    let d = tempfile::tempdir().unwrap();
+    // killed after its first whole chunks (4 MiB each), and inside its first chunk
+    for (fmt, name, comp, at) in [
+        ("rosbag2", "k", "none", 9 << 20),
+        ("mcap", "k.mcap", "zstd", 1 << 20),
+    ] {
+        let bag = d.path().join(name);
+        let mut child = Command::new(env!("CARGO_BIN_EXE_psns"))
+            .args([
+                "stream",
+                "--format",
+                fmt,
+                "--compression",
+                comp,
+                "--seed",
+                "5",
+            ])
+            .args(SMALL)
+            .args(["--out", s(&bag)])
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let file = if fmt == "mcap" {
+            bag.clone()
+        } else {
+            bag.join("k_0.mcap")
+        };
+        let t = Instant::now();
+        while std::fs::metadata(&file).map_or(0, |m| m.len()) < at {
+            assert!(t.elapsed() < Duration::from_secs(60), "producer too slow");
+            std::thread::sleep(Duration::from_millis(5));
+        }
+        child.kill().unwrap();
+        child.wait().unwrap();
+        let r = check(&["unfinished", s(&bag)]);
+        assert!(r.starts_with("refused: "), "{r}");
+        let rec = d.path().join(format!("rec-{name}"));
+        let o = psns(&["recover", s(&bag), "--out", s(&rec)]);
+        assert!(o.status.success(), "{}", stderr(&o));
+        let e = stderr(&o);
+        let images: u64 = e
+            .split("/psns/image_raw ")
+            .nth(1)
+            .and_then(|r| r.split([',', ')']).next())
+            .and_then(|n| n.parse().ok())
+            .unwrap_or_else(|| panic!("{e}"));
+        assert!(images > 10, "{e}");
+        if fmt == "rosbag2" {
+            assert!(rec.join("metadata.yaml").exists());
+        }
+        let psns_file = d.path().join(format!("{fmt}.psns"));
+        let nf = images.to_string();
+        stream(
+            &[
+                &SMALL[..],
+                &["--seed", "5", "--frames", &nf, "--out", s(&psns_file)],
+            ]
+            .concat(),
+        );
+        let r = check(&["recovered", s(&rec), s(&psns_file)]);
+        assert!(r.starts_with("ok: "), "{r}");
+    }
 }

@@ -6,6 +6,10 @@ the test venv's interpreter; every check is an assert, and the last line says wh
     ros2_check.py bag BAG STREAM [--truth] a bag (rosbag2 dir or .mcap) against a psns stream
     ros2_check.py truth BAG DIR           frame 0's truth images against DIR/truth_*.npy
     ros2_check.py unfinished BAG          both readers refuse or flag the bag
+    ros2_check.py recovered BAG STREAM    a bag psns recover finished: every topic holds the
+                                          first messages of the stream's frames, one frame's
+                                          messages at most cut off at its end
+    ros2_check.py chunks MCAP             the topics of each chunk, one line per chunk
 """
 
 import json
@@ -244,6 +248,44 @@ def cmd_unfinished(bag):
     print("refused: " + " | ".join(errors))
 
 
+def cmd_recovered(bag, stream):
+    hdr, frames = stream_frames(stream)
+    bag = Path(bag)
+    mcap_file = bag if bag.suffix == ".mcap" else next(bag.glob("*.mcap"))
+    for reader, (conns, msgs) in (("rosbags", read_rosbags(bag)), ("mcap", read_mcap(mcap_file))):
+        assert set(conns) == set(TOPICS), (reader, conns)
+        counts = [conns[t][1] for t in TOPICS]
+        # a frame's messages go in topic order, so a kill leaves each topic at most one behind
+        # the one before it
+        assert all(a - b in (0, 1) for a, b in zip(counts, counts[1:])), (reader, counts)
+        assert counts[0] - counts[-1] <= 1 and counts[-1] > 0, (reader, counts)
+        n = counts[-1]
+        assert len(frames) >= counts[0], (reader, len(frames), counts)
+        whole = {t: msgs[t][:n] for t in TOPICS}
+        check_frames(reader, {t: (ty, n) for t, ty in TOPICS.items()}, whole, hdr, frames[:n], TOPICS)
+        # the messages past the last whole frame are that frame's too
+        for t in TOPICS:
+            for k, (tm, _) in enumerate(msgs[t][n:], n):
+                assert tm == frames[k][0]["exposure_start_ns"], (reader, t, k)
+    print(f"ok: {n} whole frames, {counts[0]} images, both readers")
+
+
+def cmd_chunks(path):
+    from mcap.records import Chunk, Message
+    from mcap.stream_reader import StreamReader, breakup_chunk
+    with open(path, "rb") as f:
+        names = {}
+        for rec in StreamReader(f, emit_chunks=True).records:
+            if isinstance(rec, Chunk):
+                topics = []
+                for r in breakup_chunk(rec):
+                    if hasattr(r, "topic"):
+                        names[r.id] = r.topic
+                    if isinstance(r, Message):
+                        topics.append(names[r.channel_id])
+                print(" ".join(topics))
+
+
 if __name__ == "__main__":
     cmd, *args = sys.argv[1:]
     if cmd == "cdr":
@@ -254,5 +296,9 @@ if __name__ == "__main__":
         cmd_truth(*args)
     elif cmd == "unfinished":
         cmd_unfinished(*args)
+    elif cmd == "recovered":
+        cmd_recovered(*args)
+    elif cmd == "chunks":
+        cmd_chunks(*args)
     else:
         sys.exit(f"unknown command {cmd}")

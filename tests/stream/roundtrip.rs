@@ -205,15 +205,27 @@ fn truncation_at_every_offset_of_last_record() {
     let (bytes, _) = make(PixelFormat::Mono12Packed, 16, 8, 3);
     let stride = 4096usize;
     let start = 4096 + 2 * stride;
+    // the same bytes with the frame count in the header: a finished stream, cut later
+    let mut counted = bytes.clone();
+    let mut h = FileHeader::decode(&counted).unwrap();
+    h.frame_count = 3;
+    counted[..4096].copy_from_slice(&h.encode().unwrap());
     for cut in start + 1..bytes.len() {
+        // count 0: the producer was cut off while writing the record (unfinished, not damaged)
         let rep = verify(Cursor::new(&bytes[..cut])).unwrap();
         assert_eq!(rep.frames, 2, "cut {cut}");
-        assert_eq!(rep.truncated.len(), 1, "cut {cut}: {rep}");
+        assert!(rep.truncated.is_empty(), "cut {cut}: {rep}");
+        let tail = rep.cut_short.as_ref().expect("the cut-short record");
         if cut - start >= 256 {
-            assert_eq!(rep.truncated[0].index, Some(2));
+            assert_eq!(tail.index, Some(2));
         }
         assert!(rep.corrupt.is_empty(), "cut {cut}: {rep}");
-        assert!(!rep.clean());
+        assert_eq!(rep.status, VerifyStatus::Unfinished, "cut {cut}: {rep}");
+        // counted: damaged
+        let rep = verify(Cursor::new(&counted[..cut])).unwrap();
+        assert_eq!(rep.truncated.len(), 1, "cut {cut}: {rep}");
+        assert!(rep.cut_short.is_none() && !rep.clean(), "cut {cut}: {rep}");
+        assert_eq!(rep.status, VerifyStatus::Damaged, "cut {cut}: {rep}");
     }
     // cut exactly at a record boundary: clean but shorter
     let rep = verify(Cursor::new(&bytes[..start])).unwrap();

@@ -73,24 +73,8 @@ pub struct GigeArgs {
     serial: Option<String>,
 }
 
-/// Set by SIGINT and SIGTERM.
+/// Set when the device stops (a signal, or a thread that ended).
 static STOP: AtomicBool = AtomicBool::new(false);
-
-extern "C" fn on_signal(_: libc::c_int) {
-    STOP.store(true, Ordering::SeqCst);
-}
-
-fn install_signal_handlers() {
-    // SAFETY: sigaction with a zeroed struct, an empty mask and a handler that only stores to an
-    // atomic (async-signal-safe); the old action is not needed (null)
-    unsafe {
-        let mut sa: libc::sigaction = std::mem::zeroed();
-        sa.sa_sigaction = on_signal as *const () as usize;
-        libc::sigemptyset(&mut sa.sa_mask);
-        libc::sigaction(libc::SIGINT, &sa, std::ptr::null_mut());
-        libc::sigaction(libc::SIGTERM, &sa, std::ptr::null_mut());
-    }
-}
 
 /// How much lower the render workers' priority is than the control and stream threads'
 /// (nice increment).
@@ -115,7 +99,7 @@ fn lower_render_priority() {
 }
 
 fn stopping() -> bool {
-    STOP.load(Ordering::SeqCst)
+    STOP.load(Ordering::SeqCst) || super::signals::stop_signal().is_some()
 }
 
 /// Blocks kept for PACKETRESEND, bytes of payload (at least the newest block).
@@ -275,7 +259,7 @@ pub fn run(a: GigeArgs) -> anyhow::Result<()> {
         t0: Instant::now(),
         stats: Stats::default(),
     });
-    install_signal_handlers();
+    super::signals::catch(&[libc::SIGINT, libc::SIGTERM]);
     control
         .set_read_timeout(Some(POLL))
         .map_err(|e| Error::io("setting the control socket's timeout", e))?;

@@ -22,30 +22,31 @@
 
 use super::poses::{open_trajectory, Trajectory, TrajectoryArgs};
 use super::progress::{Progress, Unit};
+use super::signals::{self, die_by, signal_name};
 use glam::DMat3;
 use psns::camera::camera_to_enu_quaternion;
 use psns::config::SceneConfig;
 use psns::error::{Error, Result};
 use psns::options::{finite, whole, RawArgs, SceneArgs};
 use psns::pipeline::{seconds_to_ns, RawPipeline, SceneClock};
-use psns::sensor::packing::{self, PixelFormat};
+use psns::sensor::packing;
 use psns::sensor::Exposure;
 use psns::stream::{
-    CameraConstants, FileHeader, FileStreamWriter, FrameMeta, StreamWriter, FLAG_AUTO_EXPOSURE,
-    FLAG_EXPOSURE_CLIPPED, FLAG_GROUND_IN_VIEW, FLAG_LAST, FLAG_SATURATION, FLAG_SKY_INVALID,
-    FLAG_SUN_IN_VIEW, JSON_MAX,
+    CameraConstants, FileHeader, FrameMeta, FLAG_AUTO_EXPOSURE, FLAG_EXPOSURE_CLIPPED,
+    FLAG_GROUND_IN_VIEW, FLAG_LAST, FLAG_SATURATION, FLAG_SKY_INVALID, FLAG_SUN_IN_VIEW, JSON_MAX,
 };
 
-mod output;
-mod signals;
-pub(crate) use output::*;
+mod frames;
+pub(crate) mod output;
+mod place;
+use frames::{write_loop, End, Frames, Next};
+pub(crate) use output::grow_pipe;
+use output::{FrameKind, OutputSpec, Pixels};
 #[cfg(test)]
 use psns::sun::SunPosition;
 use psns::trajectory::Pose;
-use signals::*;
-use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
-use std::sync::mpsc::{sync_channel, Receiver, SyncSender};
+use std::sync::mpsc::Receiver;
 use std::time::{Duration, Instant};
 
 /// Options of `psns stream`.
@@ -107,22 +108,24 @@ pub fn run(a: StreamArgs) -> anyhow::Result<()> {
     }
     let mut cfg = a.scene.scene()?;
     a.raw.apply(&mut cfg)?;
-    if !a.no_pin {
-        pin_workers();
-    }
     let opts = StreamOptions {
         trajectory: a.trajectory.trajectory,
-        out: a.out,
         frames: a.frames,
         rate_fps: a.rate,
         start_time: a.trajectory.start_time,
         yaw_rate_deg_s: a.trajectory.yaw_rate,
         frame_interval_ms: a.trajectory.frame_interval_ms,
         stamp_host_time: a.stamp_host_time,
-        bag,
     };
-    catch_signals();
-    let s = run_stream(&cfg, &opts)?;
+    if let Some(r) = opts.rate_fps {
+        psns::error::check_range("rate", r, 1e-6, 1e6)?;
+    }
+    let out = OutputSpec::check(&a.out, bag)?;
+    if !a.no_pin {
+        pin_workers();
+    }
+    signals::catch(&[libc::SIGINT, libc::SIGTERM, libc::SIGHUP]);
+    let s = run_stream(&cfg, &opts, out)?;
     eprintln!(
         "streamed {} frames in {:.2} s ({:.2} fps){}{}{}",
         s.frames,
@@ -143,10 +146,10 @@ pub fn run(a: StreamArgs) -> anyhow::Result<()> {
             signal_name(sig)
         ))
     );
-    if let Some(sig) = s.signal {
-        die_by(sig);
+    match s.signal {
+        Some(sig) if s.aborted => die_by(sig),
+        _ => Ok(()),
     }
-    Ok(())
 }
 
 /// A frame counts as late under `--rate` when it is ready this long after its due time.
@@ -157,8 +160,6 @@ pub const LATE_TOLERANCE: Duration = Duration::from_millis(1);
 pub struct StreamOptions {
     /// Trajectory CSV path, `-` for stdin; `None` = built-in turning generator.
     pub trajectory: Option<PathBuf>,
-    /// Output: a file, a FIFO, or `-` for stdout.
-    pub out: PathBuf,
     /// Stop after this many frames.
     pub frames: Option<u64>,
     /// Pace output in real time at this rate; `None` = unpaced. Frame k is due at
@@ -173,22 +174,18 @@ pub struct StreamOptions {
     pub frame_interval_ms: f64,
     /// Stamp host CLOCK_MONOTONIC into frame headers (breaks byte-identical output).
     pub stamp_host_time: bool,
-    /// Write a ROS 2 bag instead of the psns format (`None`).
-    pub bag: Option<super::bag::BagOptions>,
 }
 
 impl Default for StreamOptions {
     fn default() -> Self {
         StreamOptions {
             trajectory: None,
-            out: PathBuf::from("-"),
             frames: None,
             rate_fps: None,
             start_time: None,
             yaw_rate_deg_s: 10.0,
             frame_interval_ms: 50.0,
             stamp_host_time: false,
-            bag: None,
         }
     }
 }
@@ -204,9 +201,11 @@ pub struct StreamSummary {
     pub seconds: f64,
     /// True when the reader closed the output early.
     pub reader_closed: bool,
-    /// The signal (SIGINT, SIGTERM, SIGHUP) that stopped the stream, which was then marked
-    /// aborted.
+    /// The signal (SIGINT, SIGTERM, SIGHUP) that stopped the stream.
     pub signal: Option<i32>,
+    /// The output was marked aborted (a run with `--frames` stopped early, or SIGHUP) rather
+    /// than finished after its last whole frame.
+    pub aborted: bool,
 }
 
 /// One rendered frame, ready to write.
@@ -229,12 +228,12 @@ enum Payload {
 }
 
 impl Payload {
-    /// The pixel bytes.
-    fn as_bytes(&self) -> &[u8] {
+    /// The pixels for the output.
+    fn pixels(&mut self) -> Pixels<'_> {
         match self {
-            Payload::Bytes(b) => b,
-            Payload::Codes(c) => bytemuck::cast_slice(c),
-            Payload::Message(m, lead) => bytemuck::cast_slice(&m[*lead..]),
+            Payload::Bytes(b) => Pixels::Bytes(b),
+            Payload::Codes(c) => Pixels::Bytes(bytemuck::cast_slice(c)),
+            Payload::Message(m, lead) => Pixels::Message(bytemuck::cast_slice_mut(m), *lead * 2),
         }
     }
 }
@@ -246,7 +245,8 @@ struct FrameMaker {
     clock: SceneClock,
     /// Half the fixed exposure, ns (0 for auto-exposure).
     half_exposure_ns: i64,
-    fmt: PixelFormat,
+    /// What the output takes.
+    kind: FrameKind,
     bits_valid: u8,
     turbidity: f32,
     albedo: f32,
@@ -256,12 +256,6 @@ struct FrameMaker {
     spare: Option<Receiver<Payload>>,
     /// Payload buffers made so far (at most [`PAYLOAD_BUFFERS`]).
     made: usize,
-    /// A bag's Mono16 image: u16 elements of room for the message's CDR prefix in front of the
-    /// codes, which the bag fills in place (no copy of the pixels); 0 otherwise.
-    lead: usize,
-    /// A bag's frames (`None`: the psns format); `Some(true)`: also the ground-truth DoLP and
-    /// AoLP.
-    truth: Option<bool>,
 }
 
 /// Payload buffers in circulation: one being rendered, one queued, one being written. When all
@@ -300,20 +294,21 @@ impl FrameMaker {
         let codes = std::mem::take(&mut self.codes);
         // the payload and its CRC come with the frame (the fast path takes the Mono16 CRC band
         // by band, packing takes it chunk by chunk)
-        let (mut frame, info, crc) = if self.lead > 0 {
+        let (lead, fmt) = (self.kind.lead, self.kind.format);
+        let (mut frame, info, crc) = if lead > 0 {
             // a bag's mono16 image: the codes behind room for the message's CDR prefix, no CRC
             let (f, i) = self
                 .pipe
-                .frame_at_after(sun, &pose.attitude, index, codes, self.lead)?;
+                .frame_at_after(sun, &pose.attitude, index, codes, lead)?;
             (f, i, None)
         } else {
             self.pipe
-                .frame_payload_at(sun, &pose.attitude, index, codes, self.fmt, &mut bytes)?
+                .frame_payload_at(sun, &pose.attitude, index, codes, fmt, &mut bytes)?
         };
         // little-endian Mono16 is the code buffer itself: no packing pass
         let payload = match frame.lead_buffer.take() {
-            Some(m) => Payload::Message(m, self.lead),
-            None if packing::codes_are_payload(self.fmt) => {
+            Some(m) => Payload::Message(m, lead),
+            None if packing::codes_are_payload(fmt) => {
                 Payload::Codes(std::mem::take(&mut frame.codes.data))
             }
             None => Payload::Bytes(bytes),
@@ -368,7 +363,7 @@ impl FrameMaker {
             turbidity: self.turbidity,
             albedo: self.albedo,
         };
-        let truth = if self.truth == Some(true) {
+        let truth = if self.kind.truth {
             let (st, _) = self.pipe.stokes(sun, &pose.attitude)?;
             frame.truth = self.pipe.sensor().truth_for(&st, frame.exposure_us);
             let (dolp, aolp) = frame.truth_dolp_aolp();
@@ -573,19 +568,21 @@ fn pin_workers() {
         .build_global();
 }
 
-/// Runs `psns stream`.
+/// Runs `psns stream` into `out` (checked, opened once frame 0 is made).
 ///
 /// Everything is validated (scene, sensor, options, trajectory header) before the output is
-/// opened. A malformed trajectory line, an I/O error or a stop signal ends the stream marked
-/// aborted after the frames before it (a bag is left unfinished) and returns the error (a
-/// signal: `Ok` with `signal`); a closed reader returns `Ok` with `reader_closed`.
-pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSummary> {
-    if let Some(r) = opts.rate_fps {
-        psns::error::check_range("rate", r, 1e-6, 1e6)?;
-    }
+/// opened. A malformed trajectory line or an I/O error ends the output marked aborted after the
+/// frames before it (a bag is left unfinished) and returns the error. A stop signal ends a run
+/// without `--frames` cleanly after the frames already being made, the last flagged LAST
+/// (`Ok` with `signal`); with `--frames`, or for SIGHUP, the output is marked aborted (`Ok` with
+/// `signal` and `aborted`). A closed reader returns `Ok` with `reader_closed`.
+pub fn run_stream(
+    cfg: &SceneConfig,
+    opts: &StreamOptions,
+    out: OutputSpec,
+) -> Result<StreamSummary> {
     let start = SceneClock::start_time(cfg, opts.start_time.as_deref())?;
-    if let Some(b) = &opts.bag {
-        super::bag::check_out(&b.kind, &opts.out)?;
+    if out.is_bag() {
         // start_time has checked that the start fits i64 nanoseconds
         psns::ros2::Time::from_unix_ns(start.timestamp_nanos_opt().unwrap_or_default())?;
     }
@@ -613,95 +610,34 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
         "attitude_frame": "enu",
     });
     let header = stream_header(cfg, &pipe, extra)?;
-    // a bag's image is mono8 or the codes as mono16: what the frames are made as
-    let fmt = match &opts.bag {
-        Some(_) => psns::ros2::ImageEncoding::of_pixel_format(header.pixel_format)
-            .pixel_format()
-            .unwrap_or(header.pixel_format),
-        None => header.pixel_format,
-    };
-    let mut maker = FrameMaker {
+    let kind = out.frames(&header)?;
+    let maker = FrameMaker {
         clock,
         half_exposure_ns: match sc.exposure {
             Exposure::Fixed { us } => seconds_to_ns(us * 0.5e-6)?,
             Exposure::Auto { .. } => 0,
         },
-        fmt,
-        bits_valid: packing::bits_valid(fmt, sc.bit_depth),
+        kind,
+        bits_valid: packing::bits_valid(kind.format, sc.bit_depth),
         turbidity: cfg.sky.turbidity as f32,
         albedo: cfg.sky.albedo as f32,
         codes: Vec::new(),
         spare: None,
         made: 0,
-        lead: 0,
-        truth: opts.bag.as_ref().map(|b| b.truth_images),
         pipe,
     };
-    if opts.bag.is_some() && packing::codes_are_payload(fmt) {
-        let i = &maker.pipe.config().camera.intrinsics;
-        maker.lead = super::bag::image_prefix_len(
-            psns::ros2::ImageEncoding::of_pixel_format(fmt),
-            i.width,
-            i.height,
-        )? / 2;
-    }
-    // render thread: pose k+1 while frame k is written; written payloads come back for reuse
-    let (tx, rx) = sync_channel::<Result<Rendered>>(1);
-    let (spare_tx, spare_rx) = sync_channel::<Payload>(PAYLOAD_BUFFERS);
-    maker.spare = Some(spare_rx);
-    let limit = opts.frames;
-    let producer = std::thread::Builder::new()
-        .name("psns-render".into())
-        .spawn(move || {
-            let mut poses = poses;
-            let mut peeked: Option<Option<Result<Pose>>> = None;
-            let mut k: u64 = 0;
-            loop {
-                if limit == Some(k) {
-                    return;
-                }
-                let Some(item) = peeked.take().unwrap_or_else(|| poses.next()) else {
-                    return;
-                };
-                let pose = match item {
-                    Ok(p) => p,
-                    Err(e) => {
-                        let _ = tx.send(Err(e));
-                        return;
-                    }
-                };
-                let last = if limit == Some(k + 1) {
-                    true
-                } else if lookahead {
-                    let next = poses.next();
-                    let end = next.is_none();
-                    peeked = Some(next);
-                    end
-                } else {
-                    false
-                };
-                let r = maker.render(k, &pose, last);
-                let failed = r.is_err();
-                if tx.send(r).is_err() || failed {
-                    return; // writer gone (reader closed) or render error sent
-                }
-                k += 1;
-            }
-        })
-        .map_err(|e| Error::io("starting the render thread", e))?;
-
+    let frames = Frames::start(maker, poses, lookahead, opts.frames)?;
     let t_open = Instant::now();
-    // the output is created only once frame 0 is made: bad input in the first pose (a missing
+    // the output is opened only once frame 0 is made: bad input in the first pose (a missing
     // column, a time that does not fit the clock) writes nothing at all
-    let first = match next_frame(&rx) {
+    let first = match frames.next() {
         Next::Frame(r) => Some((*r)?),
         Next::End => None,
         Next::Stopped(sig) => die_by(sig),
     };
-    let mut out = match Output::open(&opts.out, &header, opts.bag.as_ref()) {
+    let mut out = match out.open(&header) {
         Ok(o) => o,
         Err(e) if e.is_broken_pipe() => {
-            drop(producer);
             return Ok(StreamSummary {
                 reader_closed: true,
                 ..Default::default()
@@ -711,132 +647,50 @@ pub fn run_stream(cfg: &SceneConfig, opts: &StreamOptions) -> Result<StreamSumma
     };
     // frames/s and ETA on stderr: a bar on a terminal, plain lines for long jobs otherwise
     let mut progress = Progress::new("psns stream", Unit::Frames, opts.frames, false);
-    let res = write_loop(&mut out, first, &rx, &spare_tx, opts, &mut progress);
-    drop(progress);
-    drop(rx); // a producer blocked on send ends now
-    drop(spare_tx); // and one waiting for a buffer
     let mut summary = StreamSummary::default();
-    let err = match res {
-        Ok((n, late)) => {
-            summary.frames = n;
-            summary.late_frames = late;
-            None
-        }
-        Err((n, late, e)) => {
-            summary.frames = n;
-            summary.late_frames = late;
-            Some(e)
-        }
-    };
-    if let Some(e) = &err {
-        if e.is_broken_pipe() {
+    let end = write_loop(&mut out, first, &frames, opts, &mut progress, &mut summary);
+    drop(progress);
+    summary.seconds = t_open.elapsed().as_secs_f64();
+    let fin = match end {
+        Err(e) if e.is_broken_pipe() => {
             // reader gone; the render thread may be waiting for a trajectory line: leave it
             summary.reader_closed = true;
-            summary.seconds = t_open.elapsed().as_secs_f64();
-            drop(producer);
             return Ok(summary);
         }
-    }
-    // a failed or stopped stream is marked aborted so that no reader takes it for finished
-    summary.signal = match &err {
-        None => stop_signal(),
-        Some(_) => None,
-    };
-    let fin = match (&err, summary.signal) {
-        (Some(e), _) => out.abort(&e.to_string()),
-        (None, Some(sig)) => out.abort(&format!("stopped by {}", signal_name(sig))),
-        (None, None) => out.finish(),
-    };
-    let fin = match fin {
-        Err(e) if err.is_some() || summary.signal.is_some() => {
-            eprintln!("psns: could not mark the stream aborted in full: {e}");
+        Err(e) => {
+            // a failed stream is marked aborted so that no reader takes it for finished
+            if let Err(m) = out.abort(&e.to_string()) {
+                eprintln!("psns: could not mark the stream aborted in full: {m}");
+            }
+            return Err(e);
+        }
+        Ok(End::Done) => {
+            frames.join();
+            out.finish()
+        }
+        Ok(End::Finished(sig)) => {
+            summary.signal = Some(sig);
+            out.finish()
+        }
+        Ok(End::Stopped(sig)) => {
+            summary.signal = Some(sig);
+            summary.aborted = true;
+            let reason = format!("stopped by {}", signal_name(sig));
+            if let Err(m) = out.abort(&reason) {
+                eprintln!("psns: could not mark the stream aborted in full: {m}");
+            }
             Ok(())
         }
-        r => r,
     };
-    if summary.signal.is_some() {
-        // the render thread may be waiting for a trajectory line: leave it
-        drop(producer);
-    } else {
-        let _ = producer.join();
-    }
     summary.seconds = t_open.elapsed().as_secs_f64();
-    match (err, fin) {
-        (Some(e), _) => Err(e),
-        (None, Err(e)) if e.is_broken_pipe() => {
+    match fin {
+        Err(e) if e.is_broken_pipe() => {
             summary.reader_closed = true;
             Ok(summary)
         }
-        (None, Err(e)) => Err(e),
-        (None, Ok(())) => Ok(summary),
+        Err(e) => Err(e),
+        Ok(()) => Ok(summary),
     }
-}
-
-/// Writes frames as they arrive, paced by `--rate`. Returns (frames, late) or the error with them.
-/// What the render thread delivered next.
-enum Next {
-    Frame(Box<Result<Rendered>>),
-    /// The poses ended (or the render thread is gone).
-    End,
-    /// A signal asked the stream to stop.
-    Stopped(i32),
-}
-
-/// Waits for the next frame, waking up now and then to see whether a signal asked to stop.
-fn next_frame(rx: &Receiver<Result<Rendered>>) -> Next {
-    loop {
-        match rx.recv_timeout(Duration::from_millis(100)) {
-            _ if stop_signal().is_some() => return Next::Stopped(stop_signal().unwrap_or(0)),
-            Ok(r) => return Next::Frame(Box::new(r)),
-            Err(std::sync::mpsc::RecvTimeoutError::Timeout) => continue,
-            Err(std::sync::mpsc::RecvTimeoutError::Disconnected) => return Next::End,
-        }
-    }
-}
-
-fn write_loop(
-    out: &mut Output,
-    mut first: Option<Rendered>,
-    rx: &Receiver<Result<Rendered>>,
-    spare: &SyncSender<Payload>,
-    opts: &StreamOptions,
-    progress: &mut Progress,
-) -> std::result::Result<(u64, u64), (u64, u64, Error)> {
-    let (mut n, mut late) = (0u64, 0u64);
-    let mut t0: Option<Instant> = None;
-    loop {
-        let r = match first.take() {
-            Some(r) => Ok(r),
-            None => match next_frame(rx) {
-                Next::Frame(r) => *r,
-                Next::End | Next::Stopped(_) => break,
-            },
-        };
-        let mut r = match r {
-            Ok(r) => r,
-            Err(e) => return Err((n, late, e)),
-        };
-        if let Some(rate) = opts.rate_fps {
-            let now = Instant::now();
-            let t0 = *t0.get_or_insert(now);
-            let due = t0 + Duration::from_secs_f64(n as f64 / rate);
-            if now > due + LATE_TOLERANCE {
-                late += 1;
-            } else if due > now {
-                std::thread::sleep(due - now);
-            }
-        }
-        if opts.stamp_host_time {
-            r.meta.host_time_ns = host_monotonic_ns();
-        }
-        if let Err(e) = out.write(&mut r) {
-            return Err((n, late, e));
-        }
-        let _ = spare.try_send(r.payload);
-        n += 1;
-        progress.inc(1);
-    }
-    Ok((n, late))
 }
 
 #[cfg(test)]

@@ -1,14 +1,19 @@
-//! Where the frames go: stdout, a path (regular file, FIFO, device), or a ROS 2 bag.
+//! The output of a recording (`psns stream`, `psns convert`, `psns recover`), chosen once: the
+//! psns stream to stdout, a FIFO or device, or a file, or a ROS 2 bag (rosbag2 directory or bare
+//! MCAP file). [`OutputSpec::check`] checks `--out` before any work ([`place`](super::place):
+//! what may be written or replaced); [`OutputSpec::open`] opens it once the first frame is made;
+//! the [`Output`] then takes frames, and is finished, aborted or abandoned, and says what it
+//! leaves. Whoever makes the frames asks [`OutputSpec::frames`] how to make them and otherwise
+//! knows nothing of the output.
 
-use super::*;
-
-/// The output: stdout, or a path (regular file, FIFO, device) with the count patched on close,
-/// or a ROS 2 bag.
-pub(super) enum Output {
-    Stdout(StreamWriter<BufWriter<std::io::StdoutLock<'static>>>),
-    Path(FileStreamWriter),
-    Bag(Box<crate::cli::bag::BagWriter>),
-}
+use super::place::{Landing, Place};
+use crate::cli::bag::{image_prefix_len, BagOptions, BagSource, BagWriter, Compression, McapBag};
+use psns::error::{Error, Result};
+use psns::ros2::ImageEncoding;
+use psns::sensor::packing::{self, PixelFormat};
+use psns::stream::{FileHeader, FileStreamWriter, FrameMeta, StreamWriter};
+use std::io::{BufWriter, Write};
+use std::path::Path;
 
 /// Asks the kernel for a 1 MiB buffer on a pipe or FIFO (the default 64 KiB wakes the reader
 /// 160 times per 10 MB frame); anything else, or a refusal, leaves it as it is.
@@ -23,71 +28,303 @@ pub(crate) fn grow_pipe(fd: std::os::fd::RawFd) {
     let _ = fd;
 }
 
-impl Output {
-    pub(super) fn open(
-        path: &Path,
-        header: &FileHeader,
-        bag: Option<&crate::cli::bag::BagOptions>,
-    ) -> Result<Self> {
-        use std::os::fd::AsRawFd;
-        if let Some(b) = bag {
-            let enc = psns::ros2::ImageEncoding::of_pixel_format(header.pixel_format);
-            let src = crate::cli::bag::BagSource::of_header(header, enc)?;
-            Ok(Output::Bag(Box::new(crate::cli::bag::BagWriter::create(
-                b, path, src,
-            )?)))
-        } else if path.as_os_str() == "-" {
-            let out = std::io::stdout().lock();
-            grow_pipe(out.as_raw_fd());
-            let w = BufWriter::with_capacity(1 << 20, out);
-            Ok(Output::Stdout(StreamWriter::new(w, header)?))
-        } else {
-            let w = FileStreamWriter::create(path, header)?;
-            grow_pipe(w.as_raw_fd());
-            Ok(Output::Path(w))
-        }
+/// A recording's output as the options give it, checked.
+#[derive(Debug)]
+pub(crate) struct OutputSpec {
+    place: Place,
+    bag: Option<BagOptions>,
+}
+
+/// How the frames of an output are made.
+#[derive(Clone, Copy, Debug, PartialEq, Eq)]
+pub(crate) struct FrameKind {
+    /// The payload's pixel format: the stream's, or a bag image's (mono8, or the codes as
+    /// little-endian mono16).
+    pub format: PixelFormat,
+    /// A bag's mono16 image: u16 elements of room for the message's CDR prefix in front of the
+    /// codes, which the bag fills in place (no copy of the pixels); 0 otherwise.
+    pub lead: usize,
+    /// Also the ground-truth DoLP and AoLP (a bag's `--truth-images`).
+    pub truth: bool,
+}
+
+/// The pixels of one frame for [`Output::write`].
+pub(crate) enum Pixels<'a> {
+    /// The payload in the frame's pixel format.
+    Bytes(&'a [u8]),
+    /// A bag's image message made in place: `lead` bytes of room, then the pixel bytes.
+    Message(&'a mut [u8], usize),
+}
+
+/// One frame for [`Output::write`].
+pub(crate) struct OutFrame<'a> {
+    pub meta: &'a FrameMeta,
+    pub pixels: Pixels<'a>,
+    /// The payload's CRC-32 when its maker took it; `None`: computed when needed.
+    pub crc: Option<u32>,
+    /// Ground-truth DoLP and AoLP (degrees).
+    pub truth: Option<(&'a [f32], &'a [f32])>,
+}
+
+impl OutputSpec {
+    /// Checks `--out` for the psns format (`bag` `None`) or a bag, before any work.
+    pub(crate) fn check(out: &Path, bag: Option<BagOptions>) -> Result<Self> {
+        let place = Place::check(out, bag.as_ref().map(|b| &b.kind))?;
+        Ok(OutputSpec { place, bag })
     }
-    /// Writes a frame; a bag's image message is completed in its payload buffer.
-    pub(super) fn write(&mut self, r: &mut Rendered) -> Result<()> {
-        match self {
-            Output::Stdout(w) => w.write_payload_crc(&r.meta, r.payload.as_bytes(), r.crc),
-            Output::Path(w) => w.write_payload_crc(&r.meta, r.payload.as_bytes(), r.crc),
-            Output::Bag(w) => {
-                let truth = r.truth.as_ref().map(|(d, a)| (&d[..], &a[..]));
-                match &mut r.payload {
-                    Payload::Message(m, _) => {
-                        w.write_frame_message(&r.meta, bytemuck::cast_slice_mut(m), truth)
-                    }
-                    p => w.write_frame(&r.meta, p.as_bytes(), truth),
-                }
+
+    /// A ROS 2 bag (else the psns format).
+    pub(crate) fn is_bag(&self) -> bool {
+        self.bag.is_some()
+    }
+
+    /// How to make frames for this output, for a stream described by `header`.
+    pub(crate) fn frames(&self, header: &FileHeader) -> Result<FrameKind> {
+        let Some(b) = &self.bag else {
+            return Ok(FrameKind {
+                format: header.pixel_format,
+                lead: 0,
+                truth: false,
+            });
+        };
+        let enc = ImageEncoding::of_pixel_format(header.pixel_format);
+        let format = enc.pixel_format().unwrap_or(header.pixel_format);
+        let lead = if packing::codes_are_payload(format) {
+            image_prefix_len(enc, header.width as usize, header.height as usize)? / 2
+        } else {
+            0
+        };
+        Ok(FrameKind {
+            format,
+            lead,
+            truth: b.truth_images,
+        })
+    }
+
+    /// Opens the output for a stream described by `header`: the psns stream's file header is
+    /// written, or the bag's schemas and channels.
+    pub(crate) fn open(self, header: &FileHeader) -> Result<Output> {
+        use std::os::fd::AsRawFd;
+        if let Some(note) = self.place.replacing_note() {
+            eprintln!("psns: {note}");
+        }
+        let (file, landing) = self.place.open()?;
+        let mut out = Output {
+            sink: None,
+            landing,
+            bag: self.bag.is_some(),
+            failed: false,
+        };
+        // a failure to start leaves nothing behind
+        let sink = match (file, &self.bag) {
+            (None, _) => {
+                let stdout = std::io::stdout().lock();
+                grow_pipe(stdout.as_raw_fd());
+                let w = BufWriter::with_capacity(1 << 20, stdout);
+                StreamWriter::new(w, header).map(Sink::Stdout)
+            }
+            (Some(f), None) => {
+                grow_pipe(f.as_raw_fd());
+                FileStreamWriter::new(f, header).map(Sink::File)
+            }
+            (Some(f), Some(b)) => {
+                let enc = ImageEncoding::of_pixel_format(header.pixel_format);
+                BagSource::of_header(header, enc)
+                    .and_then(|src| BagWriter::create(b, out.landing.bag_file(f), src))
+                    .map(|w| Sink::Bag(Box::new(w)))
+            }
+        };
+        match sink {
+            Ok(s) => {
+                out.sink = Some(s);
+                Ok(out)
+            }
+            Err(e) => {
+                out.landing.discard();
+                Err(e)
             }
         }
     }
-    pub(super) fn finish(self) -> Result<()> {
-        match self {
-            Output::Stdout(w) => w
-                .finish()?
-                .flush()
-                .map_err(|e| Error::io("flushing stdout", e)),
-            Output::Path(w) => w.finish().map(|_| ()),
-            Output::Bag(w) => w.finish(),
+}
+
+impl OutputSpec {
+    /// Opens a bag whose topics and messages the caller writes (`psns recover`), with
+    /// `custom_data` for `metadata.yaml`.
+    pub(crate) fn open_bag(
+        self,
+        compression: Compression,
+        custom_data: Vec<(String, String)>,
+    ) -> Result<RawBag> {
+        if let Some(note) = self.place.replacing_note() {
+            eprintln!("psns: {note}");
+        }
+        let (file, landing) = self.place.open()?;
+        let Some(file) = file else {
+            return Err(Error::Invalid("a bag is not written to stdout".into()));
+        };
+        match McapBag::create(landing.bag_file(file), compression, custom_data) {
+            Ok(bag) => Ok(RawBag { bag, landing }),
+            Err(e) => {
+                landing.discard();
+                Err(e)
+            }
         }
     }
-    /// Marks the stream aborted ([`FileStreamWriter::abort`]); a bag is left unfinished (no
-    /// footer, no `metadata.yaml`), which is how rosbag2 and MCAP readers tell a cut-off bag.
-    pub(super) fn abort(self, reason: &str) -> Result<()> {
-        match self {
-            Output::Stdout(mut w) => {
+}
+
+/// A bag of the caller's topics and messages, at its place.
+pub(crate) struct RawBag {
+    pub bag: McapBag,
+    landing: Landing,
+}
+
+impl RawBag {
+    /// The MCAP file as the finished bag has it.
+    pub(crate) fn final_path(&self) -> std::path::PathBuf {
+        self.landing.final_path()
+    }
+
+    /// Finishes the bag and puts it in place.
+    pub(crate) fn finish(self) -> Result<()> {
+        let RawBag { bag, landing } = self;
+        match bag.finish() {
+            Ok(()) => landing.commit(),
+            Err(e) => {
+                landing.discard();
+                Err(e)
+            }
+        }
+    }
+
+    /// Gives the bag up: removes what was written.
+    pub(crate) fn abandon(self) {
+        let RawBag { bag, landing } = self;
+        drop(bag);
+        landing.discard();
+    }
+}
+
+enum Sink {
+    Stdout(StreamWriter<BufWriter<std::io::StdoutLock<'static>>>),
+    File(FileStreamWriter),
+    Bag(Box<BagWriter>),
+}
+
+/// An open output.
+pub(crate) struct Output {
+    /// `None` once finished or given up.
+    sink: Option<Sink>,
+    landing: Landing,
+    /// A ROS 2 bag.
+    bag: bool,
+    /// An I/O error was returned with a note of what it leaves at `--out`.
+    failed: bool,
+}
+
+impl Output {
+    /// The MCAP file or stream file as the finished output has it.
+    pub(crate) fn final_path(&self) -> std::path::PathBuf {
+        self.landing.final_path()
+    }
+
+    /// An I/O error, with what it leaves at `--out` when that is not the stream's own aborted
+    /// mark: a bag left unfinished, or an earlier output kept.
+    fn noted(&mut self, e: Error) -> Error {
+        if e.is_broken_pipe() || !(self.bag || self.landing.replaces()) {
+            return e;
+        }
+        match e {
+            Error::Io { context, source } => {
+                self.failed = true;
+                Error::Io {
+                    context: format!("{context} ({})", self.landing.left(self.bag)),
+                    source,
+                }
+            }
+            e => e,
+        }
+    }
+
+    /// Writes a frame.
+    pub(crate) fn write(&mut self, f: OutFrame<'_>) -> Result<()> {
+        let r = match (self.sink.as_mut(), f.pixels) {
+            (Some(Sink::Stdout(w)), px) => w.write_payload_crc(f.meta, stream_bytes(&px), f.crc),
+            (Some(Sink::File(w)), px) => w.write_payload_crc(f.meta, stream_bytes(&px), f.crc),
+            (Some(Sink::Bag(w)), Pixels::Message(m, _)) => {
+                w.write_frame_message(f.meta, m, f.truth)
+            }
+            (Some(Sink::Bag(w)), Pixels::Bytes(b)) => w.write_frame(f.meta, b, f.truth),
+            (None, _) => Err(Error::Invalid("the output is closed".into())),
+        };
+        r.map_err(|e| self.noted(e))
+    }
+
+    /// Completes the output and puts it in place (replacing an earlier one).
+    pub(crate) fn finish(mut self) -> Result<()> {
+        let r = match self.sink.take() {
+            Some(Sink::Stdout(w)) => w
+                .finish()
+                .and_then(|mut w| w.flush().map_err(|e| Error::io("flushing stdout", e))),
+            Some(Sink::File(w)) => w.finish().map(|_| ()),
+            Some(Sink::Bag(w)) => w.finish(),
+            None => Err(Error::Invalid("the output is closed".into())),
+        };
+        match r {
+            Ok(()) => self.landing.commit(),
+            Err(e) => Err(self.noted(e)),
+        }
+    }
+
+    /// Ends an output whose run failed or was stopped, so that nothing takes it for complete:
+    /// a stream written in place is marked aborted ([`FileStreamWriter::abort`]); a bag written
+    /// in place is left unfinished (no footer, no `metadata.yaml`), which is how rosbag2 and
+    /// MCAP readers tell a cut-off bag; a replacement is removed and the earlier output kept.
+    /// Says on stderr what is left, unless an error already did.
+    pub(crate) fn abort(mut self, reason: &str) -> Result<()> {
+        let bag = self.bag;
+        let sink = self.sink.take();
+        if self.landing.replaces() {
+            drop(sink);
+            if !self.failed {
+                eprintln!(
+                    "psns: {} (this run did not complete)",
+                    self.landing.left(bag)
+                );
+            }
+            self.landing.discard();
+            return Ok(());
+        }
+        match sink {
+            Some(Sink::Stdout(mut w)) => {
                 w.abort(reason)?;
                 w.finish()?
                     .flush()
                     .map_err(|e| Error::io("flushing stdout", e))
             }
-            Output::Path(w) => w.abort(reason).map(|_| ()),
-            Output::Bag(w) => {
-                eprintln!("psns: {}", w.leave_unfinished());
+            Some(Sink::File(w)) => w.abort(reason).map(|_| ()),
+            Some(Sink::Bag(w)) => {
+                drop(w);
+                if !self.failed {
+                    eprintln!("psns: {}", self.landing.left(true));
+                }
                 Ok(())
             }
+            None => Ok(()),
         }
+    }
+
+    /// Gives the output up (its input turned out bad): removes what was written, so nothing
+    /// is left of it; an earlier output is kept.
+    pub(crate) fn abandon(mut self) {
+        drop(self.sink.take());
+        self.landing.discard();
+    }
+}
+
+/// The stream payload of a frame's pixels.
+fn stream_bytes<'a>(px: &'a Pixels<'_>) -> &'a [u8] {
+    match px {
+        Pixels::Bytes(b) => b,
+        Pixels::Message(m, lead) => &m[*lead..],
     }
 }

@@ -21,8 +21,9 @@ pub enum VerifyStatus {
     /// header's frame count (patched by the writer on close) equals the records found.
     Clean,
     /// Nothing damaged, but the stream is not marked finished (count 0 and no LAST flag): a
-    /// producer killed between records, one still writing, or a pipe whose trajectory came from
-    /// stdin (see `docs/stream-format.md`).
+    /// producer killed between records or while writing the last one (which is then cut
+    /// short), one still writing, or a pipe whose trajectory came from stdin (see
+    /// `docs/stream-format.md`).
     Unfinished,
     /// Nothing damaged, but the producer marked the stream aborted (an end record, or the header's
     /// mark): it stopped because of bad input, an I/O error or a signal.
@@ -52,8 +53,13 @@ pub struct VerifyReport {
     pub gaps: Vec<(u64, u64)>,
     /// Damaged records (header or payload), by index.
     pub corrupt: Vec<Damage>,
-    /// Truncated records.
+    /// Truncated records: records cut short with intact records after them, or a cut-short
+    /// last record of a stream its header declares finished (frame count set).
     pub truncated: Vec<Damage>,
+    /// The last record, cut short at the end of an input whose header frame count is 0: its
+    /// producer was killed while writing it, or is still writing. Not damage: the records
+    /// before it are the stream so far.
+    pub cut_short: Option<Damage>,
     /// Bytes skipped while resynchronising.
     pub skipped_bytes: u64,
     /// Producer restarts (new file headers).
@@ -150,6 +156,16 @@ impl fmt::Display for VerifyReport {
                 d.reason
             )?;
         }
+        if let Some(d) = &self.cut_short {
+            writeln!(
+                f,
+                "cut short: the last record, frame {} at byte {}: {} (its producer was killed \
+                 while writing it, or is still writing)",
+                id(&d.index),
+                d.offset,
+                d.reason
+            )?;
+        }
         if self.skipped_bytes > 0 {
             writeln!(f, "skipped bytes: {}", self.skipped_bytes)?;
         }
@@ -217,6 +233,8 @@ pub struct VerifyTally {
     last_flag: bool,
     /// Frame records the end record says were written.
     end_frames: Option<u64>,
+    /// The last event so far is a record cut short.
+    tail_truncated: bool,
 }
 
 impl VerifyTally {
@@ -232,6 +250,7 @@ impl VerifyTally {
                 gaps: Vec::new(),
                 corrupt: Vec::new(),
                 truncated: Vec::new(),
+                cut_short: None,
                 skipped_bytes: 0,
                 restarts: 0,
                 restart_offsets: Vec::new(),
@@ -244,11 +263,13 @@ impl VerifyTally {
             records: 0,
             last_flag: false,
             end_frames: None,
+            tail_truncated: false,
         }
     }
 
     /// Counts one event of [`StreamReader::next_event`]; returns the damage it records, if any.
     pub fn record(&mut self, ev: &Event) -> Option<Damage> {
+        self.tail_truncated = matches!(ev, Event::Truncated { .. });
         let rep = &mut self.rep;
         match ev {
             Event::Frame(fr) => {
@@ -321,11 +342,16 @@ impl VerifyTally {
     pub fn finish(&self, restart_offsets: &[u64]) -> VerifyReport {
         let mut rep = self.rep.clone();
         rep.restart_offsets = restart_offsets.to_vec();
+        // a stream that says nothing of its end (count 0) and stops inside a record was cut
+        // off while that record was being written: unfinished, not damaged
+        if self.tail_truncated && rep.header.frame_count == 0 && rep.restarts == 0 {
+            rep.cut_short = rep.truncated.pop();
+        }
         let declared = match (rep.header.frame_count, self.end_frames) {
             (0, Some(n)) => n,
             (d, _) => d,
         };
-        let records = self.records;
+        let records = self.records - u64::from(rep.cut_short.is_some());
         if (declared != 0 || self.end_frames.is_some()) && rep.restarts == 0 && declared != records
         {
             rep.count_mismatch = Some((declared, records));

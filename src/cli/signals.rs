@@ -1,16 +1,20 @@
-//! SIGINT, SIGTERM and SIGHUP stop the stream between frames, so that it is marked aborted
-//! instead of looking like a killed one.
+//! Stop signals of the long-running commands (`psns stream`, `psns gige`): SIGINT, SIGTERM (and
+//! for a stream SIGHUP) are caught and recorded, and the command ends between frames by its own
+//! rules; a second signal kills at once (`SA_RESETHAND`), so a run that cannot stop promptly
+//! (a trajectory read from a silent stdin) still ends on the next Ctrl-C.
 
-/// The signal that asked the stream to stop (0: none yet).
-pub(super) static STOP_SIGNAL: std::sync::atomic::AtomicI32 = std::sync::atomic::AtomicI32::new(0);
+use std::sync::atomic::{AtomicI32, Ordering};
+
+/// The signal that asked the command to stop (0: none yet).
+static STOP_SIGNAL: AtomicI32 = AtomicI32::new(0);
 
 extern "C" fn on_stop_signal(sig: libc::c_int) {
-    STOP_SIGNAL.store(sig, std::sync::atomic::Ordering::Relaxed);
+    STOP_SIGNAL.store(sig, Ordering::SeqCst);
 }
 
-/// SIGINT, SIGTERM and SIGHUP stop the stream between frames, so it can be marked aborted
-/// instead of looking like a killed one; a second signal kills at once (`SA_RESETHAND`).
-pub(super) fn catch_signals() {
+/// Catches `signals`: the first of them is recorded ([`stop_signal`]) and the next one has its
+/// default action.
+pub fn catch(signals: &[libc::c_int]) {
     // SAFETY: the handler only stores to an atomic (async-signal-safe); the sigaction struct is
     // zeroed (an empty mask, no flags) before the fields set here, and sigaction copies it
     unsafe {
@@ -18,20 +22,22 @@ pub(super) fn catch_signals() {
         sa.sa_sigaction = on_stop_signal as extern "C" fn(libc::c_int) as libc::sighandler_t;
         sa.sa_flags = libc::SA_RESTART | libc::SA_RESETHAND;
         libc::sigemptyset(&mut sa.sa_mask);
-        for sig in [libc::SIGINT, libc::SIGTERM, libc::SIGHUP] {
+        for &sig in signals {
             libc::sigaction(sig, &sa, std::ptr::null_mut());
         }
     }
 }
 
-pub(super) fn stop_signal() -> Option<i32> {
-    match STOP_SIGNAL.load(std::sync::atomic::Ordering::Relaxed) {
+/// The signal caught, if any.
+pub fn stop_signal() -> Option<i32> {
+    match STOP_SIGNAL.load(Ordering::SeqCst) {
         0 => None,
         s => Some(s),
     }
 }
 
-pub(super) fn signal_name(sig: i32) -> String {
+/// `SIGINT`, `SIGTERM`, `SIGHUP` or `signal N`.
+pub fn signal_name(sig: i32) -> String {
     match sig {
         libc::SIGINT => "SIGINT".into(),
         libc::SIGTERM => "SIGTERM".into(),
@@ -42,7 +48,7 @@ pub(super) fn signal_name(sig: i32) -> String {
 
 /// Ends the process by `sig` with its default action, as if it had not been caught, so the
 /// parent sees the signal (a shell's 128 + n).
-pub(super) fn die_by(sig: i32) -> ! {
+pub fn die_by(sig: i32) -> ! {
     // SAFETY: restoring the default action and raising a signal are plain libc calls on a valid
     // signal number; the default action of SIGINT, SIGTERM and SIGHUP ends the process
     unsafe {
