@@ -26,20 +26,19 @@ pub(super) fn row_folded(
     s: [&[f32]; 3],
     st: &StaticRow,
     row: u32,
-    mu: &mut [f32],
     out: &mut [u16],
 ) -> (f32, u16) {
     let (aes, vaes) = aes_level();
     if !aes {
-        return super::row_folded_plain(f, key, s, st, row, mu, out);
+        return super::row_folded_plain(f, key, s, st, row, out);
     }
     // SAFETY: AVX2 and FMA: `simd_dispatch!` runs this arm only where the CPU has them; AES-NI
     // and VAES as detected
     unsafe {
         if vaes {
-            row_vaes(f, key, s, st, row, mu, out)
+            row_vaes(f, key, s, st, row, out)
         } else {
-            row_aesni(f, key, s, st, row, mu, out)
+            row_aesni(f, key, s, st, row, out)
         }
     }
 }
@@ -51,11 +50,10 @@ fn row_vaes(
     s: [&[f32]; 3],
     st: &StaticRow,
     row: u32,
-    mu: &mut [f32],
     out: &mut [u16],
 ) -> (f32, u16) {
     // SAFETY: this function's features
-    unsafe { row_body::<true>(f, key, s, st, row, mu, out) }
+    unsafe { row_body::<true>(f, key, s, st, row, out) }
 }
 
 #[target_feature(enable = "avx2,fma,aes")]
@@ -65,11 +63,10 @@ fn row_aesni(
     s: [&[f32]; 3],
     st: &StaticRow,
     row: u32,
-    mu: &mut [f32],
     out: &mut [u16],
 ) -> (f32, u16) {
     // SAFETY: this function's features
-    unsafe { row_body::<false>(f, key, s, st, row, mu, out) }
+    unsafe { row_body::<false>(f, key, s, st, row, out) }
 }
 
 /// # Safety
@@ -81,12 +78,11 @@ unsafe fn row_body<const VAES: bool>(
     s: [&[f32]; 3],
     st: &StaticRow,
     row: u32,
-    mu: &mut [f32],
     out: &mut [u16],
 ) -> (f32, u16) {
     let n = out.len();
     let [s0, s1, s2] = s;
-    assert!([s0.len(), s1.len(), s2.len(), mu.len()].iter().all(|&l| l >= n));
+    assert!([s0.len(), s1.len(), s2.len()].iter().all(|&l| l >= n));
     assert!([st.g.len(), st.pc.len(), st.ps.len(), st.dsnu.len()].iter().all(|&l| l >= n));
     let whole = n - n % 8;
     // SAFETY: the caller's features; every load and store below lies in 0..whole ≤ n, the
@@ -130,7 +126,6 @@ unsafe fn row_body<const VAES: bool>(
                 let acc = _mm256_fmadd_ps(ld16(st.ps), _mm256_loadu_ps(s2.as_ptr().add(c)), acc);
                 let acc = _mm256_mul_ps(g, acc);
                 let m = _mm256_fmadd_ps(_mm256_max_ps(acc, cf(0.0)), cf(f.k), cf(f.dark));
-                _mm256_storeu_ps(mu.as_mut_ptr().add(c), m);
                 mx = _mm256_max_epu32(mx, _mm256_castps_si256(m));
                 let var = _mm256_add_ps(m, cf(f.var_r));
                 let sd = _mm256_sqrt_ps(var);
@@ -158,7 +153,6 @@ unsafe fn row_body<const VAES: bool>(
             let z = crate::sensor::normal::normal_from_bits(key.bits(row, c as u32));
             let wt = st.weighted(c, s0[c], s1[c], s2[c]);
             let (m, code) = f.pixel(wt, st.dsnu[c], z);
-            mu[c] = m;
             out[c] = code;
             mu_max = mu_max.max(m.to_bits());
             code_max = code_max.max(code);

@@ -101,14 +101,16 @@ impl<T> std::ops::DerefMut for Aligned<T> {
     }
 }
 
+/// `v` in units of `unit` (a power of two: the product is exact), rounded and clamped.
 #[inline(always)]
 fn fixed(v: f64, unit: f32) -> i16 {
-    (v / unit as f64).round().clamp(-32_768.0, 32_767.0) as i16
+    (v * (1.0 / unit as f64)).round().clamp(-32_768.0, 32_767.0) as i16
 }
 
+/// [`fixed`] for a non-negative value.
 #[inline(always)]
 fn fixed_u(v: f64, unit: f32) -> u16 {
-    (v / unit as f64).round().clamp(0.0, 65_535.0) as u16
+    (v * (1.0 / unit as f64)).round().clamp(0.0, 65_535.0) as u16
 }
 
 /// cos x and sin x for |x| ≤ 0.5 by their Taylor series to x¹¹ (error below 2e-11), in plain
@@ -116,39 +118,47 @@ fn fixed_u(v: f64, unit: f32) -> u16 {
 #[inline(always)]
 fn cos_sin_small(x: f64) -> (f64, f64) {
     let x2 = x * x;
-    let c = 1.0 - x2 / 2.0 * (1.0 - x2 / 12.0 * (1.0 - x2 / 30.0 * (1.0 - x2 / 56.0 * (1.0 - x2 / 90.0))));
-    let s = x * (1.0 - x2 / 6.0 * (1.0 - x2 / 20.0 * (1.0 - x2 / 42.0 * (1.0 - x2 / 72.0 * (1.0 - x2 / 110.0)))));
-    (c, s)
+    // 1/((2k − 1) 2k) and 1/(2k (2k + 1)), k = 1..5
+    const C: [f64; 5] = [1.0 / 2.0, 1.0 / 12.0, 1.0 / 30.0, 1.0 / 56.0, 1.0 / 90.0];
+    const S: [f64; 5] = [1.0 / 6.0, 1.0 / 20.0, 1.0 / 42.0, 1.0 / 72.0, 1.0 / 110.0];
+    let (mut c, mut s) = (1.0, 1.0);
+    for k in (0..5).rev() {
+        c = 1.0 - x2 * C[k] * c;
+        s = 1.0 - x2 * S[k] * s;
+    }
+    (c, x * s)
 }
 
-/// One row of [`FastStatics::new`] from the sensor's f32 maps (`None` = off): RI, PRNU, the
-/// orientation error δ in degrees and the DSNU; `axis` the nominal (cos 2θ₀, sin 2θ₀) per column
-/// and `b` the diattenuation.
+/// One row of [`FastStatics::new`] from the sensor's f32 maps (ones or zeros where a map is
+/// off): RI, PRNU, the orientation error δ in degrees and the DSNU; `c0`, `s0` the nominal
+/// cos 2θ₀ and sin 2θ₀ per column and `b` the diattenuation. Slices of one length and no
+/// branches, so the loop vectorises.
 #[inline(always)]
 #[allow(clippy::too_many_arguments)]
 fn statics_row_body(
-    ri: Option<&[f32]>,
-    prnu: Option<&[f32]>,
-    delta_deg: Option<&[f32]>,
-    dsnu: Option<&[f32]>,
-    axis: &[(f64, f64)],
+    ri: &[f32],
+    prnu: &[f32],
+    delta_deg: &[f32],
+    dsnu: &[f32],
+    c0: &[f64],
+    s0: &[f64],
     b: f64,
     g: &mut [u16],
     pol: [&mut [i16]; 2],
     n: &mut [i16],
 ) {
+    let w = g.len();
     let [pc, ps] = pol;
-    for c in 0..g.len() {
-        let gk = ri.map_or(1.0, |m| m[c] as f64) * prnu.map_or(1.0, |m| m[c] as f64);
-        let d = delta_deg.map_or(0.0, |m| (m[c] as f64).to_radians().clamp(-DELTA_MAX, DELTA_MAX));
+    let (ri, prnu, delta_deg, dsnu) = (&ri[..w], &prnu[..w], &delta_deg[..w], &dsnu[..w]);
+    let (c0, s0, pc, ps, n) = (&c0[..w], &s0[..w], &mut pc[..w], &mut ps[..w], &mut n[..w]);
+    for c in 0..w {
+        let gk = ri[c] as f64 * prnu[c] as f64;
+        let d = (delta_deg[c] as f64).to_radians().clamp(-DELTA_MAX, DELTA_MAX);
         let (cs, sn) = cos_sin_small(2.0 * d);
-        let (c0, s0) = axis[c];
         g[c] = fixed_u(gk, COEF_UNIT);
-        pc[c] = fixed(b * (c0 * cs - s0 * sn), COEF_UNIT);
-        ps[c] = fixed(b * (s0 * cs + c0 * sn), COEF_UNIT);
-        if let Some(ds) = dsnu {
-            n[c] = fixed(ds[c] as f64, DSNU_UNIT);
-        }
+        pc[c] = fixed(b * (c0[c] * cs - s0[c] * sn), COEF_UNIT);
+        ps[c] = fixed(b * (s0[c] * cs + c0[c] * sn), COEF_UNIT);
+        n[c] = fixed(dsnu[c] as f64, DSNU_UNIT);
     }
 }
 
@@ -156,11 +166,12 @@ simd_dispatch! {
     /// [`statics_row_body`] built for the best instruction set the CPU has (`round` inline
     /// from SSE4.1 on instead of a library call; the same values).
     fn statics_row = statics_row_body(
-        ri: Option<&[f32]>,
-        prnu: Option<&[f32]>,
-        delta_deg: Option<&[f32]>,
-        dsnu: Option<&[f32]>,
-        axis: &[(f64, f64)],
+        ri: &[f32],
+        prnu: &[f32],
+        delta_deg: &[f32],
+        dsnu: &[f32],
+        c0: &[f64],
+        s0: &[f64],
         b: f64,
         g: &mut [u16],
         pol: [&mut [i16]; 2],
@@ -184,8 +195,14 @@ impl FastStatics {
                 cfg.orientation_sigma_deg,
             )
         });
-        let axis: [Vec<(f64, f64)>; 2] =
-            std::array::from_fn(|r| (0..w).map(|c| super::nominal_axis(&cfg.layout, r, c)).collect());
+        // nominal (cos 2θ₀, sin 2θ₀) of even and odd rows
+        let axis: [[Vec<f64>; 2]; 2] = std::array::from_fn(|r| {
+            std::array::from_fn(|k| {
+                let pick = |(co, si): (f64, f64)| [co, si][k];
+                (0..w).map(|c| pick(super::nominal_axis(&cfg.layout, r, c))).collect()
+            })
+        });
+        let (ones, zeros) = (vec![1f32; w], vec![0f32; w]);
         let mut gain = vec![0u16; w * h];
         let mut pol: [Vec<i16>; 2] = std::array::from_fn(|_| vec![0i16; w * h]);
         let mut dsnu = vec![0i16; w * h];
@@ -196,15 +213,17 @@ impl FastStatics {
             .zip(dsnu.par_chunks_mut(w))
             .enumerate()
             .for_each(|(r, (((g, pc), ps), n))| {
-                fn row(m: Option<&Vec<f32>>, r: usize, w: usize) -> Option<&[f32]> {
-                    m.map(|m| &m[r * w..(r + 1) * w])
+                fn row<'a>(m: Option<&'a Vec<f32>>, off: &'a [f32], r: usize) -> &'a [f32] {
+                    let w = off.len();
+                    m.map_or(off, |m| &m[r * w..(r + 1) * w])
                 }
                 statics_row(
-                    row(s.ri.as_ref(), r, w),
-                    row(s.prnu.as_ref(), r, w),
-                    row(delta_deg.as_ref(), r, w),
-                    row(s.dsnu.as_ref(), r, w),
-                    &axis[r & 1],
+                    row(s.ri.as_ref(), &ones, r),
+                    row(s.prnu.as_ref(), &ones, r),
+                    row(delta_deg.as_ref(), &zeros, r),
+                    row(s.dsnu.as_ref(), &zeros, r),
+                    &axis[r & 1][0],
+                    &axis[r & 1][1],
                     b,
                     g,
                     [pc, ps],
@@ -476,16 +495,14 @@ fn chunk_unfolded(
 }
 
 /// The folded kernel of one row, one pixel at a time (every build but AVX2's, which gives the
-/// same bits): mean electrons into `mu`, the folded Cornish–Fisher draw, the ADC. Returns the
-/// row's largest mean and largest code.
-#[allow(clippy::too_many_arguments)]
+/// same bits): mean electrons, the folded Cornish–Fisher draw, the ADC. Returns the row's
+/// largest mean and largest code.
 fn row_folded_plain(
     f: &Folded,
     key: &NoiseKey,
     s: [&[f32]; 3],
     st: &StaticRow,
     row: u32,
-    mu: &mut [f32],
     out: &mut [u16],
 ) -> (f32, u16) {
     let (mut mu_max, mut code_max) = (0u32, 0u16);
@@ -493,7 +510,6 @@ fn row_folded_plain(
         let z = normal_from_bits(key.bits(row, c as u32));
         let wt = st.weighted(c, s[0][c], s[1][c], s[2][c]);
         let (m, code) = f.pixel(wt, st.dsnu[c], z);
-        mu[c] = m;
         out[c] = code;
         // means are ≥ 0, so their bits order like the values
         mu_max = mu_max.max(m.to_bits());
@@ -560,14 +576,13 @@ simd_dispatch! {
         s: [&[f32]; 3],
         st: &StaticRow,
         row: u32,
-        mu: &mut [f32],
         out: &mut [u16],
     ) -> (f32, u16)
 }
 
-/// One row: the folded kernel everywhere (it also fills `mu`), the unfolded one for the chunks
-/// that need it (all of them when the configuration is not folded, else those that may reach the
-/// full well), and the saturation counts in `sat`.
+/// One row: the folded kernel everywhere, the unfolded one for the chunks that need it (all of
+/// them when the configuration is not folded, else those that may reach the full well; `mu`
+/// holds their means), and the saturation counts in `sat`.
 #[allow(clippy::too_many_arguments)]
 fn row_kernel(
     fc: &FrameConsts,
@@ -581,9 +596,13 @@ fn row_kernel(
     row: &mut [u16],
     sat: &mut [u32; 4],
 ) {
-    let (mu_max, code_max) = row_folded(f, &fc.shot_key, s, st, r as u32, mu, row);
+    let (mu_max, code_max) = row_folded(f, &fc.shot_key, s, st, r as u32, row);
     let fixup = !folded || mu_max > mu_hi;
     if fixup {
+        // the means the folded kernel had (not stored there: the row's scratch then stays in L1)
+        for (c, m) in mu.iter_mut().enumerate() {
+            *m = st.weighted(c, s[0][c], s[1][c], s[2][c]).mul_add(f.k, f.dark);
+        }
         row_fixup(fc, folded, mu_hi, mu, st, r, row, sat);
     }
     if fixup || code_max == fc.max {
