@@ -236,30 +236,46 @@ pub(crate) mod x86 {
         }
     }
 
-    /// The draws of pixels 4q .. 4q + 7 of row `row`: blocks q and q + 1. `VAES`: one
-    /// instruction per round for both blocks, else one per block.
-    ///
-    /// # Safety
-    /// AVX2 and AES-NI (and VAES when `VAES`) must be available.
-    #[inline(always)]
-    pub(crate) unsafe fn draws8<const VAES: bool>(keys: &Keys, row: u32, q: u32) -> __m256i {
-        // SAFETY: the caller's contract
-        unsafe {
+    /// The counter of a run of draws along a row: blocks (q, row) and (q + 1, row) in the two
+    /// 128-bit lanes.
+    #[derive(Clone, Copy)]
+    pub(crate) struct Counter(__m256i);
+
+    impl Counter {
+        /// The counter of pixels 4q .. 4q + 7 of row `row`.
+        #[inline(always)]
+        pub(crate) fn new(row: u32, q: u32) -> Self {
             let (r, q) = (row as i32, q as i32);
-            let mut x = _mm256_xor_si256(_mm256_setr_epi32(q, r, 0, 0, q + 1, r, 0, 0), keys.0[0]);
-            for k in &keys.0[1..] {
-                x = if VAES {
-                    _mm256_aesenc_epi128(x, *k)
-                } else {
-                    let lo = _mm_aesenc_si128(_mm256_castsi256_si128(x), _mm256_castsi256_si128(*k));
-                    let hi = _mm_aesenc_si128(
-                        _mm256_extracti128_si256(x, 1),
-                        _mm256_extracti128_si256(*k, 1),
-                    );
-                    _mm256_set_m128i(hi, lo)
-                };
+            // SAFETY: AVX is part of every level these kernels run at
+            Counter(unsafe { _mm256_setr_epi32(q, r, 0, 0, q + 1, r, 0, 0) })
+        }
+
+        /// The draws of the next eight pixels: five AES rounds of the two blocks (`VAES`: one
+        /// instruction per round for both, else one per block).
+        ///
+        /// # Safety
+        /// AVX2 and AES-NI (and VAES when `VAES`) must be available.
+        #[inline(always)]
+        pub(crate) unsafe fn next<const VAES: bool>(&mut self, keys: &Keys) -> __m256i {
+            // SAFETY: the caller's contract
+            unsafe {
+                let mut x = _mm256_xor_si256(self.0, keys.0[0]);
+                self.0 = _mm256_add_epi32(self.0, _mm256_setr_epi32(2, 0, 0, 0, 2, 0, 0, 0));
+                for k in &keys.0[1..] {
+                    x = if VAES {
+                        _mm256_aesenc_epi128(x, *k)
+                    } else {
+                        let (xl, kl) = (_mm256_castsi256_si128(x), _mm256_castsi256_si128(*k));
+                        let lo = _mm_aesenc_si128(xl, kl);
+                        let hi = _mm_aesenc_si128(
+                            _mm256_extracti128_si256(x, 1),
+                            _mm256_extracti128_si256(*k, 1),
+                        );
+                        _mm256_set_m128i(hi, lo)
+                    };
+                }
+                x
             }
-            x
         }
     }
 
@@ -377,10 +393,11 @@ pub(crate) mod x86 {
         let keys = Keys::new(key);
         let mut chunks = z.chunks_exact_mut(8);
         let mut c = c0;
+        let mut ctr = Counter::new(row, c0 >> 2);
         for out in &mut chunks {
             // SAFETY: the caller's features; `out` holds 8 floats
             unsafe {
-                let b = draws8::<VAES>(&keys, row, c >> 2);
+                let b = ctr.next::<VAES>(&keys);
                 let (mut v, tail) = normal8(b);
                 if _mm256_testz_si256(tail, tail) == 0 {
                     v = fix_tail8(b, tail, v);

@@ -10,7 +10,7 @@
 //! are converted and packed with saturation instead of masked and shifted.
 
 use super::{Folded, StaticRow};
-use crate::sensor::normal::x86::{aes_level, draws8, fix_tail8, normal8, Keys};
+use crate::sensor::normal::x86::{aes_level, fix_tail8, normal8, Counter, Keys};
 use crate::sensor::normal::NoiseKey;
 use std::arch::x86_64::*;
 
@@ -96,20 +96,22 @@ unsafe fn row_body<const VAES: bool>(
         while c0 < whole {
             let nv = (BLOCK.min(whole - c0)) / 8;
             let mut z = [_mm256_setzero_ps(); BLOCK / 8];
-            let mut bits = [_mm256_setzero_si256(); BLOCK / 8];
-            let mut tails = [_mm256_setzero_si256(); BLOCK / 8];
             let mut any = _mm256_setzero_si256();
-            for j in 0..nv {
-                let b = draws8::<VAES>(&keys, row, ((c0 + 8 * j) / 4) as u32);
-                let (v, t) = normal8(b);
-                (bits[j], tails[j], z[j]) = (b, t, v);
+            let mut ctr = Counter::new(row, (c0 / 4) as u32);
+            for zj in z.iter_mut().take(nv) {
+                let (v, t) = normal8(ctr.next::<VAES>(&keys));
+                *zj = v;
                 any = _mm256_or_si256(any, t);
             }
-            // a quarter of the blocks hold a draw with t < 2⁻⁸
+            // a quarter of the blocks hold a draw with t < 2⁻⁸: their draws are made again
+            // (cheaper than keeping every block's draws)
             if _mm256_testz_si256(any, any) == 0 {
-                for j in 0..nv {
-                    if _mm256_testz_si256(tails[j], tails[j]) == 0 {
-                        z[j] = fix_tail8(bits[j], tails[j], z[j]);
+                let mut ctr = Counter::new(row, (c0 / 4) as u32);
+                for zj in z.iter_mut().take(nv) {
+                    let b = ctr.next::<VAES>(&keys);
+                    let (v, t) = normal8(b);
+                    if _mm256_testz_si256(t, t) == 0 {
+                        *zj = fix_tail8(b, t, v);
                     }
                 }
             }
