@@ -303,7 +303,10 @@ pub(crate) mod x86 {
         // SAFETY: the caller's contract; the tables are 32-byte aligned
         unsafe {
             let c = |v: i32| _mm256_set1_epi32(v);
-            let v = _mm256_sub_epi32(_mm256_or_si256(_mm256_srli_epi32(bits, 8), c(1)), c(1 << 23));
+            let v = _mm256_sub_epi32(
+                _mm256_or_si256(_mm256_srli_epi32(bits, 8), c(1)),
+                c(1 << 23),
+            );
             let t = _mm256_sub_epi32(c(1 << 23), _mm256_abs_epi32(v));
             let f = _mm256_cvtepi32_ps(t);
             let p = _mm256_srli_epi32(_mm256_castps_si256(f), 23);
@@ -330,11 +333,17 @@ pub(crate) mod x86 {
         unsafe {
             let c = |v: i32| _mm256_set1_epi32(v);
             let cf = |v: f32| _mm256_set1_ps(v);
-            let v = _mm256_sub_epi32(_mm256_or_si256(_mm256_srli_epi32(bits, 8), c(1)), c(1 << 23));
+            let v = _mm256_sub_epi32(
+                _mm256_or_si256(_mm256_srli_epi32(bits, 8), c(1)),
+                c(1 << 23),
+            );
             let t = _mm256_sub_epi32(c(1 << 23), _mm256_abs_epi32(v));
             let tf = _mm256_mul_ps(_mm256_cvtepi32_ps(t), cf(1.0 / 8_388_608.0));
             let y = _mm256_mul_ps(tf, _mm256_sub_ps(cf(2.0), tf));
-            let b = _mm256_add_epi32(_mm256_castps_si256(y), c((0x3f80_0000u32 - 0x3f35_04f3) as i32));
+            let b = _mm256_add_epi32(
+                _mm256_castps_si256(y),
+                c((0x3f80_0000u32 - 0x3f35_04f3) as i32),
+            );
             let e = _mm256_cvtepi32_ps(_mm256_sub_epi32(_mm256_srli_epi32(b, 23), c(127)));
             let m = _mm256_add_epi32(_mm256_and_si256(b, c(0x007f_ffff)), c(0x3f35_04f3));
             let f = _mm256_sub_ps(_mm256_castsi256_ps(m), cf(1.0));
@@ -485,7 +494,14 @@ mod tests {
     fn rows_are_normal_from_bits_at_every_instruction_set() {
         let key = NoiseKey::new(3, 5, 1);
         for row in [0u32, 1, 7, 2047, 65_535] {
-            for (c0, len) in [(0u32, 2448usize), (0, 64), (4, 37), (3, 1), (13, 100), (0, 7)] {
+            for (c0, len) in [
+                (0u32, 2448usize),
+                (0, 64),
+                (4, 37),
+                (3, 1),
+                (13, 100),
+                (0, 7),
+            ] {
                 let want: Vec<u32> = (0..len as u32)
                     .map(|i| normal_from_bits(key.bits(row, c0 + i)).to_bits())
                     .collect();
@@ -513,7 +529,10 @@ mod tests {
         assert_ne!(a, NoiseKey::new(1, 0, 2));
         assert_ne!(a, NoiseKey::new(2, 0, 1));
         let b = a.block(0, 0);
-        assert!(b.iter().enumerate().all(|(i, x)| b[i + 1..].iter().all(|y| y != x)));
+        assert!(b
+            .iter()
+            .enumerate()
+            .all(|(i, x)| b[i + 1..].iter().all(|y| y != x)));
         assert_ne!(b, a.block(0, 1));
         assert_ne!(b, a.block(1, 0));
         assert_ne!(b, NoiseKey::new(1, 1, 1).block(0, 0));

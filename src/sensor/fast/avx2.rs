@@ -83,7 +83,9 @@ unsafe fn row_body<const VAES: bool>(
     let n = out.len();
     let [s0, s1, s2] = s;
     assert!([s0.len(), s1.len(), s2.len()].iter().all(|&l| l >= n));
-    assert!([st.g.len(), st.pc.len(), st.ps.len(), st.dsnu.len()].iter().all(|&l| l >= n));
+    assert!([st.g.len(), st.pc.len(), st.ps.len(), st.dsnu.len()]
+        .iter()
+        .all(|&l| l >= n));
     let whole = n - n % 8;
     // SAFETY: the caller's features; every load and store below lies in 0..whole ≤ n, the
     // lengths asserted above
@@ -148,7 +150,10 @@ unsafe fn row_body<const VAES: bool>(
         let (mut a, mut b) = ([0u32; 8], [0u16; 16]);
         _mm256_storeu_si256(a.as_mut_ptr() as *mut __m256i, mx);
         _mm256_storeu_si256(b.as_mut_ptr() as *mut __m256i, cmx);
-        (a.into_iter().max().unwrap_or(0), b.into_iter().max().unwrap_or(0))
+        (
+            a.into_iter().max().unwrap_or(0),
+            b.into_iter().max().unwrap_or(0),
+        )
     };
     if whole < n {
         for c in whole..n {

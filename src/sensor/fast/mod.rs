@@ -153,7 +153,9 @@ fn statics_row_body(
     let (c0, s0, pc, ps, n) = (&c0[..w], &s0[..w], &mut pc[..w], &mut ps[..w], &mut n[..w]);
     for c in 0..w {
         let gk = ri[c] as f64 * prnu[c] as f64;
-        let d = (delta_deg[c] as f64).to_radians().clamp(-DELTA_MAX, DELTA_MAX);
+        let d = (delta_deg[c] as f64)
+            .to_radians()
+            .clamp(-DELTA_MAX, DELTA_MAX);
         let (cs, sn) = cos_sin_small(2.0 * d);
         g[c] = fixed_u(gk, COEF_UNIT);
         pc[c] = fixed(b * (c0[c] * cs - s0[c] * sn), COEF_UNIT);
@@ -199,7 +201,9 @@ impl FastStatics {
         let axis: [[Vec<f64>; 2]; 2] = std::array::from_fn(|r| {
             std::array::from_fn(|k| {
                 let pick = |(co, si): (f64, f64)| [co, si][k];
-                (0..w).map(|c| pick(super::nominal_axis(&cfg.layout, r, c))).collect()
+                (0..w)
+                    .map(|c| pick(super::nominal_axis(&cfg.layout, r, c)))
+                    .collect()
             })
         });
         let (ones, zeros) = (vec![1f32; w], vec![0f32; w]);
@@ -601,7 +605,9 @@ fn row_kernel(
     if fixup {
         // the means the folded kernel had (not stored there: the row's scratch then stays in L1)
         for (c, m) in mu.iter_mut().enumerate() {
-            *m = st.weighted(c, s[0][c], s[1][c], s[2][c]).mul_add(f.k, f.dark);
+            *m = st
+                .weighted(c, s[0][c], s[1][c], s[2][c])
+                .mul_add(f.k, f.dark);
         }
         row_fixup(fc, folded, mu_hi, mu, st, r, row, sat);
     }
@@ -802,7 +808,12 @@ mod tests {
             nb += za * normal_from_bits(bits(&a, i + 1)) as f64;
             rb += za * normal_from_bits(bits(&a, i + 2448)) as f64;
         }
-        for (name, s) in [("frames", ab), ("stages", ac), ("neighbours", nb), ("rows", rb)] {
+        for (name, s) in [
+            ("frames", ab),
+            ("stages", ac),
+            ("neighbours", nb),
+            ("rows", rb),
+        ] {
             // 5 σ of a correlation estimate over n pairs
             assert!(
                 (s / n as f64).abs() < 5.0 / (n as f64).sqrt(),
@@ -841,8 +852,12 @@ mod tests {
             .map(|i| s0[i] * (0.3 - (i % 5) as f32 * 0.12))
             .collect();
         let g: Vec<u16> = (0..w).map(|i| 31_000 + (i * 37 % 3_000) as u16).collect();
-        let pc: Vec<i16> = (0..w).map(|i| (i * 53 % 60_001) as i32 as i16 - 30_000).collect();
-        let ps: Vec<i16> = (0..w).map(|i| (i * 59 % 60_001) as i32 as i16 - 30_000).collect();
+        let pc: Vec<i16> = (0..w)
+            .map(|i| (i * 53 % 60_001) as i32 as i16 - 30_000)
+            .collect();
+        let ps: Vec<i16> = (0..w)
+            .map(|i| (i * 59 % 60_001) as i32 as i16 - 30_000)
+            .collect();
         let dsnu: Vec<i16> = (0..w).map(|i| (i * 71 % 2_001) as i16 - 1_000).collect();
         let sr = StaticRow {
             g: &g,
@@ -865,7 +880,9 @@ mod tests {
                         let mut outs = Vec::new();
                         for r in 0..6 {
                             let s = [&s0[..], &s1[..], &s2[..]];
-                            row_kernel(fc, &f, folded, mu_hi, s, &sr, r, &mut mu, &mut out, &mut sat);
+                            row_kernel(
+                                fc, &f, folded, mu_hi, s, &sr, r, &mut mu, &mut out, &mut sat,
+                            );
                             mus.extend(mu.iter().map(|m| m.to_bits()));
                             outs.extend_from_slice(&out);
                         }
