@@ -45,7 +45,7 @@ fn bench(cr: &mut Criterion) {
         b.iter(|| {
             let mut acc = 0f32;
             for i in 0..(w * h) as u32 {
-                acc += normal::normal_from_bits(key.bits(i));
+                acc += normal::normal_from_bits(key.bits(i / w as u32, i % w as u32));
             }
             black_box(acc)
         })

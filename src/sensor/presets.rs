@@ -14,7 +14,9 @@
 //! * `gniicpi`: plus 3–8 filled ellipses set to full scale, applied last (ground truth there:
 //!   unpolarized with S0 = 2 × full scale, consistent with every channel reading full scale).
 
-use super::normal::BLOCK;
+/// Pixels per block of the row kernels: each stage runs over a whole block, so its vector
+/// iterations are independent and the long dependency chains overlap.
+const BLOCK: usize = 64;
 use super::optics::RelativeIllumination;
 use super::{adc, noise, nominal_axis, RawFrame, Sensor, SensorConfig, Stages};
 use crate::error::{check_range, Error, Result};
@@ -371,9 +373,9 @@ pub(crate) fn psns_frame(
     buf.truncate(lead);
     let mut buf = super::frame::codes_buffer(buf, lead, w * h);
     let codes = &mut buf[lead..];
-    // Gaussian noise from the fast path's counter-based generator (one keyed hash of the pixel
-    // index per draw, inverted exactly to f32 precision): the frame does not depend on rows,
-    // threads or blocks, and costs a few ns per pixel instead of ChaCha + ziggurat
+    // Gaussian noise from the fast path's counter-based generator (AES rounds of the pixel's
+    // row and column, inverted by a polynomial): the frame does not depend on rows, threads or
+    // blocks, and costs about a nanosecond per pixel instead of ChaCha + ziggurat
     let key = super::normal::NoiseKey::new(s.seed, frame_index, noise::STAGE_PSNS_NOISE);
     let ri = s.ri_map();
     // per-column pass-axis terms of even and odd rows
@@ -402,7 +404,7 @@ pub(crate) fn psns_frame(
             |(z, buf), (r, row)| {
                 z.resize(w, 0f32);
                 if sigma > 0.0 {
-                    super::fast::normals_into(&key, (r * w) as u32, z);
+                    super::normal::normals_row(&key, r as u32, 0, z);
                 }
                 let g = match ri {
                     Some(m) => &m[r * w..(r + 1) * w],

@@ -1,4 +1,5 @@
-//! The IMX250MZR emulator: noise, polarizer, presets, photon transfer, the fast path, golden hashes.
+//! The IMX250MZR emulator: noise, polarizer, presets, photon transfer, the fast path and its
+//! noise statistics, golden hashes.
 
 // tests set a field or two of a default configuration
 #![allow(clippy::field_reassign_with_default)]
@@ -6,6 +7,7 @@
 #[path = "../common/mod.rs"]
 mod common;
 
+mod fast_noise;
 mod fast_path;
 mod frame_payload;
 mod golden;

@@ -228,7 +228,13 @@ fn psns_presets_with_sun() {
             0,
         )
         .unwrap();
-        assert_eq!(*f.codes.get(10, 10), 255);
+        // the sun's pixel reads the top of the scale, less the preset's noise (5 σ of it)
+        let sigma = SensorConfig::preset(p).psns.unwrap().noise_fraction * 255.0;
+        let sun = *f.codes.get(10, 10) as f64;
+        assert!(sun >= 255.0 - (5.0 * sigma).ceil(), "{p:?}: {sun}");
+        if sigma == 0.0 {
+            assert_eq!(sun, 255.0);
+        }
         assert!(f.codes.data.iter().all(|&v| v <= 255));
         assert!(f.truth.s0.data.iter().all(|v| v.is_finite()));
     }

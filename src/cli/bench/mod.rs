@@ -8,6 +8,7 @@ pub mod heading;
 pub mod scenes;
 pub mod sky;
 pub mod stream;
+pub mod stream_cpu;
 #[cfg(test)]
 mod tests;
 
@@ -100,6 +101,18 @@ pub enum BenchCmd {
         /// Sky grid steps of the fast path to time.
         #[arg(long, value_delimiter = ',', default_values_t = vec![8usize, 16, 32])]
         steps: Vec<usize>,
+        /// Only CPU time per frame (user + system): the stages and whole `psns stream` runs, at
+        /// the AVX2 level and the best the CPU has (writes stream_cpu_stages.csv, stream_cpu.csv).
+        #[arg(long)]
+        cpu: bool,
+        /// With --cpu: a psns binary to run side by side, alternated run by run (e.g. an earlier
+        /// commit's target/release/psns); the table gives the ratio.
+        #[arg(long, requires = "cpu", value_name = "PATH")]
+        baseline: Option<PathBuf>,
+        /// Print the fast path's stage CPU times at this process's level and exit (the child
+        /// process of --cpu).
+        #[arg(long, hide = true)]
+        stages_child: bool,
     },
 }
 
@@ -119,8 +132,30 @@ pub fn run(what: BenchCmd) -> anyhow::Result<()> {
             e2e_frames,
             runs,
             steps,
+            cpu,
+            baseline,
+            stages_child,
         } => {
             let cfg = scene.scene()?;
+            if stages_child {
+                let t = stream::stage_times(&cfg, Some(16), frames)?;
+                let [s, n, p] = t.cpu_ms;
+                println!("{s:.3},{n:.3},{p:.3},{:.3}", s + n + p);
+                return Ok(());
+            }
+            if cpu {
+                let opts = stream_cpu::CpuOptions {
+                    out,
+                    frames,
+                    e2e_frames,
+                    runs,
+                    baseline,
+                };
+                for f in stream_cpu::bench_cpu(&cfg, &opts)? {
+                    eprintln!("wrote {f}");
+                }
+                return Ok(());
+            }
             let opts = stream::StreamBenchOptions {
                 out,
                 frames,

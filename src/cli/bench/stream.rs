@@ -46,6 +46,9 @@ pub struct StageTimes {
     pub frames: usize,
     /// Sum of the render's stage medians (sky, sensor, packing), ms; `fps` is its inverse.
     pub total_ms: f64,
+    /// CPU time (user + system, every thread of the process) of the sky, sensor and packing
+    /// stages, ms per frame (medians).
+    pub cpu_ms: [f64; 3],
     /// Fast path: mean sky nodes, refined cells and pixels evaluated exactly per frame.
     pub nodes: f64,
     /// See `nodes`.
@@ -101,6 +104,8 @@ pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Res
     let fmt = c.raw.pixel_format;
     let bits = pipe.sensor_config().bit_depth;
     let (mut sky_t, mut sen_t, mut pack_t, mut write_t) = (vec![], vec![], vec![], vec![]);
+    let mut cpu: [Vec<f64>; 3] = Default::default();
+    let cpu_now = || super::stream_cpu::cpu_seconds(false);
     let mut refine = [0f64; 3];
     let mut codes = Vec::new();
     let mut payload = Vec::new();
@@ -109,11 +114,11 @@ pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Res
     for k in 0..frames + 1 {
         let att = attitude(k);
         let cam = Camera::new(c.intrinsics(), &att, sun.azimuth_deg)?;
-        let t0 = Instant::now();
+        let (t0, c0) = (Instant::now(), cpu_now());
         let frame = match step {
             Some(s) => {
                 let grid = SkyGrid::new(&sky, &cam, opts, s, tol);
-                let t1 = Instant::now();
+                let (t1, c1) = (Instant::now(), cpu_now());
                 if k > 0 {
                     let (cells, _, px) = grid.refinement();
                     refine[0] += grid.node_count() as f64 / frames as f64;
@@ -130,24 +135,29 @@ pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Res
                     .into_codes(std::mem::take(&mut codes))
                     .with_sink(sink);
                 let f = pipe.sensor().frame(Radiance::Rows(&grid), k as u64, opts)?;
-                let t2 = Instant::now();
+                let (t2, c2) = (Instant::now(), cpu_now());
                 sky_t.push((t1 - t0).as_secs_f64());
                 sen_t.push((t2 - t1).as_secs_f64());
+                cpu[0].push(c1 - c0);
+                cpu[1].push(c2 - c1);
                 f
             }
             None => {
                 let (st, _) = render::render_stokes(&sky, &cam, opts);
-                let t1 = Instant::now();
+                let (t1, c1) = (Instant::now(), cpu_now());
                 let f = pipe.frame_codes(&st, k as u64)?;
-                let t2 = Instant::now();
+                let (t2, c2) = (Instant::now(), cpu_now());
                 sky_t.push((t1 - t0).as_secs_f64());
                 sen_t.push((t2 - t1).as_secs_f64());
+                cpu[0].push(c1 - c0);
+                cpu[1].push(c2 - c1);
                 f
             }
         };
-        let t3 = Instant::now();
+        let (t3, c3) = (Instant::now(), cpu_now());
         let packed_crc = packing::pack_crc32(&frame.codes.data, bits, fmt, false, &mut payload)?;
         pack_t.push(t3.elapsed().as_secs_f64());
+        cpu[2].push(cpu_now() - c3);
         // the stream's payload and CRC, as `RawPipeline::frame_payload_at` gives them: the codes
         // themselves where they are its bytes (no packing), with the CRC the frame carries
         // (`None` on the exact path: the writer takes it), else the packed bytes and theirs
@@ -163,6 +173,7 @@ pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Res
             sen_t.clear();
             pack_t.clear();
             write_t.clear();
+            cpu.iter_mut().for_each(Vec::clear);
         }
     }
     drain.finish()?;
@@ -185,6 +196,7 @@ pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Res
         write_ms: wr,
         frames: timed,
         total_ms: a + b + p,
+        cpu_ms: cpu.map(|v| 1e3 * median(v)),
         nodes: refine[0],
         refined_cells: refine[1],
         exact_pixels: refine[2],
