@@ -82,6 +82,16 @@ def evaluate(table, ln, tail, k):
     return np.where(t >= TAIL_BELOW, r, q)
 
 
+def f32_literal(v):
+    """The shortest decimal that reads back as the same f32 (what clippy's excessive_precision asks)."""
+    x = np.float32(v)
+    for digits in range(1, 10):
+        text = f"{float(x):.{digits}g}"
+        if np.float32(text) == x:
+            return text if ("." in text or "e" in text) else text + ".0"
+    raise ValueError(v)
+
+
 def main():
     table, ln, tail = fit()
     k = np.arange(1 << 22, dtype=np.int64)  # u < 1/2: z = -g(t)
@@ -93,10 +103,10 @@ def main():
     print(f"non-decreasing in u: {bool(np.all(np.diff(z) >= 0))}", file=sys.stderr)
     print(f"const NORMAL8: [[f32; 8]; {DEG8 + 1}] = [")
     for row in table:
-        print("    [" + ", ".join(repr(float(v)) for v in row) + "],")
+        print("    [" + ", ".join(f32_literal(v) for v in row) + "],")
     print("];")
     for name, c in (("LN", ln), ("TAIL", tail)):
-        print(f"const {name}: [f32; {len(c)}] = [" + ", ".join(repr(float(v)) for v in c) + "];")
+        print(f"const {name}: [f32; {len(c)}] = [" + ", ".join(f32_literal(v) for v in c) + "];")
 
 
 if __name__ == "__main__":
