@@ -670,3 +670,60 @@ fn nav_reader_follows_a_live_fifo() {
     }
     assert!(out.contains("read 12 frames"), "{out}");
 }
+
+/// The stream header and a bag's `psns.config` record the sun the frames were made with: the
+/// default scene's zenith and azimuth written out, a timed sun's time and place as given.
+#[test]
+fn header_and_bag_record_the_resolved_sun() {
+    use psns::config::DEFAULT_SUN;
+    let d = tempfile::tempdir().unwrap();
+    let sun_of = |json: &str| {
+        let v: serde_json::Value = serde_json::from_str(json).unwrap();
+        v["scene"]["sun"].clone()
+    };
+    let f = d.path().join("default.psns");
+    let o = run(&["--frames", "1", "--out", s(&f)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (h, _) = frames(&std::fs::read(&f).unwrap());
+    let sun = sun_of(&h.json);
+    assert_eq!(
+        sun["zenith_deg"].as_f64(),
+        Some(DEFAULT_SUN.zenith_deg),
+        "{sun}"
+    );
+    assert_eq!(
+        sun["azimuth_deg"].as_f64(),
+        Some(DEFAULT_SUN.azimuth_deg),
+        "{sun}"
+    );
+    // a bag's psns.config (metadata.yaml's custom_data) is the header's JSON
+    let bag = d.path().join("bag");
+    let o = run(&["--frames", "1", "--format", "rosbag2", "--out", s(&bag)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let y = std::fs::read_to_string(bag.join("metadata.yaml")).unwrap();
+    let line = y
+        .lines()
+        .find(|l| l.trim_start().starts_with("\"psns.config\":"))
+        .unwrap_or_else(|| panic!("no psns.config in {y}"));
+    let zen = format!("zenith_deg\\\":{:?}", DEFAULT_SUN.zenith_deg);
+    assert!(line.contains(&zen), "{zen} not in {line}");
+    // a timed sun keeps its time and place
+    let f = d.path().join("timed.psns");
+    let o = run(&[
+        "--frames",
+        "1",
+        "--time",
+        "2025-06-21T10:00:00Z",
+        "--lat",
+        "48.1",
+        "--lon",
+        "11.6",
+        "--out",
+        s(&f),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (h, _) = frames(&std::fs::read(&f).unwrap());
+    let sun = sun_of(&h.json);
+    assert_eq!(sun["time"].as_str(), Some("2025-06-21T10:00:00Z"), "{sun}");
+    assert!(sun["place"]["lat_deg"].as_f64().is_some(), "{sun}");
+}
