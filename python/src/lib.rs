@@ -49,11 +49,34 @@ fn lib_err(e: psns::Error) -> PyErr {
 }
 
 /// clap's message without the "error: " prefix and the usage lines: the first line of what the
-/// CLI prints for the same option.
+/// CLI prints for the same option, naming keyword arguments (`width=`) where the CLI names its
+/// options (`'--width <PX>'`).
 fn clap_err(e: clap::Error) -> PyErr {
     let text = e.render().to_string();
     let line = text.lines().next().unwrap_or("bad arguments").trim();
-    PyValueError::new_err(line.strip_prefix("error: ").unwrap_or(line).to_string())
+    PyValueError::new_err(keyword_names(line.strip_prefix("error: ").unwrap_or(line)))
+}
+
+/// A message with each quoted option (`'--sun-zenith <DEG>'`, `'--clouds'`) written as the
+/// keyword argument it is in Python (`sun_zenith=`).
+fn keyword_names(msg: &str) -> String {
+    let mut out = String::with_capacity(msg.len());
+    let mut rest = msg;
+    while let Some(i) = rest.find("'--") {
+        out.push_str(&rest[..i]);
+        let after = &rest[i + 3..];
+        let Some(j) = after.find('\'') else {
+            out.push_str(&rest[i..]);
+            rest = "";
+            break;
+        };
+        let name = after[..j].split([' ', '=']).next().unwrap_or_default();
+        out.push_str(&name.replace('-', "_"));
+        out.push('=');
+        rest = &after[j + 1..];
+    }
+    out.push_str(rest);
+    out
 }
 
 // ---------------------------------------------------------------------------------------------

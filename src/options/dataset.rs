@@ -32,7 +32,7 @@ pub struct PreviewArgs {
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
     /// Samples per folder, 1..20.
-    #[arg(long, default_value_t = 3, value_name = "N")]
+    #[arg(long, default_value_t = 3, value_name = "N", value_parser = super::whole)]
     pub per_split: u64,
 }
 
@@ -52,7 +52,7 @@ pub struct BuildArgs {
     #[arg(long)]
     pub resume: bool,
     /// Samples rendered at once (default: every core), 1..1024.
-    #[arg(long, value_name = "N", allow_negative_numbers = true)]
+    #[arg(long, value_name = "N", value_parser = super::integer, allow_negative_numbers = true)]
     pub jobs: Option<i64>,
 }
 

@@ -137,12 +137,50 @@ fn other_commands_print_short_range_messages() {
             &["bench", "sky", "--runs", "0"],
             "0 is out of range (allowed 1..1000)",
         ),
+        // integers: a value, not "invalid digit found in string"
+        (
+            &["extract", "x.psns", "--frame", "-1"],
+            "-1 is out of range (allowed a whole number 0..",
+        ),
+        (
+            &["render", "--width", "640.0", "--out", "never"],
+            "'640.0' is not an integer",
+        ),
+        (
+            &["render", "--bit-depth", "12.5", "--raw", "--out", "never"],
+            "'12.5' is not an integer",
+        ),
+        (
+            &["render", "--sky-grid", "x", "--raw", "--out", "never"],
+            "'x' is not an integer",
+        ),
+        (
+            &["render", "--height", "1e30", "--out", "never"],
+            "1e30 is out of range (allowed a whole number",
+        ),
+        (
+            &["dataset", "build", "--jobs", "2.5", "--out", "never"],
+            "'2.5' is not an integer",
+        ),
+        (
+            &[
+                "dataset",
+                "preview",
+                "d",
+                "--out",
+                "x.png",
+                "--per-split",
+                "-1",
+            ],
+            "-1 is out of range",
+        ),
     ];
     for (args, needle) in cases {
         let o = psns(args);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
         let e = stderr(&o);
         assert!(e.contains(needle), "{args:?}: stderr lacks '{needle}': {e}");
+        assert!(!e.contains("invalid digit"), "{args:?}: {e}");
         assert!(e.len() < 300, "{args:?}: message too long: {e}");
     }
 }

@@ -727,3 +727,31 @@ fn header_and_bag_record_the_resolved_sun() {
     assert_eq!(sun["time"].as_str(), Some("2025-06-21T10:00:00Z"), "{sun}");
     assert!(sun["place"]["lat_deg"].as_f64().is_some(), "{sun}");
 }
+
+/// `psns extract --frame N` past the stream's last frame is out of range (exit 2) and says the
+/// range; a frame in range is extracted.
+#[test]
+fn extract_past_the_last_frame_gives_the_range() {
+    let d = tempfile::tempdir().unwrap();
+    let f = d.path().join("five.psns");
+    let o = run(&["--frames", "5", "--out", s(&f)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let extract = |n: &str| {
+        Command::new(exe())
+            .args(["extract", s(&f), "--frame", n, "--out"])
+            .arg(d.path().join(format!("x{n}")))
+            .output()
+            .unwrap()
+    };
+    let o = extract("5");
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("frame = 5 is out of range (allowed 0..4"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!d.path().join("x5").exists());
+    let o = extract("4");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(d.path().join("x4/frame_4.png").exists());
+}
