@@ -399,6 +399,27 @@ fn sky_command_reports_bad_line_numbers() {
     );
     let o = psns_stdin(&["sky"], "az,zen\n");
     assert_eq!(o.status.code(), Some(2));
+    // every field is range-checked as the options are (--sun-zenith, --sun-azimuth)
+    for (row, says) in [
+        (
+            "10,1e9",
+            "line 3: azimuth_deg = 1e9 is out of range (allowed -360..720)",
+        ),
+        (
+            "10,-361",
+            "line 3: azimuth_deg = -361 is out of range (allowed -360..720)",
+        ),
+        (
+            "181,20",
+            "line 3: zenith_deg = 181 is out of range (allowed 0..180)",
+        ),
+    ] {
+        let o = psns_stdin(&["sky"], &format!("zenith_deg,azimuth_deg\n10,20\n{row}\n"));
+        assert_eq!(o.status.code(), Some(2), "{row}: {}", stderr(&o));
+        assert!(stderr(&o).contains(says), "{row}: {}", stderr(&o));
+    }
+    let o = psns_stdin(&["sky"], "zenith_deg,azimuth_deg\n10,-360\n10,720\n");
+    assert!(o.status.success(), "{}", stderr(&o));
 }
 
 /// `psns sky` reads its input as CSV: quoted fields and spaced headers are fields like any other;
