@@ -644,6 +644,16 @@ impl Camera {
             } => (frame, yaw_deg, pitch_deg, roll_deg),
             Attitude::Quaternion { frame, .. } => (frame, 0.0, 0.0, 0.0),
         };
+        if let Attitude::Quaternion { .. } = cfg.camera.attitude {
+            // as the CLI refuses --yaw with --quaternion: a quaternion has no yaw to replace
+            let given = [("yaw", yaw), ("pitch", pitch), ("roll", roll)];
+            if let Some((name, _)) = given.iter().find(|(_, v)| v.is_some()) {
+                return Err(PyValueError::new_err(format!(
+                    "{name}= cannot be used with quaternion=: this camera's attitude is a \
+                     quaternion; make a Camera with yaw=, pitch= and roll= to turn it by angles"
+                )));
+            }
+        }
         let attitude = match (cfg.camera.attitude, yaw, pitch, roll) {
             (q @ Attitude::Quaternion { .. }, None, None, None) => q,
             _ => Attitude::Euler {

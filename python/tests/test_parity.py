@@ -176,3 +176,12 @@ def test_errors_name_the_keyword_argument():
         psns.render(sun_zenith="abc")
     with pytest.raises(ValueError, match="quaternion= cannot be used with yaw="):
         psns.render(quaternion=(1, 0, 0, 0), yaw=3)
+
+
+def test_camera_with_a_quaternion_refuses_angles():
+    # the CLI refuses --yaw with --quaternion; Camera.frame does too (no silent zero pitch/roll)
+    cam = psns.Camera(width=32, height=24, quaternion=(1, 0, 0, 0))
+    for kw in ("yaw", "pitch", "roll"):
+        with pytest.raises(ValueError, match=f"{kw}= cannot be used with quaternion="):
+            cam.frame(**{kw: 30})
+    assert cam.frame().shape == (24, 32)
