@@ -511,7 +511,7 @@ fn sky<'py>(
 
 /// Builds a dataset or one shard of it, like `psns dataset build`.
 #[pyfunction]
-#[pyo3(signature = (config, out, shard = None, resume = false, jobs = None))]
+#[pyo3(signature = (config, out, shard = None, resume = false, jobs = None, dry_run = false))]
 fn dataset_build(
     py: Python<'_>,
     config: Option<PathBuf>,
@@ -519,6 +519,7 @@ fn dataset_build(
     shard: Option<(i64, i64)>,
     resume: bool,
     jobs: Option<i64>,
+    dry_run: bool,
 ) -> PyResult<()> {
     let mut words = vec![
         "dataset".to_string(),
@@ -537,6 +538,9 @@ fn dataset_build(
     if let Some(j) = jobs {
         words.push(format!("--jobs={j}"));
     }
+    if dry_run {
+        words.push("--dry-run".into());
+    }
     let cmd = psns::options::negative_numbers(psns::options::DatasetCmd::augment_subcommands(
         Command::new("dataset"),
     ));
@@ -547,7 +551,9 @@ fn dataset_build(
         unreachable!("the words name the build subcommand");
     };
     let summary = py.detach(|| a.run(&PlainLines)).map_err(lib_err)?;
-    eprintln!("{summary}");
+    if let Some(s) = summary {
+        eprintln!("{s}");
+    }
     Ok(())
 }
 
