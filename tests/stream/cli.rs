@@ -755,3 +755,28 @@ fn extract_past_the_last_frame_gives_the_range() {
     assert!(o.status.success(), "{}", stderr(&o));
     assert!(d.path().join("x4/frame_4.png").exists());
 }
+
+/// `readers::python_reader_ends_quietly_on_ctrl_c_and_missing_files` passes in a test run started
+/// with SIGINT ignored: this runs it in this test binary again, with SIGINT ignored as `nohup` or a background job leaves it.
+#[test]
+fn ctrl_c_test_passes_when_the_run_ignores_sigint() {
+    let mut cmd = Command::new(std::env::current_exe().unwrap());
+    common::sigint_disposition(&mut cmd, libc::SIG_IGN).args([
+        "readers::python_reader_ends_quietly_on_ctrl_c_and_missing_files",
+        "--exact",
+        "--test-threads=1",
+    ]);
+    let out = common::wait_deadline(
+        cmd.stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap(),
+        60,
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.contains("1 passed"),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
