@@ -19,6 +19,7 @@ def dataset_build(
     shard: Optional[Tuple[int, int]] = None,
     resume: bool = False,
     jobs: Optional[int] = None,
+    dry_run: bool = False,
 ) -> None: ...
 def open_stream(path: str) -> StreamIter: ...
 

@@ -24,13 +24,15 @@ def build(
     shard: Optional[Tuple[int, int]] = None,
     resume: bool = False,
     jobs: Optional[int] = None,
+    dry_run: bool = False,
 ) -> None:
     """Build a dataset, or shard ``k`` of ``n`` with ``shard=(k, n)``, as ``psns dataset build``.
 
     ``config``: the dataset description (TOML, docs/dataset.md); ``None`` is the PSNS dataset at
     full size. ``shard=(k, n)`` counts from 1, as the CLI's ``--shard K/N``. ``resume`` keeps the
     samples already present and intact. ``jobs``: samples rendered at once (default: every
-    core). Raises ``ValueError`` with the CLI's message for bad input.
+    core). The plan (samples, bytes, estimated time) goes to stderr first; ``dry_run`` prints
+    it and creates nothing. Raises ``ValueError`` with the CLI's message for bad input.
     """
     _psns.dataset_build(
         None if config is None else os.fspath(config),
@@ -38,6 +40,7 @@ def build(
         shard=shard,
         resume=resume,
         jobs=jobs,
+        dry_run=dry_run,
     )
 
 

@@ -49,11 +49,34 @@ fn lib_err(e: psns::Error) -> PyErr {
 }
 
 /// clap's message without the "error: " prefix and the usage lines: the first line of what the
-/// CLI prints for the same option.
+/// CLI prints for the same option, naming keyword arguments (`width=`) where the CLI names its
+/// options (`'--width <PX>'`).
 fn clap_err(e: clap::Error) -> PyErr {
     let text = e.render().to_string();
     let line = text.lines().next().unwrap_or("bad arguments").trim();
-    PyValueError::new_err(line.strip_prefix("error: ").unwrap_or(line).to_string())
+    PyValueError::new_err(keyword_names(line.strip_prefix("error: ").unwrap_or(line)))
+}
+
+/// A message with each quoted option (`'--sun-zenith <DEG>'`, `'--clouds'`) written as the
+/// keyword argument it is in Python (`sun_zenith=`).
+fn keyword_names(msg: &str) -> String {
+    let mut out = String::with_capacity(msg.len());
+    let mut rest = msg;
+    while let Some(i) = rest.find("'--") {
+        out.push_str(&rest[..i]);
+        let after = &rest[i + 3..];
+        let Some(j) = after.find('\'') else {
+            out.push_str(&rest[i..]);
+            rest = "";
+            break;
+        };
+        let name = after[..j].split([' ', '=']).next().unwrap_or_default();
+        out.push_str(&name.replace('-', "_"));
+        out.push('=');
+        rest = &after[j + 1..];
+    }
+    out.push_str(rest);
+    out
 }
 
 // ---------------------------------------------------------------------------------------------
@@ -488,7 +511,7 @@ fn sky<'py>(
 
 /// Builds a dataset or one shard of it, like `psns dataset build`.
 #[pyfunction]
-#[pyo3(signature = (config, out, shard = None, resume = false, jobs = None))]
+#[pyo3(signature = (config, out, shard = None, resume = false, jobs = None, dry_run = false))]
 fn dataset_build(
     py: Python<'_>,
     config: Option<PathBuf>,
@@ -496,6 +519,7 @@ fn dataset_build(
     shard: Option<(i64, i64)>,
     resume: bool,
     jobs: Option<i64>,
+    dry_run: bool,
 ) -> PyResult<()> {
     let mut words = vec![
         "dataset".to_string(),
@@ -514,6 +538,9 @@ fn dataset_build(
     if let Some(j) = jobs {
         words.push(format!("--jobs={j}"));
     }
+    if dry_run {
+        words.push("--dry-run".into());
+    }
     let cmd = psns::options::negative_numbers(psns::options::DatasetCmd::augment_subcommands(
         Command::new("dataset"),
     ));
@@ -524,7 +551,9 @@ fn dataset_build(
         unreachable!("the words name the build subcommand");
     };
     let summary = py.detach(|| a.run(&PlainLines)).map_err(lib_err)?;
-    eprintln!("{summary}");
+    if let Some(s) = summary {
+        eprintln!("{s}");
+    }
     Ok(())
 }
 
@@ -621,6 +650,16 @@ impl Camera {
             } => (frame, yaw_deg, pitch_deg, roll_deg),
             Attitude::Quaternion { frame, .. } => (frame, 0.0, 0.0, 0.0),
         };
+        if let Attitude::Quaternion { .. } = cfg.camera.attitude {
+            // as the CLI refuses --yaw with --quaternion: a quaternion has no yaw to replace
+            let given = [("yaw", yaw), ("pitch", pitch), ("roll", roll)];
+            if let Some((name, _)) = given.iter().find(|(_, v)| v.is_some()) {
+                return Err(PyValueError::new_err(format!(
+                    "{name}= cannot be used with quaternion=: this camera's attitude is a \
+                     quaternion; make a Camera with yaw=, pitch= and roll= to turn it by angles"
+                )));
+            }
+        }
         let attitude = match (cfg.camera.attitude, yaw, pitch, roll) {
             (q @ Attitude::Quaternion { .. }, None, None, None) => q,
             _ => Attitude::Euler {

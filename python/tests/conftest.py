@@ -2,6 +2,7 @@
 tests need nothing beyond numpy and the standard library)."""
 
 import os
+import re
 import struct
 import subprocess
 import zlib
@@ -31,12 +32,13 @@ def run(bin_: str, *args: str, ok: bool = True, **kw) -> subprocess.CompletedPro
 
 
 def cli_message(stderr: str) -> str:
-    """The message line the CLI printed, without its "error: " or "psns: " prefix."""
+    """The message line the CLI printed, without its "error: " or "psns: " prefix, naming
+    options as Python names them: '--sun-zenith <DEG>' is sun_zenith=."""
     line = stderr.strip().splitlines()[0]
     for p in ("psns: ", "error: "):
         if line.startswith(p):
             line = line[len(p):]
-    return line
+    return re.sub(r"'--([a-z0-9-]+)[^']*'", lambda m: m.group(1).replace("-", "_") + "=", line)
 
 
 def read_png_gray(path) -> np.ndarray:

@@ -60,6 +60,14 @@ def test_dataset_build_in_process_and_errors(psns_bin, tmp_path):
     assert not (tmp_path / "c").exists()
 
 
+def test_dataset_build_dry_run_prints_the_plan_and_creates_nothing(capfd, tmp_path):
+    # the default description: 138,000 full-size images, planned and not started
+    psns.dataset.build(None, tmp_path / "psns", dry_run=True, jobs=2)
+    err = capfd.readouterr().err
+    assert "plan: 138000 samples of 2448 x 2048" in err and "GB" in err and " h " in err, err
+    assert not (tmp_path / "psns").exists()
+
+
 def test_frame_dataset_is_a_function_of_seed_and_index():
     ds = psns.loader.FrameDataset(samples=4, seed=3, width=64, height=48)
     a = list(ds)

@@ -146,6 +146,8 @@ def test_sky_matches_cli(psns_bin, model):
         (["render", "--raw"], dict(bit_depth=9), lambda: psns.render_raw(bit_depth=9)),
         (["render", "--raw"], dict(preset="foo"), lambda: psns.Camera(preset="foo")),
         (["render", "--raw"], dict(sky_grid=0), lambda: psns.render_raw(sky_grid=0)),
+        (["render"], dict(width=640.0), lambda: psns.render(width=640.0)),
+        (["render", "--raw"], dict(bit_depth=8.5), lambda: psns.render_raw(bit_depth=8.5)),
     ],
 )
 def test_errors_are_the_cli_messages(psns_bin, tmp_path, cmd, opts, call):
@@ -157,9 +159,29 @@ def test_errors_are_the_cli_messages(psns_bin, tmp_path, cmd, opts, call):
 
 
 def test_unknown_keyword_is_a_value_error():
-    with pytest.raises(ValueError, match="unexpected argument '--sun-zenit'"):
+    with pytest.raises(ValueError, match="unexpected argument sun_zenit= "):
         psns.render(sun_zenit=40)
     with pytest.raises(ValueError, match="raw must be a 2-D numpy array"):
         psns.demosaic(np.zeros((8, 8), np.float32))
     with pytest.raises(ValueError, match="smallest|at least|8"):
         psns.demosaic(np.zeros((4, 4), np.uint16))
+
+
+def test_errors_name_the_keyword_argument():
+    # width=640.0 is not an integer, said with the keyword's name (not "invalid digit", not --width)
+    with pytest.raises(ValueError) as e:
+        psns.render(width=640.0)
+    assert str(e.value) == "invalid value '640.0' for width=: '640.0' is not an integer"
+    with pytest.raises(ValueError, match="for sun_zenith=: 'abc' is not a number"):
+        psns.render(sun_zenith="abc")
+    with pytest.raises(ValueError, match="quaternion= cannot be used with yaw="):
+        psns.render(quaternion=(1, 0, 0, 0), yaw=3)
+
+
+def test_camera_with_a_quaternion_refuses_angles():
+    # the CLI refuses --yaw with --quaternion; Camera.frame does too (no silent zero pitch/roll)
+    cam = psns.Camera(width=32, height=24, quaternion=(1, 0, 0, 0))
+    for kw in ("yaw", "pitch", "roll"):
+        with pytest.raises(ValueError, match=f"{kw}= cannot be used with quaternion="):
+            cam.frame(**{kw: 30})
+    assert cam.frame().shape == (24, 32)

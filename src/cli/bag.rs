@@ -15,7 +15,7 @@ use clap::ValueEnum;
 use psns::camera::Intrinsics;
 use psns::error::{Error, Result};
 use psns::ros2::metadata::{BagInfo, Topic, OFFERED_QOS_V8};
-use psns::ros2::msg::{CameraInfo, Header, Image, Message, PoseStamped, Vector3Stamped};
+use psns::ros2::msg::{CameraInfo, Header, Image, Message, PoseStamped, TfMessage, Vector3Stamped};
 use psns::ros2::{self as ros, FrameId, ImageEncoding, Time};
 use psns::stream::{FileHeader, FrameMeta};
 use std::collections::BTreeMap;
@@ -481,11 +481,12 @@ struct Channels {
     camera_info: u16,
     pose: u16,
     sun: u16,
+    tf: u16,
     truth: Option<(u16, u16)>,
 }
 
-/// Writes psns frames into a bag: per frame the raw image, camera info, pose and sun (and the
-/// truth images).
+/// Writes psns frames into a bag: per frame the raw image, camera info, pose, sun and the
+/// camera's transform on `/tf` (and the truth images).
 pub struct BagWriter {
     bag: McapBag,
     source: BagSource,
@@ -505,6 +506,7 @@ impl BagWriter {
         let pose = bag.add_psns_topic(ros::TOPIC_POSE, PoseStamped::TYPE, PoseStamped::SCHEMA)?;
         let sun =
             bag.add_psns_topic(ros::TOPIC_SUN, Vector3Stamped::TYPE, Vector3Stamped::SCHEMA)?;
+        let tf = bag.add_psns_topic(ros::TOPIC_TF, TfMessage::TYPE, TfMessage::SCHEMA)?;
         let truth = if opts.truth_images {
             Some((
                 bag.add_psns_topic(ros::TOPIC_TRUTH_DOLP, Image::TYPE, Image::SCHEMA)?,
@@ -527,6 +529,7 @@ impl BagWriter {
                 camera_info: info_ch,
                 pose,
                 sun,
+                tf,
                 truth,
             },
             buf: Vec::new(),
@@ -539,7 +542,7 @@ impl BagWriter {
     }
 
     /// Writes one frame: the raw image (`image`: the pixel bytes of the bag's encoding), the
-    /// camera info, the pose and the sun, and with `truth` the DoLP and AoLP images; every
+    /// camera info, the pose, the sun and the transform, and with `truth` the DoLP and AoLP images; every
     /// message stamped with the exposure start. A stamp a bag cannot hold is refused before
     /// anything of the frame is written.
     pub fn write_frame(
@@ -614,6 +617,7 @@ impl BagWriter {
         let (w, h) = self.size();
         let pose = ros::pose(meta)?.to_cdr()?;
         let sun = ros::sun(meta)?.to_cdr()?;
+        let tf = ros::transform(meta)?.to_cdr()?;
         self.camera_info.header = header;
         let info = self.camera_info.to_cdr()?;
         let seq = meta.index as u32;
@@ -621,6 +625,7 @@ impl BagWriter {
         self.put(self.channels.camera_info, seq, stamp, &info)?;
         self.put(self.channels.pose, seq, stamp, &pose)?;
         self.put(self.channels.sun, seq, stamp, &sun)?;
+        self.put(self.channels.tf, seq, stamp, &tf)?;
         if let (Some((cd, ca)), Some((dolp, aolp))) = (self.channels.truth, truth) {
             for (ch, px) in [(cd, dolp), (ca, aolp)] {
                 let bytes: &[u8] = bytemuck::cast_slice(px);

@@ -24,8 +24,9 @@ impl std::error::Error for Damaged {}
 pub fn run(cmd: DatasetCmd) -> anyhow::Result<()> {
     match cmd {
         DatasetCmd::Build(a) => {
-            let s = a.run(&Terminal)?;
-            eprintln!("{s}");
+            if let Some(s) = a.run(&Terminal)? {
+                eprintln!("{s}");
+            }
             Ok(())
         }
         DatasetCmd::Verify(a) => verify_cmd(&a.dir),

@@ -3,6 +3,7 @@
 
 use super::progress::{Progress, Unit};
 use psns::config::SceneConfig;
+use psns::error::check_range;
 use psns::options::{first_given, SkyArgs};
 use psns::sky::stability::{stability_map, Grid, MapCell, MAX_AOP_SHIFT_DEG, MAX_JUMP};
 use psns::sky::{DopModel, PolarizationModel, SkyParams};
@@ -47,6 +48,7 @@ pub fn run(a: SkyArgs) -> anyhow::Result<()> {
 /// `zenith_deg,azimuth_deg,gamma_deg,radiance,dop,aop_meridian_deg,aop_north_deg`).
 ///
 /// Directions at or below the horizon (zenith ≥ 90°) get radiance 0, DOP 0 and AOP 0 (ground).
+/// Every field is range-checked as the options are: zenith 0..180, azimuth -360..720.
 pub fn sky_csv(cfg: &SceneConfig, input: impl Read, mut output: impl Write) -> Result<usize> {
     let sun = cfg.sun.resolve()?;
     let sky = psns::sky::Sky::new(sun, &cfg.sky)?;
@@ -110,13 +112,12 @@ pub fn sky_csv(cfg: &SceneConfig, input: impl Read, mut output: impl Write) -> R
             }
             Ok(v)
         };
-        let z = num(&rec[0], "zenith_deg")?;
-        let a = num(&rec[1], "azimuth_deg")?;
-        if !(0.0..=180.0).contains(&z) {
-            return Err(Error::Invalid(format!(
-                "line {ln}: zenith_deg = {z} is out of range (allowed 0..180)"
-            )));
-        }
+        // the ranges of the options: a zenith as --sun-zenith, an azimuth as --sun-azimuth
+        let field = |i: usize, name: &str, lo: f64, hi: f64| -> Result<f64> {
+            check_range(&format!("line {ln}: {name}"), num(&rec[i], name)?, lo, hi)
+        };
+        let z = field(0, "zenith_deg", 0.0, 180.0)?;
+        let a = field(1, "azimuth_deg", -360.0, 720.0)?;
         let v = sky.values(z, a);
         writeln!(
             output,

@@ -75,7 +75,7 @@ pub struct ExtractArgs {
     /// Stream file, FIFO, or - for stdin.
     file: PathBuf,
     /// Frame index.
-    #[arg(long)]
+    #[arg(long, value_parser = psns::options::whole)]
     frame: u64,
     /// Output directory.
     #[arg(long, default_value = ".")]

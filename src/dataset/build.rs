@@ -19,7 +19,7 @@ use super::manifest::{
     complete, known_entries, manifest_line, merge, size_crc, write_shared, write_shared_with,
     Merged, DESCRIPTION, EXTRAS, LABELS, MANIFEST, PARTS,
 };
-use super::{DatasetConfig, Sample, Shard, Split};
+use super::{BuildPlan, DatasetConfig, Sample, Shard, Split};
 use crate::config::SceneConfig;
 use crate::image::Image;
 use crate::io::create_dir;
@@ -406,15 +406,18 @@ impl std::fmt::Display for BuildSummary {
 
 /// Builds shard `shard` of the dataset `cfg` into `dir` with `jobs` samples rendered at once;
 /// `resume` keeps the samples already present and intact. Everything is checked before the
-/// first file is written; the last shard to finish writes `manifest.csv`.
+/// first file is written, then the plan ([`BuildPlan`]: samples, bytes, estimated time) is
+/// printed on `progress`; with `dry_run` that is all (`None`: nothing is created, not even
+/// `dir`). The last shard to finish writes `manifest.csv`.
 pub fn build(
     cfg: &DatasetConfig,
     dir: &Path,
     shard: Shard,
     resume: bool,
     jobs: usize,
+    dry_run: bool,
     progress: &dyn Reporter,
-) -> Result<BuildSummary> {
+) -> Result<Option<BuildSummary>> {
     let t0 = Instant::now();
     let cfg_toml = cfg.to_toml();
     let dir = dir.to_path_buf();
@@ -427,6 +430,13 @@ pub fn build(
     // every sample can be drawn (a sun_time that keeps the sun down fails here); samples are
     // drawn again from their position when needed, so the plan holds nothing per sample
     let plan = cfg.plan()?;
+    let estimate = BuildPlan::new(cfg, shard, jobs);
+    progress
+        .start("psns dataset", Unit::Images, None, false)
+        .println(&estimate.to_string());
+    if dry_run {
+        return Ok(None);
+    }
     // everything is checked: from here on files are written
     let mut dirs: Vec<PathBuf> = vec![dir.join(PARTS)];
     for (s, _) in cfg.split_counts() {
@@ -542,7 +552,7 @@ pub fn build(
     let total_seconds = t0.elapsed().as_secs_f64();
     let merged = merge(&dir, &plan)?;
     lock.release();
-    Ok(BuildSummary {
+    Ok(Some(BuildSummary {
         dir,
         shard,
         built,
@@ -552,7 +562,7 @@ pub fn build(
         total_seconds,
         total_samples: cfg.total(),
         merged,
-    })
+    }))
 }
 
 #[cfg(test)]

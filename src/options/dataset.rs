@@ -32,7 +32,7 @@ pub struct PreviewArgs {
     #[arg(long, value_name = "FILE")]
     pub out: PathBuf,
     /// Samples per folder, 1..20.
-    #[arg(long, default_value_t = 3, value_name = "N")]
+    #[arg(long, default_value_t = 3, value_name = "N", value_parser = super::whole)]
     pub per_split: u64,
 }
 
@@ -52,8 +52,12 @@ pub struct BuildArgs {
     #[arg(long)]
     pub resume: bool,
     /// Samples rendered at once (default: every core), 1..1024.
-    #[arg(long, value_name = "N", allow_negative_numbers = true)]
+    #[arg(long, value_name = "N", value_parser = super::integer, allow_negative_numbers = true)]
     pub jobs: Option<i64>,
+    /// Check the description and --out, print the plan (samples, bytes, estimated time) and
+    /// stop: nothing is created, not even the directory.
+    #[arg(long)]
+    pub dry_run: bool,
 }
 
 /// The dataset directory of `verify` and `merge`.
@@ -64,8 +68,9 @@ pub struct DirArgs {
 }
 
 impl BuildArgs {
-    /// Builds what these options describe ([`build`]), reporting progress to `progress`.
-    pub fn run(&self, progress: &dyn Reporter) -> Result<BuildSummary> {
+    /// Builds what these options describe ([`build`]), reporting progress (and first the plan)
+    /// to `progress`; `None` for `--dry-run`, which prints the plan only.
+    pub fn run(&self, progress: &dyn Reporter) -> Result<Option<BuildSummary>> {
         let cfg = match &self.config {
             Some(p) => load_description(p)?,
             None => DatasetConfig::default(),
@@ -81,6 +86,7 @@ impl BuildArgs {
             self.shard.unwrap_or(Shard::ALL),
             self.resume,
             jobs,
+            self.dry_run,
             progress,
         )
     }

@@ -70,6 +70,29 @@ pub fn whole(s: &str) -> Result<u64, String> {
     })
 }
 
+/// Parses a whole number that may be negative (a size or a count checked later against its
+/// range, which then names it), with a clear message for anything else: `640.0` is not an
+/// integer, `1e30` is out of range.
+///
+/// ```
+/// use psns::options::integer;
+/// assert_eq!(integer("-3"), Ok(-3));
+/// assert_eq!(integer("640.0").unwrap_err(), "'640.0' is not an integer");
+/// assert!(integer("1e30").unwrap_err().contains("is out of range (allowed"));
+/// ```
+pub fn integer(s: &str) -> Result<i64, String> {
+    let t = s.trim();
+    t.parse::<i64>().map_err(|_| match t.parse::<f64>() {
+        Ok(v) if v.is_finite() && v.abs() >= 2f64.powi(63) => format!(
+            "{} is out of range (allowed a whole number {}..{})",
+            crate::error::num(v),
+            i64::MIN,
+            i64::MAX
+        ),
+        _ => format!("'{s}' is not an integer"),
+    })
+}
+
 /// The first option of `options` (name, given) that was given.
 pub fn first_given(options: &[(&'static str, bool)]) -> Option<&'static str> {
     options.iter().find_map(|&(n, g)| g.then_some(n))

@@ -1,7 +1,7 @@
 //! Sensor and raw-frame options (`render --raw`, `stream`, `bench`), applied onto a
 //! [`SceneConfig`].
 
-use super::{finite, first_given, parsed, whole};
+use super::{finite, first_given, integer, parsed, whole};
 use crate::config::{SceneConfig, SceneKind};
 use crate::sensor::packing::PixelFormat;
 use crate::sensor::{Exposure, Preset, SensorConfig};
@@ -56,7 +56,7 @@ pub struct RawArgs {
     #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DN")]
     pub black_level: Option<f64>,
     /// Output bit depth: 8, 10 or 12.
-    #[arg(long, allow_negative_numbers = true, value_name = "BITS")]
+    #[arg(long, value_parser = integer, allow_negative_numbers = true, value_name = "BITS")]
     pub bit_depth: Option<i64>,
     /// Packed pixel format of raw.bin / the stream payload: mono8, mono12p, mono12packed, mono16.
     #[arg(long, value_parser = parsed::<PixelFormat>)]
@@ -75,7 +75,7 @@ pub struct RawArgs {
     pub clouds: bool,
     /// Sky nodes every N pixels of the fast path, refined where interpolation would be off by
     /// more than a fortieth of the shot noise (1 = every pixel; default 16).
-    #[arg(long, value_name = "N", allow_negative_numbers = true)]
+    #[arg(long, value_name = "N", value_parser = integer, allow_negative_numbers = true)]
     pub sky_grid: Option<i64>,
     /// Reference run: the sky model at every pixel, no caches, and the exact sensor path (exact
     /// Poisson sampling, per-row ChaCha8 streams), the bit-stable reference of the fast path.

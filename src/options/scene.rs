@@ -1,7 +1,7 @@
 //! The scene options (`--config`, sun, sky, attitude, intrinsics) and SPA settings, applied onto
 //! a [`SceneConfig`].
 
-use super::{finite, finite_list, first_given, parsed};
+use super::{finite, finite_list, first_given, integer, parsed};
 use crate::camera::{Attitude, AttitudeFrame, Lens, Projection};
 use crate::config::SceneConfig;
 use crate::sky::cie::Radiance;
@@ -159,10 +159,10 @@ pub struct SceneArgs {
     #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "UM")]
     pub pixel_pitch: Option<f64>,
     /// Image width (columns), pixels.
-    #[arg(long, value_name = "PX", allow_negative_numbers = true)]
+    #[arg(long, value_name = "PX", value_parser = integer, allow_negative_numbers = true)]
     pub width: Option<i64>,
     /// Image height (rows), pixels.
-    #[arg(long, value_name = "PX", allow_negative_numbers = true)]
+    #[arg(long, value_name = "PX", value_parser = integer, allow_negative_numbers = true)]
     pub height: Option<i64>,
     /// Principal point X,Y: 0-based column and row of the optical axis.
     #[arg(long, value_parser = finite_list::<2>, allow_negative_numbers = true, value_name = "X,Y")]

@@ -148,6 +148,11 @@ impl CdrWriter {
         self.length(n, "sequence")
     }
 
+    /// The element count in front of an unbounded sequence of structures; the elements follow.
+    pub fn seq_len(&mut self, n: usize) -> Result<()> {
+        self.length(n, "sequence")
+    }
+
     /// `float64[]` (an unbounded sequence).
     pub fn f64_seq(&mut self, v: &[f64]) -> Result<()> {
         self.length(v.len(), "sequence")?;

@@ -18,7 +18,10 @@ use crate::camera::{Intrinsics, Projection};
 use crate::error::{Error, Result};
 use crate::sensor::packing::PixelFormat;
 use crate::stream::FrameMeta;
-use msg::{CameraInfo, DistortionModel, Header, PoseStamped, RegionOfInterest, Vector3Stamped};
+use msg::{
+    CameraInfo, DistortionModel, Header, PoseStamped, RegionOfInterest, TfMessage,
+    TransformStamped, Vector3Stamped,
+};
 
 /// The raw mosaic, `sensor_msgs/msg/Image`.
 pub const TOPIC_IMAGE: &str = "/psns/image_raw";
@@ -28,6 +31,9 @@ pub const TOPIC_CAMERA_INFO: &str = "/psns/camera_info";
 pub const TOPIC_POSE: &str = "/psns/pose";
 /// The unit sun vector in ENU, `geometry_msgs/msg/Vector3Stamped`.
 pub const TOPIC_SUN: &str = "/psns/sun";
+/// The camera optical frame in ENU for 3D viewers (tf2), `tf2_msgs/msg/TFMessage`:
+/// `enu -> psns_camera_optical`, the pose of [`TOPIC_POSE`].
+pub const TOPIC_TF: &str = "/tf";
 /// The ground-truth degree of linear polarization, `32FC1` images.
 pub const TOPIC_TRUTH_DOLP: &str = "/psns/truth/dolp";
 /// The ground-truth angle of linear polarization (degrees, sensor convention), `32FC1` images.
@@ -187,6 +193,31 @@ pub fn pose(meta: &FrameMeta) -> Result<PoseStamped> {
         },
         position: [0.0; 3],
         orientation_xyzw: [x, y, z, w],
+    })
+}
+
+/// The `tf2_msgs/msg/TFMessage` of a frame: one transform from ENU (`enu`, the parent) to the
+/// camera optical frame (`psns_camera_optical`, the child), the rotation of [`pose`] and no
+/// translation, stamped with the exposure start.
+///
+/// ```
+/// use psns::stream::FrameMeta;
+/// let m = FrameMeta { exposure_start_ns: 5, attitude_wxyz: [0.5, 0.5, -0.5, 0.5], ..Default::default() };
+/// let tf = psns::ros2::transform(&m).unwrap();
+/// let t = tf.transforms[0];
+/// assert_eq!((t.header.frame_id.as_str(), t.child_frame_id.as_str()), ("enu", "psns_camera_optical"));
+/// assert_eq!(t.rotation_xyzw, psns::ros2::pose(&m).unwrap().orientation_xyzw);
+/// assert_eq!(t.translation, [0.0; 3]);
+/// ```
+pub fn transform(meta: &FrameMeta) -> Result<TfMessage> {
+    let p = pose(meta)?;
+    Ok(TfMessage {
+        transforms: vec![TransformStamped {
+            header: p.header,
+            child_frame_id: FrameId::CameraOptical,
+            translation: p.position,
+            rotation_xyzw: p.orientation_xyzw,
+        }],
     })
 }
 

@@ -391,6 +391,87 @@ impl Message for Vector3Stamped {
     }
 }
 
+/// `geometry_msgs/msg/TransformStamped`: where `child_frame_id` is in `header.frame_id`.
+#[derive(Clone, Copy, Debug, PartialEq)]
+pub struct TransformStamped {
+    /// Stamp and the parent frame.
+    pub header: Header,
+    /// The frame this transform places.
+    pub child_frame_id: FrameId,
+    /// The child's origin in the parent frame, metres.
+    pub translation: [f64; 3],
+    /// Unit quaternion x, y, z, w (ROS order), rotating vectors of the child frame into the
+    /// parent frame.
+    pub rotation_xyzw: [f64; 4],
+}
+
+impl Message for TransformStamped {
+    const TYPE: &'static str = "geometry_msgs/msg/TransformStamped";
+    const SCHEMA: &'static str = concat!(
+        "std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/Transform transform\n",
+        dep!(
+            "std_msgs/Header",
+            "builtin_interfaces/Time stamp\nstring frame_id\n"
+        ),
+        dep!("builtin_interfaces/Time", "int32 sec\nuint32 nanosec\n"),
+        dep!(
+            "geometry_msgs/Transform",
+            "geometry_msgs/Vector3 translation\ngeometry_msgs/Quaternion rotation\n"
+        ),
+        dep!("geometry_msgs/Vector3", "float64 x\nfloat64 y\nfloat64 z\n"),
+        dep!(
+            "geometry_msgs/Quaternion",
+            "float64 x\nfloat64 y\nfloat64 z\nfloat64 w\n"
+        ),
+    );
+    fn encode(&self, w: &mut CdrWriter) -> Result<()> {
+        self.header.encode(w)?;
+        w.string(self.child_frame_id.as_str())?;
+        w.f64_array(&self.translation);
+        w.f64_array(&self.rotation_xyzw);
+        Ok(())
+    }
+}
+
+/// `tf2_msgs/msg/TFMessage`: the transforms of one moment, as `/tf` carries them.
+#[derive(Clone, Debug, PartialEq)]
+pub struct TfMessage {
+    /// The transforms.
+    pub transforms: Vec<TransformStamped>,
+}
+
+impl Message for TfMessage {
+    const TYPE: &'static str = "tf2_msgs/msg/TFMessage";
+    const SCHEMA: &'static str = concat!(
+        "geometry_msgs/TransformStamped[] transforms\n",
+        dep!(
+            "geometry_msgs/TransformStamped",
+            "std_msgs/Header header\nstring child_frame_id\ngeometry_msgs/Transform transform\n"
+        ),
+        dep!(
+            "std_msgs/Header",
+            "builtin_interfaces/Time stamp\nstring frame_id\n"
+        ),
+        dep!("builtin_interfaces/Time", "int32 sec\nuint32 nanosec\n"),
+        dep!(
+            "geometry_msgs/Transform",
+            "geometry_msgs/Vector3 translation\ngeometry_msgs/Quaternion rotation\n"
+        ),
+        dep!("geometry_msgs/Vector3", "float64 x\nfloat64 y\nfloat64 z\n"),
+        dep!(
+            "geometry_msgs/Quaternion",
+            "float64 x\nfloat64 y\nfloat64 z\nfloat64 w\n"
+        ),
+    );
+    fn encode(&self, w: &mut CdrWriter) -> Result<()> {
+        w.seq_len(self.transforms.len())?;
+        for t in &self.transforms {
+            t.encode(w)?;
+        }
+        Ok(())
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -481,11 +562,15 @@ mod tests {
         assert!(CameraInfo::SCHEMA.contains(HEADER_DEPS));
         assert!(PoseStamped::SCHEMA.contains(HEADER_DEPS));
         assert!(Vector3Stamped::SCHEMA.contains(HEADER_DEPS));
+        assert!(TransformStamped::SCHEMA.contains(HEADER_DEPS));
+        assert!(TfMessage::SCHEMA.contains(HEADER_DEPS));
         for s in [
             Image::SCHEMA,
             CameraInfo::SCHEMA,
             PoseStamped::SCHEMA,
             Vector3Stamped::SCHEMA,
+            TransformStamped::SCHEMA,
+            TfMessage::SCHEMA,
         ] {
             for block in s.split("================================================================================\n").skip(1) {
                 assert!(block.starts_with("MSG: "), "{block}");

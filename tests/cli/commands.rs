@@ -137,12 +137,50 @@ fn other_commands_print_short_range_messages() {
             &["bench", "sky", "--runs", "0"],
             "0 is out of range (allowed 1..1000)",
         ),
+        // integers: a value, not "invalid digit found in string"
+        (
+            &["extract", "x.psns", "--frame", "-1"],
+            "-1 is out of range (allowed a whole number 0..",
+        ),
+        (
+            &["render", "--width", "640.0", "--out", "never"],
+            "'640.0' is not an integer",
+        ),
+        (
+            &["render", "--bit-depth", "12.5", "--raw", "--out", "never"],
+            "'12.5' is not an integer",
+        ),
+        (
+            &["render", "--sky-grid", "x", "--raw", "--out", "never"],
+            "'x' is not an integer",
+        ),
+        (
+            &["render", "--height", "1e30", "--out", "never"],
+            "1e30 is out of range (allowed a whole number",
+        ),
+        (
+            &["dataset", "build", "--jobs", "2.5", "--out", "never"],
+            "'2.5' is not an integer",
+        ),
+        (
+            &[
+                "dataset",
+                "preview",
+                "d",
+                "--out",
+                "x.png",
+                "--per-split",
+                "-1",
+            ],
+            "-1 is out of range",
+        ),
     ];
     for (args, needle) in cases {
         let o = psns(args);
         assert_eq!(o.status.code(), Some(2), "{args:?}: {}", stderr(&o));
         let e = stderr(&o);
         assert!(e.contains(needle), "{args:?}: stderr lacks '{needle}': {e}");
+        assert!(!e.contains("invalid digit"), "{args:?}: {e}");
         assert!(e.len() < 300, "{args:?}: message too long: {e}");
     }
 }
@@ -361,6 +399,27 @@ fn sky_command_reports_bad_line_numbers() {
     );
     let o = psns_stdin(&["sky"], "az,zen\n");
     assert_eq!(o.status.code(), Some(2));
+    // every field is range-checked as the options are (--sun-zenith, --sun-azimuth)
+    for (row, says) in [
+        (
+            "10,1e9",
+            "line 3: azimuth_deg = 1e9 is out of range (allowed -360..720)",
+        ),
+        (
+            "10,-361",
+            "line 3: azimuth_deg = -361 is out of range (allowed -360..720)",
+        ),
+        (
+            "181,20",
+            "line 3: zenith_deg = 181 is out of range (allowed 0..180)",
+        ),
+    ] {
+        let o = psns_stdin(&["sky"], &format!("zenith_deg,azimuth_deg\n10,20\n{row}\n"));
+        assert_eq!(o.status.code(), Some(2), "{row}: {}", stderr(&o));
+        assert!(stderr(&o).contains(says), "{row}: {}", stderr(&o));
+    }
+    let o = psns_stdin(&["sky"], "zenith_deg,azimuth_deg\n10,-360\n10,720\n");
+    assert!(o.status.success(), "{}", stderr(&o));
 }
 
 /// `psns sky` reads its input as CSV: quoted fields and spaced headers are fields like any other;

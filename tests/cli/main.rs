@@ -13,3 +13,4 @@ mod lens;
 mod outputs;
 mod progress;
 mod raw;
+mod tools;

@@ -72,3 +72,42 @@ fn quick_bench_into_docs_exits_2_and_writes_nothing() {
         );
     }
 }
+
+/// The README's first picture is what its first command renders (`psns render --out out`, the
+/// default scene at yaw 0), as `psns figures` regenerates it byte for byte, and stays small.
+#[test]
+fn readme_picture_is_its_command_s_render() {
+    let root = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
+    let readme = std::fs::read_to_string(root.join("README.md")).unwrap();
+    let cmd = readme
+        .find("cargo run --release -- render --out out\n")
+        .unwrap();
+    let pic = readme.find("![").unwrap();
+    assert!(
+        cmd < pic,
+        "the README's first picture comes before its command"
+    );
+    let link = &readme[readme[pic..].find("](").unwrap() + pic + 2..];
+    let path = &link[..link.find(')').unwrap()];
+    assert_eq!(path, "docs/img/readme_render_li_dop_aop.png");
+    let dir = tempfile::tempdir().unwrap();
+    let o = common::psns(&[
+        "figures",
+        "--only",
+        "sky",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    let made = std::fs::read(dir.path().join("readme_render_li_dop_aop.png")).unwrap();
+    let committed = std::fs::read(root.join(path)).unwrap();
+    assert!(
+        made == committed,
+        "{path} differs from psns figures --only sky's"
+    );
+    assert!(
+        committed.len() < 200_000,
+        "{path}: {} bytes",
+        committed.len()
+    );
+}

@@ -43,6 +43,22 @@ pub fn python_cmd() -> Command {
     Command::new(std::env::var_os("PSNS_PYTHON").unwrap_or_else(|| "python3".into()))
 }
 
+/// Sets how the child of `cmd` takes SIGINT: `libc::SIG_DFL` gives a child Ctrl-C's default
+/// back when the test run was started with SIGINT ignored (`nohup`, a background job, some CI
+/// runners), which every child would inherit (and Python then ignores Ctrl-C); `libc::SIG_IGN`
+/// makes such a run.
+pub fn sigint_disposition(cmd: &mut Command, disposition: libc::sighandler_t) -> &mut Command {
+    use std::os::unix::process::CommandExt;
+    // SAFETY: signal(2) is async-signal-safe, as pre_exec requires; it only sets the
+    // disposition of SIGINT in the forked child, which exec keeps
+    unsafe {
+        cmd.pre_exec(move || {
+            libc::signal(libc::SIGINT, disposition);
+            Ok(())
+        })
+    }
+}
+
 /// Panics (the test fails, it never passes silently) when the interpreter lacks numpy.
 pub fn require_numpy() {
     let ok = python_cmd()

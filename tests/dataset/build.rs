@@ -14,14 +14,14 @@ fn bin() -> &'static str {
 }
 
 /// Six samples over three folders and all three presets, 64 x 48.
-const TINY: &str =
+pub(crate) const TINY: &str =
     "seed = 7\nwidth = 64\nheight = 48\n[splits]\nNFPI = 2\nGNIICPI = 2\nTGNIIPI = 2\n";
 
 /// Suns from times and places; at 85 degrees south in June the sun never rises.
 const SUN_TIME: &str = "seed = 2\nwidth = 64\nheight = 48\n[splits]\nGNIIPI = 3\n[sun_time]\nstart = \"2025-03-01T00:00:00Z\"\nend = \"2025-03-31T23:59:59Z\"\nlat_deg = { min = 30, max = 50 }\nlon_deg = { values = [10, 120] }\nmin_altitude_deg = 10\n[outputs]\nraw12 = true\n";
 const POLAR_NIGHT: &str = "width = 64\nheight = 48\n[splits]\nNFPI = 3\n[sun_time]\nstart = \"2025-06-10T00:00:00Z\"\nend = \"2025-06-11T00:00:00Z\"\nlat_deg = -85\n";
 
-fn write_config(dir: &Path, text: &str) -> PathBuf {
+pub(crate) fn write_config(dir: &Path, text: &str) -> PathBuf {
     let p = dir.join("d.toml");
     std::fs::write(&p, text).unwrap();
     p
@@ -66,7 +66,7 @@ fn assert_same_tree(a: &Path, b: &Path) {
     }
 }
 
-fn build(out: &Path, config: &Path, extra: &[&str]) -> std::process::Output {
+pub(crate) fn build(out: &Path, config: &Path, extra: &[&str]) -> std::process::Output {
     let mut args = vec![
         "dataset",
         "build",
@@ -79,7 +79,7 @@ fn build(out: &Path, config: &Path, extra: &[&str]) -> std::process::Output {
     psns(&args)
 }
 
-fn ok(o: &std::process::Output) {
+pub(crate) fn ok(o: &std::process::Output) {
     assert!(o.status.success(), "{:?}: {}", o.status, stderr(o));
 }
 

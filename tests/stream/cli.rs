@@ -670,3 +670,113 @@ fn nav_reader_follows_a_live_fifo() {
     }
     assert!(out.contains("read 12 frames"), "{out}");
 }
+
+/// The stream header and a bag's `psns.config` record the sun the frames were made with: the
+/// default scene's zenith and azimuth written out, a timed sun's time and place as given.
+#[test]
+fn header_and_bag_record_the_resolved_sun() {
+    use psns::config::DEFAULT_SUN;
+    let d = tempfile::tempdir().unwrap();
+    let sun_of = |json: &str| {
+        let v: serde_json::Value = serde_json::from_str(json).unwrap();
+        v["scene"]["sun"].clone()
+    };
+    let f = d.path().join("default.psns");
+    let o = run(&["--frames", "1", "--out", s(&f)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (h, _) = frames(&std::fs::read(&f).unwrap());
+    let sun = sun_of(&h.json);
+    assert_eq!(
+        sun["zenith_deg"].as_f64(),
+        Some(DEFAULT_SUN.zenith_deg),
+        "{sun}"
+    );
+    assert_eq!(
+        sun["azimuth_deg"].as_f64(),
+        Some(DEFAULT_SUN.azimuth_deg),
+        "{sun}"
+    );
+    // a bag's psns.config (metadata.yaml's custom_data) is the header's JSON
+    let bag = d.path().join("bag");
+    let o = run(&["--frames", "1", "--format", "rosbag2", "--out", s(&bag)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let y = std::fs::read_to_string(bag.join("metadata.yaml")).unwrap();
+    let line = y
+        .lines()
+        .find(|l| l.trim_start().starts_with("\"psns.config\":"))
+        .unwrap_or_else(|| panic!("no psns.config in {y}"));
+    let zen = format!("zenith_deg\\\":{:?}", DEFAULT_SUN.zenith_deg);
+    assert!(line.contains(&zen), "{zen} not in {line}");
+    // a timed sun keeps its time and place
+    let f = d.path().join("timed.psns");
+    let o = run(&[
+        "--frames",
+        "1",
+        "--time",
+        "2025-06-21T10:00:00Z",
+        "--lat",
+        "48.1",
+        "--lon",
+        "11.6",
+        "--out",
+        s(&f),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let (h, _) = frames(&std::fs::read(&f).unwrap());
+    let sun = sun_of(&h.json);
+    assert_eq!(sun["time"].as_str(), Some("2025-06-21T10:00:00Z"), "{sun}");
+    assert!(sun["place"]["lat_deg"].as_f64().is_some(), "{sun}");
+}
+
+/// `psns extract --frame N` past the stream's last frame is out of range (exit 2) and says the
+/// range; a frame in range is extracted.
+#[test]
+fn extract_past_the_last_frame_gives_the_range() {
+    let d = tempfile::tempdir().unwrap();
+    let f = d.path().join("five.psns");
+    let o = run(&["--frames", "5", "--out", s(&f)]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    let extract = |n: &str| {
+        Command::new(exe())
+            .args(["extract", s(&f), "--frame", n, "--out"])
+            .arg(d.path().join(format!("x{n}")))
+            .output()
+            .unwrap()
+    };
+    let o = extract("5");
+    assert_eq!(o.status.code(), Some(2), "{}", stderr(&o));
+    assert!(
+        stderr(&o).contains("frame = 5 is out of range (allowed 0..4"),
+        "{}",
+        stderr(&o)
+    );
+    assert!(!d.path().join("x5").exists());
+    let o = extract("4");
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(d.path().join("x4/frame_4.png").exists());
+}
+
+/// `readers::python_reader_ends_quietly_on_ctrl_c_and_missing_files` passes in a test run started
+/// with SIGINT ignored: this runs it in this test binary again, with SIGINT ignored as `nohup` or a background job leaves it.
+#[test]
+fn ctrl_c_test_passes_when_the_run_ignores_sigint() {
+    let mut cmd = Command::new(std::env::current_exe().unwrap());
+    common::sigint_disposition(&mut cmd, libc::SIG_IGN).args([
+        "readers::python_reader_ends_quietly_on_ctrl_c_and_missing_files",
+        "--exact",
+        "--test-threads=1",
+    ]);
+    let out = common::wait_deadline(
+        cmd.stdout(std::process::Stdio::piped())
+            .stderr(std::process::Stdio::piped())
+            .spawn()
+            .unwrap(),
+        60,
+    );
+    let text = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success() && text.contains("1 passed"),
+        "{text}{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}

@@ -813,14 +813,14 @@ fn crafted_headers_rejected_by_all_readers() {
     }
 }
 
-/// Ctrl-C while the numpy reader waits for a pipe, and a missing file: a message or nothing,
-/// never a traceback.
+/// Ctrl-C while the numpy reader waits for a pipe (Ctrl-C's default restored, should the run
+/// ignore SIGINT), and a missing file: a message or nothing, never a traceback.
 #[test]
 fn python_reader_ends_quietly_on_ctrl_c_and_missing_files() {
     common::require_numpy();
     let tool = root().join("tools/psns_stream.py");
     for args in [vec!["dump", "-"], vec!["info", "/nonexistent.psns"]] {
-        let mut child = common::python_cmd()
+        let mut child = common::sigint_disposition(&mut common::python_cmd(), libc::SIG_DFL)
             .arg(&tool)
             .args(&args)
             .stdin(std::process::Stdio::piped())

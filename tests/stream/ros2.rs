@@ -7,7 +7,9 @@
 use crate::common;
 use common::{psns, psns_stdin, python_cmd, stderr};
 use psns::camera::{Intrinsics, Projection};
-use psns::ros2::msg::{Header, Image, Message, PoseStamped, Vector3Stamped};
+use psns::ros2::msg::{
+    Header, Image, Message, PoseStamped, TfMessage, TransformStamped, Vector3Stamped,
+};
 use psns::ros2::{self, FrameId, ImageEncoding, Time};
 use serde_json::json;
 use std::path::{Path, PathBuf};
@@ -174,6 +176,39 @@ fn cdr_of_every_message_equals_rosbags_serialize_cdr() {
         v.to_cdr().unwrap(),
         Vector3Stamped::SCHEMA,
     ));
+    // transforms: none, and two (the padding before each translation differs with the
+    // child frame id's length)
+    let tf_of = |tfs: &[TransformStamped]| {
+        let ts: Vec<_> = tfs
+            .iter()
+            .map(|t| {
+                json!({"header": hdr(t.header.stamp.sec, t.header.stamp.nanosec, t.header.frame_id),
+                    "child_frame_id": t.child_frame_id.as_str(),
+                    "translation": t.translation, "rotation_xyzw": t.rotation_xyzw})
+            })
+            .collect();
+        json!({"kind": "tf", "value": {"transforms": ts}})
+    };
+    let two = [
+        TransformStamped {
+            header: h(FrameId::Enu),
+            child_frame_id: FrameId::CameraOptical,
+            translation: [0.0; 3],
+            rotation_xyzw: q,
+        },
+        TransformStamped {
+            header: h(FrameId::CameraOptical),
+            child_frame_id: FrameId::Enu,
+            translation: [1.0, -2.5, 3e-7],
+            rotation_xyzw: [0.0, 0.0, 0.0, 1.0],
+        },
+    ];
+    for tfs in [&two[..0], &two[..]] {
+        let m = TfMessage {
+            transforms: tfs.to_vec(),
+        };
+        cases.push((tf_of(tfs), m.to_cdr().unwrap(), TfMessage::SCHEMA));
+    }
     let file = d.path().join("cases.json");
     let values: Vec<_> = cases.iter().map(|c| c.0.clone()).collect();
     std::fs::write(&file, serde_json::to_string(&values).unwrap()).unwrap();
@@ -216,7 +251,7 @@ fn stream_bag_reads_in_both_readers_and_matches_the_stream() {
     let bag = d.path().join("run");
     stream(&[&opts[..], &["--format", "rosbag2", "--out", s(&bag)]].concat());
     let out = check(&["bag", s(&bag), s(&psns_file)]);
-    assert!(out.contains("ok: 4 frames, 4 topics"), "{out}");
+    assert!(out.contains("ok: 4 frames, 5 topics"), "{out}");
     // rosbag2's layout: metadata.yaml and <name>_0.mcap, nothing else
     let mut names: Vec<String> = std::fs::read_dir(&bag)
         .unwrap()
@@ -363,7 +398,7 @@ fn truth_images_equal_render_raw_truth() {
     );
     stream(&[&opts[..], &["--out", s(&psns_file)]].concat());
     let out = check(&["bag", s(&bag), s(&psns_file), "--truth"]);
-    assert!(out.contains("6 topics"), "{out}");
+    assert!(out.contains("7 topics"), "{out}");
     let r = d.path().join("render");
     let o = psns(
         &[
@@ -692,7 +727,7 @@ fn chunks_hold_an_image_after_the_frame_before_s_small_messages() {
     let full = d.path().join("full.mcap");
     stream(&["--frames", "3", "--format", "mcap", "--out", s(&full)]);
     let out = check(&["chunks", s(&full)]);
-    let small = "/psns/camera_info /psns/pose /psns/sun";
+    let small = "/psns/camera_info /psns/pose /psns/sun /tf";
     assert_eq!(
         out,
         format!("/psns/image_raw\n{small} /psns/image_raw\n{small} /psns/image_raw\n{small}\n")

@@ -32,6 +32,7 @@ TOPICS = {
     "/psns/camera_info": "sensor_msgs/msg/CameraInfo",
     "/psns/pose": "geometry_msgs/msg/PoseStamped",
     "/psns/sun": "geometry_msgs/msg/Vector3Stamped",
+    "/tf": "tf2_msgs/msg/TFMessage",
 }
 TRUTH = {"/psns/truth/dolp": "sensor_msgs/msg/Image", "/psns/truth/aolp": "sensor_msgs/msg/Image"}
 
@@ -71,6 +72,16 @@ def make(kind, v):
                                                       z=v["position"][2]),
                              orientation=T(G + "Quaternion")(x=x, y=y, z=z, w=w))
         return T(G + "PoseStamped")(header=header(v["header"]), pose=pose)
+    if kind == "tf":
+        G = "geometry_msgs/msg/"
+        tfs = []
+        for t in v["transforms"]:
+            x, y, z, w = t["rotation_xyzw"]
+            tr = T(G + "Transform")(translation=T(G + "Vector3")(*t["translation"]),
+                                    rotation=T(G + "Quaternion")(x=x, y=y, z=z, w=w))
+            tfs.append(T(G + "TransformStamped")(header=header(t["header"]),
+                                                 child_frame_id=t["child_frame_id"], transform=tr))
+        return T("tf2_msgs/msg/TFMessage")(transforms=tfs)
     if kind == "vector3":
         x, y, z = v["vector"]
         return T("geometry_msgs/msg/Vector3Stamped")(
@@ -142,7 +153,8 @@ def check_frames(reader, conns, msgs, hdr, frames, want_topics):
         t0 = meta["exposure_start_ns"]
         for topic in want_topics:
             t, m = msgs[topic][k]
-            assert t == t0 == stamp_ns(m.header), (reader, topic, k, t, t0)
+            h = m.transforms[0].header if topic == "/tf" else m.header
+            assert t == t0 == stamp_ns(h), (reader, topic, k, t, t0)
         _, im = msgs["/psns/image_raw"][k]
         assert im.header.frame_id == "psns_camera_optical"
         assert (im.height, im.width) == (hdr["height"], hdr["width"])
@@ -175,6 +187,14 @@ def check_frames(reader, conns, msgs, hdr, frames, want_topics):
         got = [s.vector.x, s.vector.y, s.vector.z]
         assert max(abs(a - b) for a, b in zip(got, sv)) < 1e-12, (got, sv)
         assert abs(math.hypot(*got) - 1.0) < 1e-12
+        _, tf = msgs["/tf"][k]
+        assert len(tf.transforms) == 1, tf
+        t = tf.transforms[0]
+        assert (t.header.frame_id, t.child_frame_id) == ("enu", "psns_camera_optical"), t
+        assert stamp_ns(t.header) == t0
+        r, tr = t.transform.rotation, t.transform.translation
+        assert [r.x, r.y, r.z, r.w] == [x, y, z, w], (k, r, meta["attitude_wxyz"])
+        assert [tr.x, tr.y, tr.z] == [0.0, 0.0, 0.0]
         # the sun in the camera frame, turned into ENU by the pose, is the ENU sun
         q = np.array([w, x, y, z])
         rot = quat_matrix(q)

@@ -154,7 +154,40 @@ pub fn lens_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>> 
 }
 
 /// Steps of [`sky_figures`] counted by its progress (one per picture).
-pub const SKY_FIGURE_STEPS: u64 = 4;
+pub const SKY_FIGURE_STEPS: u64 = 5;
+
+/// The command of the README's first picture, [`README_FIGURE`]: what it renders is that
+/// picture, 8x smaller.
+pub const README_COMMAND: [&str; 3] = ["render", "--out", "out"];
+
+/// The README's first picture: LI, DOP and AOP of [`README_COMMAND`] (the default scene, yaw 0:
+/// the image's +y axis points north).
+pub const README_FIGURE: &str = "readme_render_li_dop_aop.png";
+
+/// The scene `psns render` renders with [`README_COMMAND`]'s options, as it parses them.
+pub(crate) fn readme_scene() -> Result<SceneConfig> {
+    use clap::{Args, Command, FromArgMatches};
+    let words = std::iter::once("psns").chain(README_COMMAND.iter().skip(1).copied());
+    let cmd = psns::options::RenderArgs::augment_args(Command::new("render"));
+    let m = cmd
+        .try_get_matches_from(words)
+        .map_err(|e| psns::Error::Invalid(e.to_string()))?;
+    let a = psns::options::RenderArgs::from_arg_matches(&m)
+        .map_err(|e| psns::Error::Invalid(e.to_string()))?;
+    Ok(a.config()?.0)
+}
+
+/// LI, DOP and AOP of a scene's ideal images side by side, 8x smaller.
+fn li_dop_aop(cfg: &SceneConfig) -> Result<psns::image::Image<[u8; 3]>> {
+    let (sky, cam) = cfg.build()?;
+    let ideal = render::render_ideal(&sky, &cam);
+    let li = vis::downsample(&ideal.li, 8);
+    let white = vis::quantile(&li, 0.999);
+    let li = vis::gray_rgb(&vis::gray8(&li, white));
+    let dop = vis::dop_rgb(&vis::decimate(&ideal.dop, 8), None);
+    let aop = vis::aop_rgb(&vis::decimate(&ideal.aop_deg, 8), None);
+    Ok(vis::hstack(&[&li, &dop, &aop], 4))
+}
 
 /// `psns figures`: the sky and camera pictures of `docs/img` (small PNGs). Counts
 /// [`SKY_FIGURE_STEPS`] steps on `progress`.
@@ -195,18 +228,40 @@ pub fn sky_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>> {
     files.push(p.display().to_string());
     progress.inc(1);
     progress.set_message("sky: default camera frame");
-    // the default camera frame, 8x smaller
-    let cfg = figure_scene();
-    let (sky, cam) = cfg.build()?;
-    let ideal = render::render_ideal(&sky, &cam);
-    let li = vis::downsample(&ideal.li, 8);
-    let white = vis::quantile(&li, 0.999);
-    let li = vis::gray_rgb(&vis::gray8(&li, white));
-    let dop = vis::dop_rgb(&vis::decimate(&ideal.dop, 8), None);
-    let aop = vis::aop_rgb(&vis::decimate(&ideal.aop_deg, 8), None);
+    // the default camera frame facing the sun's azimuth, 8x smaller
     let p = dir.join("default_camera_li_dop_aop.png");
-    io::write_png_rgb8(&p, &vis::hstack(&[&li, &dop, &aop], 4))?;
+    io::write_png_rgb8(&p, &li_dop_aop(&figure_scene())?)?;
+    files.push(p.display().to_string());
+    progress.inc(1);
+    progress.set_message("sky: the README's render");
+    let p = dir.join(README_FIGURE);
+    io::write_png_rgb8(&p, &li_dop_aop(&readme_scene()?)?)?;
     files.push(p.display().to_string());
     progress.inc(1);
     Ok(files)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use psns::camera::{Attitude, AttitudeFrame};
+
+    #[test]
+    fn readme_picture_is_the_default_render_at_yaw_0() {
+        let c = readme_scene().unwrap();
+        assert_eq!(
+            c.camera.attitude,
+            Attitude::Euler {
+                frame: AttitudeFrame::Enu,
+                yaw_deg: 0.0,
+                pitch_deg: 0.0,
+                roll_deg: 0.0
+            }
+        );
+        let mut d = SceneConfig::default();
+        d.camera.intrinsics = d.intrinsics();
+        assert_eq!(c.camera, d.camera);
+        assert_eq!(c.sun, d.sun);
+        assert_ne!(c.camera, figure_scene().camera);
+    }
 }

@@ -609,7 +609,13 @@ pub fn run_stream(
         "trajectory": traj_kind,
         "attitude_frame": "enu",
     });
-    let header = stream_header(cfg, &pipe, extra)?;
+    // a fixed sun is recorded as resolved (the default's zenith and azimuth written out, as
+    // scene.json has them); a timed one as given, its time and place
+    let mut recorded = cfg.clone();
+    if !has_place {
+        recorded.sun = cfg.sun.filled();
+    }
+    let header = stream_header(&recorded, &pipe, extra)?;
     let kind = out.frames(&header)?;
     let maker = FrameMaker {
         clock,

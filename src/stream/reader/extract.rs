@@ -62,6 +62,8 @@ pub fn find_frame_with<R: Read>(r: R, n: Option<u64>, opts: FindOptions) -> Resu
         None => (StreamReader::new(r)?, None),
     };
     let mut copy = 1u64;
+    // the lowest and highest frame index seen, for the range of a frame that is not there
+    let mut seen: Option<(u64, u64)> = None;
     while let Some(ev) = rd.next_event()? {
         let fr = match ev {
             Event::Frame(fr) => fr,
@@ -71,6 +73,8 @@ pub fn find_frame_with<R: Read>(r: R, n: Option<u64>, opts: FindOptions) -> Resu
             }
             _ => continue,
         };
+        let i = fr.meta.index;
+        seen = Some(seen.map_or((i, i), |(lo, hi)| (lo.min(i), hi.max(i))));
         let wanted = n.is_none_or(|n| n == fr.meta.index);
         if !wanted {
             continue;
@@ -108,6 +112,15 @@ pub fn find_frame_with<R: Read>(r: R, n: Option<u64>, opts: FindOptions) -> Resu
             },
             recovered,
         });
+    }
+    if let (Some(n), Some((lo, hi))) = (n, seen) {
+        if !(lo..=hi).contains(&n) {
+            return Err(Error::OutOfRange {
+                name: "frame".into(),
+                value: n.to_string(),
+                allowed: format!("{lo}..{hi}, the stream's frames"),
+            });
+        }
     }
     Err(Error::Invalid(match n {
         Some(n) => format!("frame {n} is not in the stream (or is damaged)"),
