@@ -152,7 +152,8 @@ impl RawPipeline {
                         sun_disc: raw.sun_disc_on(),
                     };
                     let step = if raw.exact { 1 } else { raw.sky_grid };
-                    let (st, n) = render::render_stokes_grid(&sky, &cam, opts, step);
+                    let (st, n) =
+                        render::render_stokes_grid(&sky, &cam, opts, step, self.sky_tolerance());
                     info.sun_pixels = n;
                     info.ground_pixels = render::ground_pixel_count(&cam);
                     st
@@ -300,12 +301,7 @@ impl RawPipeline {
             let opts = StokesOptions {
                 sun_disc: raw.sun_disc_on(),
             };
-            let tol = if psns {
-                render::GRID_TOLERANCE
-            } else {
-                self.grid_tolerance()
-            };
-            let grid = render::SkyGrid::new(&sky, &cam, opts, raw.sky_grid, tol);
+            let grid = render::SkyGrid::new(&sky, &cam, opts, raw.sky_grid, self.sky_tolerance());
             let info = SceneInfo {
                 sun: Some(sun),
                 sky_valid: true,
@@ -334,6 +330,17 @@ impl RawPipeline {
             .sensor
             .frame(Radiance::Planes(&st), frame_index, opts)?;
         Ok((f, info))
+    }
+
+    /// The sky grid's interpolation tolerance for this pipeline's frames, the same for the
+    /// Stokes planes ([`Self::stokes`]) and the rows the fast path reads, so that a frame made
+    /// from either has the same codes: [`render::GRID_TOLERANCE`] for a PSNS preset (whose codes
+    /// the sensor's noise does not set), else [`Self::grid_tolerance`].
+    fn sky_tolerance(&self) -> f64 {
+        match self.sensor_cfg.psns.is_some() {
+            true => render::GRID_TOLERANCE,
+            false => self.grid_tolerance(),
+        }
     }
 
     /// Interpolation tolerance of the sky grid, relative to S0: a quarter of a tenth of the

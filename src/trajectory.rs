@@ -263,17 +263,40 @@ impl<R: BufRead> Iterator for CsvTrajectory<R> {
     }
 }
 
-/// The built-in trajectory: a zenith-looking camera turning in yaw (ENU) at a constant rate, one
-/// pose every `interval_s`; infinite.
-pub fn turning(yaw_rate_deg_s: f64, interval_s: f64) -> impl Iterator<Item = Result<Pose>> {
-    (0u64..).map(move |i| {
+/// The built-in trajectory: the camera at `start` (yaw, pitch and roll in its frame; zenith-looking
+/// by default) turning in yaw at a constant rate, one pose every `interval_s`; infinite. A
+/// quaternion start is refused.
+pub fn turning(
+    start: Attitude,
+    yaw_rate_deg_s: f64,
+    interval_s: f64,
+) -> Result<impl Iterator<Item = Result<Pose>>> {
+    let Attitude::Euler {
+        frame,
+        yaw_deg,
+        pitch_deg,
+        roll_deg,
+    } = start
+    else {
+        return Err(Error::Invalid(
+            "the turning camera starts from --yaw, --pitch and --roll: give a --trajectory for \
+             a --quaternion attitude"
+                .into(),
+        ));
+    };
+    Ok((0u64..).map(move |i| {
         let t = i as f64 * interval_s;
         Ok(Pose {
             t_s: t,
-            attitude: Attitude::enu((yaw_rate_deg_s * t).rem_euclid(360.0), 0.0, 0.0),
+            attitude: Attitude::Euler {
+                frame,
+                yaw_deg: (yaw_deg + yaw_rate_deg_s * t).rem_euclid(360.0),
+                pitch_deg,
+                roll_deg,
+            },
             place: None,
         })
-    })
+    }))
 }
 
 #[cfg(test)]
@@ -433,8 +456,25 @@ mod tests {
 
     #[test]
     fn turning_generator() {
-        let p: Vec<Pose> = turning(10.0, 0.05).take(3).map(|p| p.unwrap()).collect();
+        let p: Vec<Pose> = turning(Attitude::default(), 10.0, 0.05)
+            .unwrap()
+            .take(3)
+            .map(|p| p.unwrap())
+            .collect();
         assert_eq!(p[2].t_s, 0.1);
         assert_eq!(p[2].attitude, Attitude::enu(1.0, 0.0, 0.0));
+        // from a given attitude: yaw turns, pitch and roll stay
+        let p: Vec<Pose> = turning(Attitude::enu(355.0, 20.0, -5.0), 100.0, 0.1)
+            .unwrap()
+            .take(2)
+            .map(|p| p.unwrap())
+            .collect();
+        assert_eq!(p[0].attitude, Attitude::enu(355.0, 20.0, -5.0));
+        assert_eq!(p[1].attitude, Attitude::enu(5.0, 20.0, -5.0));
+        let q = Attitude::Quaternion {
+            frame: AttitudeFrame::Enu,
+            wxyz: [1.0, 0.0, 0.0, 0.0],
+        };
+        assert!(matches!(turning(q, 1.0, 1.0), Err(Error::Invalid(_))));
     }
 }

@@ -1,6 +1,7 @@
 //! Opening a trajectory for the commands that render frames from poses (`psns stream`,
 //! `psns gige`): a CSV file, stdin, or the built-in turning camera.
 
+use psns::camera::Attitude;
 use psns::error::{Error, Result};
 use psns::trajectory::{turning, CsvTrajectory, Pose};
 use std::io::BufReader;
@@ -39,29 +40,41 @@ pub struct TrajectoryArgs {
 }
 
 impl TrajectoryArgs {
-    /// The trajectory these options name ([`open_trajectory`]).
-    pub fn open(&self) -> Result<Trajectory> {
+    /// The trajectory these options name ([`open_trajectory`]), the turning camera starting at
+    /// `start`.
+    pub fn open(&self, start: Attitude) -> Result<Trajectory> {
         open_trajectory(
             self.trajectory.as_deref(),
+            start,
             self.yaw_rate,
             self.frame_interval_ms,
         )
     }
 }
 
-/// Opens `path` (a CSV file, `-` for stdin), or with no path the built-in turning camera at
-/// `yaw_rate_deg_s`, one pose every `frame_interval_ms`.
+/// Opens `path` (a CSV file, `-` for stdin), or with no path the built-in turning camera from
+/// the attitude `start` (the scene's `--yaw`, `--pitch`, `--roll`) at `yaw_rate_deg_s`, one pose
+/// every `frame_interval_ms`. A file's rows give the attitude: a `start` other than the default
+/// is refused beside one, rather than ignored.
 pub fn open_trajectory(
     path: Option<&Path>,
+    start: Attitude,
     yaw_rate_deg_s: f64,
     frame_interval_ms: f64,
 ) -> Result<Trajectory> {
+    if path.is_some() && start != Attitude::default() {
+        return Err(Error::Invalid(
+            "--yaw, --pitch, --roll, --quaternion and --frame do not apply with --trajectory, \
+             whose rows give the attitude"
+                .into(),
+        ));
+    }
     match path {
         None => {
             psns::error::check_range("frame-interval-ms", frame_interval_ms, 1e-3, 3.6e6)?;
             psns::error::check_range("yaw-rate", yaw_rate_deg_s, -1e6, 1e6)?;
             Ok(Trajectory {
-                poses: Box::new(turning(yaw_rate_deg_s, frame_interval_ms * 1e-3)),
+                poses: Box::new(turning(start, yaw_rate_deg_s, frame_interval_ms * 1e-3)?),
                 lookahead: false,
                 has_place: false,
             })

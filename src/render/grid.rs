@@ -2,21 +2,25 @@
 
 use super::*;
 
-/// Relative interpolation tolerance of [`render_stokes_grid`]: estimated error at most this
-/// fraction of S0 (a tenth of the shot noise of a full 10 500 e⁻ well is 1e-3).
+/// Relative interpolation tolerance of the PSNS presets' sky grid and of `psns bench sky`:
+/// estimated error at most this fraction of S0 (a tenth of the shot noise of a full 10 500 e⁻
+/// well is 1e-3). The camera's frames take theirs from its full well
+/// (`RawPipeline::grid_tolerance`).
 pub const GRID_TOLERANCE: f64 = 2.5e-4;
 
-/// Sensor-frame Stokes planes from a [`SkyGrid`] (`step` = 1: the exact render).
+/// Sensor-frame Stokes planes from a [`SkyGrid`] of tolerance `tol` (`step` = 1: the exact
+/// render).
 pub fn render_stokes_grid(
     sky: &Sky,
     cam: &Camera,
     opts: StokesOptions,
     step: usize,
+    tol: f64,
 ) -> (StokesImage, usize) {
     if step <= 1 {
         return render_stokes(sky, cam, opts);
     }
-    let g = SkyGrid::new(sky, cam, opts, step, GRID_TOLERANCE);
+    let g = SkyGrid::new(sky, cam, opts, step, tol);
     (g.to_image(), g.sun_pixels())
 }
 

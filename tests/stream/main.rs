@@ -12,3 +12,4 @@ mod recordings;
 mod reliability;
 mod ros2;
 mod roundtrip;
+mod same_codes;

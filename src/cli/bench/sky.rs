@@ -98,7 +98,8 @@ pub fn bench_sky_grid(
         let mut last = None;
         for _ in 0..runs.max(1) {
             let t0 = Instant::now();
-            let (st, _) = render::render_stokes_grid(&sky, &cam, opts, step);
+            let (st, _) =
+                render::render_stokes_grid(&sky, &cam, opts, step, render::GRID_TOLERANCE);
             times.push(t0.elapsed().as_secs_f64() * 1e3);
             last = Some(st);
         }

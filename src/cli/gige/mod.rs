@@ -193,7 +193,7 @@ pub fn run(a: GigeArgs) -> anyhow::Result<()> {
     }
     // everything the frames need is validated before a socket is opened
     let start = SceneClock::start_time(&cfg, a.trajectory.start_time.as_deref())?;
-    let traj = a.trajectory.open()?;
+    let traj = a.trajectory.open(cfg.camera.attitude)?;
     let clock = SceneClock::new(&cfg, start, traj.has_place)?;
     // the camera powers up in Mono8, with an 8-bit ADC
     if let Some(s) = cfg.raw.sensor.as_mut() {

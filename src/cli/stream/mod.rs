@@ -594,6 +594,7 @@ pub fn run_stream(
         has_place,
     } = open_trajectory(
         opts.trajectory.as_deref(),
+        cfg.camera.attitude,
         opts.yaw_rate_deg_s,
         opts.frame_interval_ms,
     )?;
