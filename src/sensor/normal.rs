@@ -419,6 +419,175 @@ pub(crate) mod x86 {
     }
 }
 
+/// The vector draws and normals of the AVX-512 kernel (16 pixels per vector): the operations of
+/// [`x86`], twice as wide, the same bits.
+#[cfg(target_arch = "x86_64")]
+pub(crate) mod x86_512 {
+    use super::*;
+    use std::arch::x86_64::*;
+
+    /// Whether the CPU has VAES with AVX-512 (sixteen pixels' AES rounds in one instruction).
+    pub(crate) fn vaes512() -> bool {
+        static LEVEL: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+        *LEVEL.get_or_init(|| {
+            use std::arch::is_x86_feature_detected as has;
+            has!("aes") && has!("vaes") && has!("avx512f")
+        })
+    }
+
+    /// A stream's round keys in the four 128-bit lanes.
+    #[derive(Clone, Copy)]
+    pub(crate) struct Keys([__m512i; ROUNDS + 1]);
+
+    impl Keys {
+        /// # Safety
+        /// AVX-512F must be available.
+        #[inline(always)]
+        pub(crate) unsafe fn new(k: &NoiseKey) -> Self {
+            // SAFETY: the caller's contract
+            Keys(std::array::from_fn(|i| unsafe {
+                let [lo, hi] = k.round[i];
+                let (lo, hi) = (lo as i64, hi as i64);
+                _mm512_set_epi64(hi, lo, hi, lo, hi, lo, hi, lo)
+            }))
+        }
+    }
+
+    /// The counter of a run of draws along a row: blocks (q .. q + 3, row) in the four lanes.
+    #[derive(Clone, Copy)]
+    pub(crate) struct Counter(__m512i);
+
+    impl Counter {
+        /// The counter of pixels 4q .. 4q + 15 of row `row`.
+        ///
+        /// # Safety
+        /// AVX-512F must be available.
+        #[inline(always)]
+        pub(crate) unsafe fn new(row: u32, q: u32) -> Self {
+            let (r, q) = (row as i32, q as i32);
+            // SAFETY: the caller's contract
+            Counter(unsafe {
+                _mm512_setr_epi32(q, r, 0, 0, q + 1, r, 0, 0, q + 2, r, 0, 0, q + 3, r, 0, 0)
+            })
+        }
+
+        /// The draws of the next sixteen pixels: five AES rounds of the four blocks.
+        ///
+        /// # Safety
+        /// AVX-512F and VAES must be available.
+        #[inline(always)]
+        pub(crate) unsafe fn next(&mut self, keys: &Keys) -> __m512i {
+            // SAFETY: the caller's contract
+            unsafe {
+                let mut x = _mm512_xor_si512(self.0, keys.0[0]);
+                let step = _mm512_setr_epi32(4, 0, 0, 0, 4, 0, 0, 0, 4, 0, 0, 0, 4, 0, 0, 0);
+                self.0 = _mm512_add_epi32(self.0, step);
+                for k in &keys.0[1..] {
+                    x = _mm512_aesenc_epi128(x, *k);
+                }
+                x
+            }
+        }
+    }
+
+    #[repr(align(64))]
+    struct Row16([f32; 16]);
+
+    /// [`NORMAL8`] twice over, for the 16-lane permutes (which read four index bits).
+    static TABLES: [Row16; 5] = {
+        let mut t = [const { Row16([0.0; 16]) }; 5];
+        let mut d = 0;
+        while d < 5 {
+            let mut i = 0;
+            while i < 16 {
+                t[d].0[i] = NORMAL8[d][i & 7];
+                i += 1;
+            }
+            d += 1;
+        }
+        t
+    };
+
+    /// (v, 2²³ t) of sixteen draws, as [`super::split`].
+    #[inline(always)]
+    unsafe fn split16(bits: __m512i) -> (__m512i, __m512i) {
+        // SAFETY: the caller's contract (AVX-512F)
+        unsafe {
+            let c = |v: i32| _mm512_set1_epi32(v);
+            let v = _mm512_sub_epi32(
+                _mm512_or_si512(_mm512_srli_epi32(bits, 8), c(1)),
+                c(1 << 23),
+            );
+            (v, _mm512_sub_epi32(c(1 << 23), _mm512_abs_epi32(v)))
+        }
+    }
+
+    /// [`x86::normal8`] of sixteen draws, and the lanes that need the tail instead.
+    ///
+    /// # Safety
+    /// AVX-512F and FMA must be available.
+    #[inline(always)]
+    pub(crate) unsafe fn normal16(bits: __m512i) -> (__m512, __mmask16) {
+        // SAFETY: the caller's contract; the tables are 64-byte aligned
+        unsafe {
+            let c = |v: i32| _mm512_set1_epi32(v);
+            let (v, t) = split16(bits);
+            let f = _mm512_cvtepi32_ps(t);
+            let p = _mm512_srli_epi32(_mm512_castps_si512(f), 23);
+            let mant = _mm512_and_si512(_mm512_castps_si512(f), c(0x007f_ffff));
+            let y = _mm512_sub_ps(
+                _mm512_castsi512_ps(_mm512_or_si512(mant, c(0x3f80_0000))),
+                _mm512_set1_ps(1.5),
+            );
+            let tab = |d: usize| _mm512_load_ps(TABLES[d].0.as_ptr());
+            let mut r = _mm512_permutexvar_ps(p, tab(0));
+            for d in 1..5 {
+                r = _mm512_fmadd_ps(r, y, _mm512_permutexvar_ps(p, tab(d)));
+            }
+            let sign = _mm512_and_si512(v, c(i32::MIN));
+            let z = _mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(r), sign));
+            (z, _mm512_cmpgt_epi32_mask(c(TAIL_BELOW), t))
+        }
+    }
+
+    /// [`x86::fix_tail8`] of sixteen draws: the tail values of the lanes in `tail`.
+    ///
+    /// # Safety
+    /// AVX-512F and FMA must be available.
+    #[inline(always)]
+    pub(crate) unsafe fn fix_tail16(bits: __m512i, tail: __mmask16, z: __m512) -> __m512 {
+        // SAFETY: the caller's contract
+        unsafe {
+            let c = |v: i32| _mm512_set1_epi32(v);
+            let cf = |v: f32| _mm512_set1_ps(v);
+            let (v, t) = split16(bits);
+            let tf = _mm512_mul_ps(_mm512_cvtepi32_ps(t), cf(1.0 / 8_388_608.0));
+            let y = _mm512_mul_ps(tf, _mm512_sub_ps(cf(2.0), tf));
+            let b = _mm512_add_epi32(
+                _mm512_castps_si512(y),
+                c((0x3f80_0000u32 - 0x3f35_04f3) as i32),
+            );
+            let e = _mm512_cvtepi32_ps(_mm512_sub_epi32(_mm512_srli_epi32(b, 23), c(127)));
+            let m = _mm512_add_epi32(_mm512_and_si512(b, c(0x007f_ffff)), c(0x3f35_04f3));
+            let f = _mm512_sub_ps(_mm512_castsi512_ps(m), cf(1.0));
+            let mut r = cf(LN[0]);
+            for &k in &LN[1..] {
+                r = _mm512_fmadd_ps(r, f, cf(k));
+            }
+            let lny = _mm512_fmadd_ps(e, cf(std::f32::consts::LN_2), _mm512_mul_ps(r, f));
+            let neg = _mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(lny), c(i32::MIN)));
+            let s = _mm512_sqrt_ps(neg);
+            let mut q = cf(TAIL[0]);
+            for &k in &TAIL[1..] {
+                q = _mm512_fmadd_ps(q, s, cf(k));
+            }
+            let sign = _mm512_and_si512(v, c(i32::MIN));
+            let zt = _mm512_castsi512_ps(_mm512_xor_si512(_mm512_castps_si512(q), sign));
+            _mm512_mask_blend_ps(tail, z, zt)
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

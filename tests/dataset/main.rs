@@ -8,3 +8,4 @@ mod common;
 
 mod build;
 mod plan;
+mod recipes;

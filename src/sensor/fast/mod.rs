@@ -21,7 +21,8 @@
 //!   e⁻ every pixel does.
 //! - f32 arithmetic throughout; an AVX2 kernel written for the CPU's pipes ([`avx2`]: AES-NI
 //!   draws, in-register table reads, the square root and division on the divider beside the
-//!   multiply-adds), a portable one elsewhere, the same bits in both.
+//!   multiply-adds), its AVX-512 twin ([`avx512`], VAES), a portable one elsewhere, the same bits
+//!   in all three.
 //!
 //! Everything else (optics, polarizer with its orientation error, PRNU, RI, dark current, DSNU,
 //! full well, gain, black level, ADC) is the exact path's model with the exact path's fixed-pattern
@@ -36,6 +37,8 @@ use crate::simd::simd_dispatch;
 
 #[cfg(target_arch = "x86_64")]
 mod avx2;
+#[cfg(target_arch = "x86_64")]
+mod avx512;
 
 /// Below this mean (e⁻) shot noise is sampled exactly by inversion of the Poisson CDF.
 pub const EXACT_POISSON_BELOW: f64 = 16.0;
@@ -569,9 +572,11 @@ fn row_fixup(
 }
 
 simd_dispatch! {
-    /// The folded kernel of one row ([`row_folded_plain`]), in AVX2 where the CPU has it and
-    /// AES-NI ([`avx2::row_folded`]); the same bits everywhere.
+    /// The folded kernel of one row ([`row_folded_plain`]), in AVX-512 where the CPU has it and
+    /// VAES ([`avx512::row_folded`]), in AVX2 where it has AES-NI ([`avx2::row_folded`]); the
+    /// same bits everywhere.
     fn row_folded = {
+        avx512: avx512::row_folded,
         avx2: avx2::row_folded,
         plain: row_folded_plain,
     }(
@@ -823,7 +828,7 @@ mod tests {
         }
     }
 
-    /// The row kernel gives the same bits in every instruction set the CPU has (plain, AVX2),
+    /// The row kernel gives the same bits in every instruction set the CPU has (plain, AVX2, AVX-512),
     /// folded and unfolded, over means from 0 to past the full well, at widths that are and are
     /// not a multiple of the vector.
     #[test]
