@@ -45,6 +45,88 @@ fn rust_files(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
     }
 }
 
+/// The top modules a source text names through `crate::`, with their (1-based) line: plain
+/// paths (`crate::sky::Sky`) and every item of a grouped import (`use crate::{sky, sensor::X}`,
+/// nested or spread over several lines). Comments are skipped.
+fn crate_modules(text: &str) -> Vec<(usize, String)> {
+    let ident = |s: &str| -> String {
+        s.chars()
+            .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
+            .collect()
+    };
+    // the text without line comments, each byte's line number kept
+    let mut code = String::new();
+    let mut line_of = Vec::new();
+    for (i, l) in text.lines().enumerate() {
+        let l = match l.find("//") {
+            Some(k) => &l[..k],
+            None => l,
+        };
+        code.push_str(l);
+        code.push('\n');
+        line_of.extend(std::iter::repeat_n(i + 1, l.len() + 1));
+    }
+    let mut out = Vec::new();
+    let mut from = 0;
+    while let Some(k) = code[from..].find("crate::") {
+        let at = from + k;
+        from = at + 7;
+        let before = code[..at].chars().last();
+        if before.is_some_and(|c| c.is_ascii_alphanumeric() || c == '_' || c == ':' || c == '$') {
+            continue; // `$crate::`, or part of a longer path
+        }
+        let rest = &code[from..];
+        if let Some(group) = rest.strip_prefix('{') {
+            // the group's top-level items, up to its closing brace
+            let (mut depth, mut item_start, mut i) = (0usize, 0usize, 0usize);
+            let bytes = group.as_bytes();
+            while i < bytes.len() {
+                match bytes[i] {
+                    b'{' => depth += 1,
+                    b'}' if depth == 0 => break,
+                    b'}' => depth -= 1,
+                    b',' if depth == 0 => {
+                        let item = group[item_start..i].trim_start();
+                        let pos = from + 1 + i - item.len();
+                        out.push((line_of[pos.min(line_of.len() - 1)], ident(item)));
+                        item_start = i + 1;
+                    }
+                    _ => {}
+                }
+                i += 1;
+            }
+            let item = group[item_start..i].trim_start();
+            if !item.is_empty() {
+                let pos = from + 1 + i - item.len();
+                out.push((line_of[pos.min(line_of.len() - 1)], ident(item)));
+            }
+        } else {
+            out.push((line_of[at], ident(rest)));
+        }
+    }
+    out.retain(|(_, n)| !n.is_empty());
+    out
+}
+
+/// The reader sees grouped imports, nested and over several lines, and ignores comments and
+/// `$crate::`.
+#[test]
+fn grouped_imports_are_read() {
+    let text = "use crate::sky::Sky;\nuse crate::{render, sensor::{fast, Sensor}};\nuse crate::{\n    pipeline::RawPipeline,\n    dataset,\n};\n// crate::options\nlet x = $crate::simd::simd();\n";
+    let got = crate_modules(text);
+    let want: Vec<(usize, String)> = [
+        (1, "sky"),
+        (2, "render"),
+        (2, "sensor"),
+        (4, "pipeline"),
+        (5, "dataset"),
+    ]
+    .iter()
+    .map(|&(l, n)| (l, n.to_string()))
+    .collect();
+    assert_eq!(got, want);
+}
+
 #[test]
 fn library_modules_import_only_lower_layers() {
     let layer: HashMap<&str, u32> = LAYERS.iter().copied().collect();
@@ -78,30 +160,20 @@ fn library_modules_import_only_lower_layers() {
             continue; // lib.rs, main.rs
         };
         let text = std::fs::read_to_string(&f).unwrap();
-        for (i, line) in text.lines().enumerate() {
-            let mut rest = line;
-            while let Some(k) = rest.find("crate::") {
-                rest = &rest[k + 7..];
-                let name: String = rest
-                    .chars()
-                    .take_while(|c| c.is_ascii_alphanumeric() || *c == '_')
-                    .collect();
-                if let Some(&l) = layer.get(name.as_str()) {
-                    if l > own && name != module {
-                        violations.push(format!(
-                            "{}:{}: {module} (layer {own}) imports {name} (layer {l})",
-                            rel.display(),
-                            i + 1
-                        ));
-                    }
-                }
-                if name == "cli" {
+        for (line, name) in crate_modules(&text) {
+            if let Some(&l) = layer.get(name.as_str()) {
+                if l > own && name != module {
                     violations.push(format!(
-                        "{}:{}: the library uses the front-end",
-                        rel.display(),
-                        i + 1
+                        "{}:{line}: {module} (layer {own}) imports {name} (layer {l})",
+                        rel.display()
                     ));
                 }
+            }
+            if name == "cli" {
+                violations.push(format!(
+                    "{}:{line}: the library uses the front-end",
+                    rel.display()
+                ));
             }
         }
     }

@@ -810,10 +810,9 @@ fn polarizer_images_are_the_mosaic_channels_and_truth_has_the_frame_size() {
 #[test]
 fn terminal_gets_a_progress_bar_with_rate_and_eta() {
     if Command::new("script").arg("--version").output().is_err() {
-        use std::io::Write;
-        let _ = writeln!(
-            std::io::stderr().lock(),
-            "SKIPPED terminal_gets_a_progress_bar_with_rate_and_eta: `script` (util-linux) is not installed"
+        common::missing(
+            "terminal_gets_a_progress_bar_with_rate_and_eta",
+            "`script` (util-linux) is not installed",
         );
         return;
     }

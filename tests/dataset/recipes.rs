@@ -89,11 +89,9 @@ fn gnu_parallel_recipe_builds_the_same_dataset() {
         .status()
         .is_ok_and(|s| s.success());
     if !have {
-        // written past the test harness's capture so the skip is seen, never silent
-        use std::io::Write;
-        let _ = writeln!(
-            std::io::stderr().lock(),
-            "SKIPPED gnu_parallel_recipe_builds_the_same_dataset: GNU parallel is not installed (apt-get install parallel)"
+        common::missing(
+            "gnu_parallel_recipe_builds_the_same_dataset",
+            "GNU parallel is not installed (apt-get install parallel)",
         );
         return;
     }

@@ -43,7 +43,10 @@ const EXPECTED: [f64; 4] = [83.0, 44.0, 175.0, 135.0];
 #[test]
 fn polarizer_filters_read_their_angles_with_every_method() {
     let Some(dir) = data_dir() else {
-        println!("SKIP: ../shared/data/real-imx250mzr not found; real-frame test not run");
+        crate::common::missing(
+            "polarizer_filters_read_their_angles_with_every_method",
+            "../shared/data/real-imx250mzr not found; real-frame test not run",
+        );
         return;
     };
     let raw = read_gray8(&dir.join("polarizer.png"));
@@ -74,7 +77,10 @@ fn polarizer_filters_read_their_angles_with_every_method() {
 #[test]
 fn every_method_runs_on_every_real_frame() {
     let Some(dir) = data_dir() else {
-        println!("SKIP: ../shared/data/real-imx250mzr not found; real-frame test not run");
+        crate::common::missing(
+            "every_method_runs_on_every_real_frame",
+            "../shared/data/real-imx250mzr not found; real-frame test not run",
+        );
         return;
     };
     for name in ["camera.png", "carps.png", "fruits.png", "polarizer.png"] {

@@ -419,7 +419,10 @@ fn stream_refuses_a_terminal_stdout() {
         .output()
         .is_ok_and(|o| o.status.success());
     if !have_script {
-        eprintln!("SKIPPED stream_refuses_a_terminal_stdout: `script` (util-linux) is not installed, no tty to test with");
+        common::missing(
+            "stream_refuses_a_terminal_stdout",
+            "`script` (util-linux) is not installed, no tty to test with",
+        );
         return;
     }
     let exe = env!("CARGO_BIN_EXE_psns");
