@@ -10,6 +10,7 @@ mod commands;
 mod full_disk;
 mod layering;
 mod lens;
+mod messages;
 mod outputs;
 mod progress;
 mod raw;
