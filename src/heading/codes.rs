@@ -199,12 +199,30 @@ pub fn estimate_codes(
         }),
         // too few usable pixels (saturated, unpolarized) or a sun at the zenith: no heading,
         // zero confidence
-        Err(Error::TooFewPixels(m) | Error::Undetermined(m)) => Ok(CodesEstimate {
+        Err(Error::Undetermined(m)) => Ok(CodesEstimate {
             estimate: None,
             saturated,
             info: None,
             reason: Some(m),
         }),
+        // too few pixels: saturation, when it took more than a few, is the reason to give
+        Err(Error::TooFewPixels(m)) => {
+            let pixels = (codes.width * codes.height) as u64;
+            let reason = match crate::sensor::saturation_warning(saturated as u64, pixels) {
+                Some(w) => format!(
+                    "heading: the frame is saturated: {w} (masked: within one pixel of a code \
+                     at full scale); {}",
+                    m.strip_prefix("heading: ").unwrap_or(&m)
+                ),
+                None => m,
+            };
+            Ok(CodesEstimate {
+                estimate: None,
+                saturated,
+                info: None,
+                reason: Some(reason),
+            })
+        }
         Err(e) => Err(e),
     }
 }

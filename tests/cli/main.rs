@@ -14,3 +14,4 @@ mod messages;
 mod outputs;
 mod progress;
 mod raw;
+mod saturation;
