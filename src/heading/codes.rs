@@ -151,11 +151,29 @@ pub fn polar_for_estimate(
     match (demosaic, k) {
         (None, Some(k)) => {
             let full = ((1u32 << bits) - 1).min(65535) as u16;
-            let mut p = superpixel_sampled(codes, layout, k, black_level as f32)?;
+            // flat-fielded pixel by pixel: a superpixel's four pixels see different falloff
+            // (on a fisheye near its rim, a few % from one pixel to the next), which otherwise
+            // reads as polarization; S0 is then flat, so the intensity vote takes no falloff
+            let ri = setup.relative_illumination;
+            let i = setup.intrinsics;
+            let mut p = match ri {
+                RelativeIllumination::None => {
+                    superpixel_sampled(codes, layout, k, black_level as f32)?
+                }
+                _ => superpixel_sampled_flat(codes, layout, k, black_level as f32, |r, c| {
+                    let f = ri.factor(&i, c as f64, r as f64);
+                    if f > 0.0 {
+                        (1.0 / f) as f32
+                    } else {
+                        0.0
+                    }
+                })?,
+            };
             let saturated = mask_saturated_sampled(&mut p.dolp, codes, full, k);
             let mut s = *setup;
             s.intrinsics = sampled_intrinsics(&setup.intrinsics, k);
             s.step = 1;
+            s.relative_illumination = RelativeIllumination::None;
             Ok((p, saturated, s))
         }
         (d, _) => {
