@@ -257,51 +257,52 @@ fn rows_of(o: &std::process::Output) -> usize {
 
 /// A right answer is a confident one on every projection: clear-sky camera-preset frames of
 /// 1024 x 1024 pixels through a 1 mm lens (the fisheyes see the whole sky; the rectilinear
-/// 120°), default sun, four yaws. The frames are read as sampled superpixels, each pixel
+/// 120°), default sun, four yaws. Such frames are read as sampled superpixels, each pixel
 /// flat-fielded by the lens falloff the frame was made with; before that, the falloff across a
 /// superpixel near a fisheye's rim read as polarization (confidence 0.15-0.55, residual 6-8.6°).
 #[test]
 fn right_answers_are_confident_on_every_projection() {
     let dir = tempfile::tempdir().unwrap();
-    for proj in [
+    let sizes: [&[&str]; 1] = [&["--width", "1024", "--height", "1024"]];
+    let projections = [
         "rectilinear",
         "equidistant",
         "equisolid",
         "stereographic",
         "orthographic",
-    ] {
-        for yaw in ["17", "103", "211", "298"] {
-            let out = dir.path().join(format!("{proj}{yaw}"));
-            let o = common::psns(&[
-                "render",
-                "--raw",
-                "--width",
-                "1024",
-                "--height",
-                "1024",
-                "--focal-length",
-                "1",
-                "--projection",
-                proj,
-                "--yaw",
-                yaw,
-                "--out",
-                s(&out),
-            ]);
-            assert!(o.status.success(), "{}", common::stderr(&o));
-            let o = common::psns(&["heading", s(&out.join("raw.png"))]);
-            assert!(o.status.success(), "{}", common::stderr(&o));
-            let (head, row) = rows(&o);
-            let got = col(&head, &row[0], "yaw_deg");
-            let conf = col(&head, &row[0], "confidence");
-            let res = col(&head, &row[0], "residual_deg");
-            let err = gap(got, yaw.parse().unwrap());
-            eprintln!("{proj} yaw {yaw}: error {err:.4}, confidence {conf:.3}, residual {res:.2}");
-            assert!(err < 0.2, "{proj} yaw {yaw}: error {err}");
-            assert!(
-                conf >= 0.8,
-                "{proj} yaw {yaw}: confidence {conf} (residual {res})"
-            );
+    ];
+    for size in sizes {
+        let px = size[1];
+        for proj in projections {
+            for yaw in ["17", "103", "211", "298"] {
+                let out = dir.path().join(format!("{proj}{yaw}_{px}"));
+                let mut a = vec![
+                    "render",
+                    "--raw",
+                    "--focal-length",
+                    "1",
+                    "--projection",
+                    proj,
+                    "--yaw",
+                    yaw,
+                    "--out",
+                    s(&out),
+                ];
+                a.extend(size.iter());
+                let o = common::psns(&a);
+                assert!(o.status.success(), "{}", common::stderr(&o));
+                let o = common::psns(&["heading", s(&out.join("raw.png"))]);
+                assert!(o.status.success(), "{}", common::stderr(&o));
+                let (head, row) = rows(&o);
+                let got = col(&head, &row[0], "yaw_deg");
+                let conf = col(&head, &row[0], "confidence");
+                let res = col(&head, &row[0], "residual_deg");
+                let err = gap(got, yaw.parse().unwrap());
+                let case = format!("{px}² {proj} yaw {yaw}");
+                eprintln!("{case}: error {err:.4}, confidence {conf:.3}, residual {res:.2}");
+                assert!(err < 0.2, "{case}: error {err}");
+                assert!(conf >= 0.8, "{case}: confidence {conf} (residual {res})");
+            }
         }
     }
 }
