@@ -136,12 +136,13 @@ impl<R: BufRead> CsvTrajectory<R> {
                 .flexible(true)
                 .trim(csv::Trim::All)
                 .from_reader(&self.line[..]);
-            let more = rd
-                .read_byte_record(&mut self.rec)
-                .map_err(|e| match e.into_kind() {
+            let more = rd.read_byte_record(&mut self.rec).map_err(|e| {
+                let what = e.to_string();
+                match e.into_kind() {
                     csv::ErrorKind::Io(io) => Error::io("reading trajectory", io),
-                    k => Error::Invalid(format!("trajectory line {}: {k:?}", self.line_no)),
-                })?;
+                    _ => Error::Invalid(format!("trajectory line {}: {what}", self.line_no)),
+                }
+            })?;
             if !more || self.rec.iter().all(|f| f.is_empty()) {
                 continue; // a blank line
             }

@@ -168,11 +168,13 @@ def heading(raw: np.ndarray, **sun_and_tilt: Any) -> Dict[str, float]:
     """The camera's yaw (ENU compass heading) from one raw mosaic, as ``psns heading IMAGE``.
 
     Give the sun (``sun_zenith``/``sun_altitude`` and ``sun_azimuth``, or ``time``, ``lat``,
-    ``lon``), the camera's intrinsics if not the default camera (``width``, ``height``,
+    ``lon``, or ``config``: a scene file such as the ``scene.json`` of ``psns render``; without
+    one it raises ValueError, as an array has no scene file beside it), the camera's intrinsics if not the default camera (``width``, ``height``,
     ``focal_length``, ``pixel_pitch``) and its known tilt (``pitch``, ``roll``); also
     ``method`` (model-fit, eigen, hough), ``demosaic``, ``bits``, and ``preset`` (the sensor
     preset the frame was made with: its lens and edge falloff) or ``vignetting_cos_power`` (the
-    falloff's cos^N law, for the 180 degree decision near the horizon). The estimate uses nothing
+    falloff's cos^N law, for the 180 degree decision near the horizon), ``frame`` ("enu", the
+    default: yaw from north; "solar": from the sun's azimuth). The estimate uses nothing
     else. Returns ``yaw_deg`` (NaN when too few pixels are usable or the sun is within 0.27
     degrees of the zenith), ``confidence`` (0..1), ``pixels``, ``saturated_pixels`` and
     ``residual_deg`` (RMS AoLP residual against the estimator's sky model at that yaw, DoLP^2

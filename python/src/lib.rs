@@ -406,10 +406,12 @@ fn heading<'py>(
         frame: None,
     };
     let r = py.detach(|| -> psns::Result<_> {
-        let setup = a.image_setup()?;
-        a.estimate_image(&setup, &loaded, "the array")
+        // an array has no scene.json beside it: the sun comes from the keyword arguments
+        let (setup, _) = a.image_setup(None)?;
+        let r = a.estimate_image(&setup, &loaded, "the array")?;
+        Ok((r, setup.sun.azimuth_deg))
     });
-    let r = r.map_err(lib_err)?;
+    let (r, sun_azimuth) = r.map_err(lib_err)?;
     if let Some(m) = &r.reason {
         eprintln!("psns: {m}");
     }
@@ -417,7 +419,7 @@ fn heading<'py>(
     let d = PyDict::new(py);
     match r.estimate {
         Some(e) => {
-            d.set_item("yaw_deg", e.yaw_deg)?;
+            d.set_item("yaw_deg", a.reported_yaw(e.yaw_deg, sun_azimuth))?;
             d.set_item("confidence", e.confidence)?;
             d.set_item("pixels", e.pixels)?;
             d.set_item("residual_deg", e.residual_deg)?;

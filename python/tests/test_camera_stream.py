@@ -182,9 +182,16 @@ def test_open_stream_errors(tmp_path):
 
 def test_camera_yaw_is_the_yaw_heading_reports():
     # defaults on both sides: the Camera's yaw and heading's yaw are the same ENU compass heading
+    # (an array has no scene.json beside it: heading is told the default sun)
     cam = psns.Camera(seed=3)
     for yaw in (0.0, 30.0, 251.0):
-        h = psns.heading(cam.frame(yaw=yaw))
+        h = psns.heading(cam.frame(yaw=yaw), sun_zenith=50, sun_azimuth=200)
         gap = (h["yaw_deg"] - yaw) % 360.0
         assert min(gap, 360.0 - gap) < 0.5, (yaw, h)
         assert h["confidence"] > 0.5, (yaw, h)
+        solar = psns.heading(cam.frame(yaw=yaw), sun_zenith=50, sun_azimuth=200, frame="solar")
+        gap = (solar["yaw_deg"] - (yaw - 200.0)) % 360.0
+        assert min(gap, 360.0 - gap) < 0.5, (yaw, solar)
+    # no sun given: refused, naming the options that give one
+    with pytest.raises(ValueError, match="no sun position"):
+        psns.heading(cam.frame(yaw=0.0))

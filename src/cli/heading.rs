@@ -17,7 +17,7 @@ use psns::options::{first_given, HeadingArgs};
 use psns::sensor::mosaic::MosaicLayout;
 use psns::sensor::optics::RelativeIllumination;
 use psns::sensor::{Preset, SensorConfig};
-use psns::stream::{Event, StreamReader};
+use psns::stream::{Event, StreamReader, VerifyReport, VerifyStatus, VerifyTally};
 use psns::sun::SunPosition;
 use psns::{Error, Result};
 use std::io::Write;
@@ -29,7 +29,24 @@ use std::time::Instant;
 pub fn run(a: HeadingArgs) -> anyhow::Result<()> {
     a.check_method_options()?;
     if is_stream(&a.input)? {
-        return Ok(run_stream(&a)?);
+        return match run_stream(&a)? {
+            None => Ok(()),
+            Some(rep) => {
+                eprintln!(
+                    "psns: the stream is damaged ({} corrupt, {} truncated, {} dropped frames, {} \
+                     streams{}); the rows are its intact frames' (psns verify reports the damage)",
+                    rep.corrupt.len(),
+                    rep.truncated.len(),
+                    rep.dropped,
+                    rep.restarts + 1,
+                    match rep.count_mismatch {
+                        Some((d, n)) => format!("; header declares {d} frames, found {n}"),
+                        None => String::new(),
+                    }
+                );
+                Err(anyhow::Error::new(super::NotClean))
+            }
+        };
     }
     a.check_image_options()?;
     let row = heading_row(&a)?;
@@ -67,7 +84,16 @@ fn is_stream(input: &Path) -> Result<bool> {
 pub const IMAGE_HEADER: &str = "yaw_deg,confidence,pixels,saturated_pixels,residual_deg";
 
 fn heading_row(a: &HeadingArgs) -> Result<String> {
-    let setup = a.image_setup()?; // option problems before reading the file
+    let (setup, beside) = a.image_setup(Some(&a.input))?; // option problems before reading the file
+    if let Some(p) = beside {
+        let sun = setup.sun;
+        eprintln!(
+            "psns: the sun (zenith {} deg, azimuth {} deg), camera and sensor from {}",
+            sun.zenith_deg,
+            sun.azimuth_deg,
+            p.display()
+        );
+    }
     let raw = load_raw(&a.input, MosaicLayout::default(), a.index)?;
     let r = a.estimate_image(&setup, &raw, &a.input.display().to_string())?;
     if let Some(m) = &r.reason {
@@ -77,7 +103,10 @@ fn heading_row(a: &HeadingArgs) -> Result<String> {
     Ok(match r.estimate {
         Some(e) => format!(
             "{:.4},{:.4},{},{saturated},{:.4}",
-            e.yaw_deg, e.confidence, e.pixels, e.residual_deg
+            a.reported_yaw(e.yaw_deg, setup.sun.azimuth_deg),
+            e.confidence,
+            e.pixels,
+            e.residual_deg
         ),
         None => format!("nan,0,0,{saturated},nan"),
     })
@@ -160,7 +189,10 @@ fn stream_optics(
     Ok((i, ri))
 }
 
-fn run_stream(a: &HeadingArgs) -> Result<()> {
+/// Estimates every frame of a stream, printing a row each and the summary; returns the stream's
+/// verify report when it is damaged (`psns verify` would exit 1: the rows are those of its intact
+/// frames).
+fn run_stream(a: &HeadingArgs) -> Result<Option<VerifyReport>> {
     let s = &a.scene;
     if let Some(name) = first_given(&[
         ("sun-zenith", s.sun_zenith.is_some()),
@@ -262,7 +294,7 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         total_s += ms / 1e3;
         frames += 1;
         // the truth is read only here, after the estimate, for the error column
-        let truth = attitude_yaw_deg(m.attitude_wxyz);
+        let truth = a.reported_yaw(attitude_yaw_deg(m.attitude_wxyz), m.sun_azimuth_deg);
         // the next frame starts from this one's neutral points, if this one was trustworthy
         warm = match (&est.0, &est.2) {
             (Some(e), Some(i)) if e.confidence >= 0.5 => Some((i.babinet_deg, i.brewster_deg)),
@@ -270,11 +302,12 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         };
         let line = match (est.0, est.1) {
             (Some(e), sat) => {
-                let err = wrap180(e.yaw_deg - truth);
+                let yaw = a.reported_yaw(e.yaw_deg, m.sun_azimuth_deg);
+                let err = wrap180(yaw - truth);
                 errors.push(err);
                 format!(
-                    "{},{:.4},{:.4},{},{truth:.4},{err:.4},{sat},{ms:.1},{:.4}",
-                    m.index, e.yaw_deg, e.confidence, e.pixels, e.residual_deg
+                    "{},{yaw:.4},{:.4},{},{truth:.4},{err:.4},{sat},{ms:.1},{:.4}",
+                    m.index, e.confidence, e.pixels, e.residual_deg
                 )
             }
             (None, sat) => {
@@ -284,7 +317,7 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         };
         w(&mut out, &line)?;
     }
-    let (damaged, skipped) = source.finish()?;
+    let (damaged, skipped, report) = source.finish()?;
     let st = error_stats(&errors);
     let skipped = if a.latest {
         format!(", {skipped} skipped for newer frames")
@@ -298,7 +331,7 @@ fn run_stream(a: &HeadingArgs) -> Result<()> {
         st.max,
         if frames > 0 { total_s * 1e3 / frames as f64 } else { f64::NAN }
     );
-    Ok(())
+    Ok(report.filter(|r| r.status == VerifyStatus::Damaged))
 }
 
 /// Keeps freed memory in the heap for reuse: glibc serves allocations from 128 KiB up (the
@@ -340,6 +373,8 @@ struct Mailbox {
     skipped: usize,
     /// Payload buffers the estimator is done with, for the reader thread to read into.
     returned: Vec<Vec<u8>>,
+    /// The stream as `psns verify` reports it, once read to its end.
+    report: Option<VerifyReport>,
 }
 
 /// A frame event of a stream as `psns heading` treats it: `Some` for a good frame (of the
@@ -375,12 +410,17 @@ fn usable_frame(
         }
         Event::Corrupt { index, reason, .. } => {
             *damaged += 1;
-            eprintln!("psns: damaged record (frame {index:?}): {reason}");
+            eprintln!("psns: damaged record ({}): {reason}", frame_name(index));
             None
         }
-        Event::Truncated { index, .. } => {
+        Event::Truncated {
+            index, have, need, ..
+        } => {
             *damaged += 1;
-            eprintln!("psns: stream ends inside a record (frame {index:?})");
+            eprintln!(
+                "psns: stream ends inside a record ({}: {have} of {need} bytes)",
+                frame_name(index)
+            );
             None
         }
         Event::Skipped { .. } => None,
@@ -388,6 +428,14 @@ fn usable_frame(
             eprintln!("psns: the stream was aborted by its producer: {reason}");
             None
         }
+    }
+}
+
+/// "frame N", or "frame index unreadable" for a record whose index is unknown.
+fn frame_name(index: Option<u64>) -> String {
+    match index {
+        Some(i) => format!("frame {i}"),
+        None => "frame index unreadable".to_string(),
     }
 }
 
@@ -402,8 +450,11 @@ impl FrameSource {
         let thread = std::thread::spawn(move || {
             let (lock, cv) = &*sh;
             let (mut generation, mut damaged) = (0u64, 0usize);
+            // the stream's state as psns verify reports it, for the exit code
+            let mut tally = VerifyTally::new(reader.header().clone(), None);
             let result = (|| -> Result<()> {
                 while let Some(ev) = reader.next_event()? {
+                    tally.record(&ev);
                     let Some(f) = usable_frame(ev, index, &mut damaged, &mut generation) else {
                         continue;
                     };
@@ -430,6 +481,7 @@ impl FrameSource {
             let mut m = lock.lock().unwrap_or_else(|p| p.into_inner());
             m.done = true;
             m.damaged = damaged;
+            m.report = Some(tally.finish(reader.restart_offsets()));
             m.error = result.err();
             cv.notify_all();
         });
@@ -462,15 +514,16 @@ impl FrameSource {
         }
     }
 
-    /// (damaged records, frames skipped for newer ones); the reader thread's error, if any.
-    fn finish(&mut self) -> Result<(usize, usize)> {
+    /// (damaged records, frames skipped for newer ones, the stream's verify report); the reader
+    /// thread's error, if any.
+    fn finish(&mut self) -> Result<(usize, usize, Option<VerifyReport>)> {
         if let Some(t) = self.thread.take() {
             let _ = t.join();
         }
         let mut m = self.shared.0.lock().unwrap_or_else(|p| p.into_inner());
         match m.error.take() {
             Some(e) => Err(e),
-            None => Ok((m.damaged, m.skipped)),
+            None => Ok((m.damaged, m.skipped, m.report.take())),
         }
     }
 }

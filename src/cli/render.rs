@@ -324,6 +324,12 @@ pub fn render_raw_to_dir(cfg: &SceneConfig, target: &Path) -> Result<RawSummary>
         })
         .collect();
     x.insert("saturated_pixels".into(), sat.into());
+    let pixels = (codes.width * codes.height) as u64;
+    let saturated = frame.saturated_pixels();
+    x.insert(
+        "saturated_fraction".into(),
+        psns::sensor::saturated_fraction(saturated, pixels).into(),
+    );
     x.insert("exposure_us".into(), frame.exposure_us.into());
     x.insert("auto_exposed".into(), frame.auto_exposed.into());
     x.insert("exposure_clipped".into(), frame.exposure_clipped.into());
@@ -344,6 +350,9 @@ pub fn render_raw_to_dir(cfg: &SceneConfig, target: &Path) -> Result<RawSummary>
     write_scene_json(dir, &out)?;
     outdir.commit()?;
     files.push("scene.json".into());
+    if let Some(w) = psns::sensor::saturation_warning(saturated, pixels) {
+        eprintln!("psns: warning: {w}");
+    }
     Ok(RawSummary {
         scene_s,
         sensor_s,

@@ -62,12 +62,13 @@ pub fn sky_csv(cfg: &SceneConfig, input: impl Read, mut output: impl Write) -> R
     let read = |rd: &mut csv::Reader<_>, rec: &mut csv::StringRecord| -> Result<bool> {
         rd.read_record(rec).map_err(|e| {
             let line = e.position().map_or(0, |p| p.line());
+            let what = e.to_string();
             match e.into_kind() {
                 csv::ErrorKind::Io(io) => Error::io("reading stdin", io),
                 csv::ErrorKind::Utf8 { .. } => {
                     Error::Invalid(format!("line {line}: not UTF-8 text"))
                 }
-                k => Error::Invalid(format!("line {line}: {k:?}")),
+                _ => Error::Invalid(format!("line {line}: {what}")),
             }
         })
     };

@@ -246,7 +246,9 @@ impl Worker<'_> {
         Ok(manifest_line(name, size, crc))
     }
 
-    fn sample(&mut self, s: &Sample) -> Result<String> {
+    /// Writes one sample's files; returns their manifest lines and the share of saturated
+    /// pixels of its most saturated frame (the preset's, or the 12-bit camera frame).
+    fn sample(&mut self, s: &Sample) -> Result<(String, f64)> {
         let o = self.cfg.outputs.clone();
         let files = self.cfg.files(s);
         let mut it = files.iter();
@@ -254,6 +256,11 @@ impl Worker<'_> {
         let scene = s.scene(s.split.preset());
         let (frame, layout) = render(self.cache, &scene, o.truth)?;
         let c = &frame.codes;
+        let share = |f: &crate::sensor::RawFrame| {
+            let c = &f.codes;
+            crate::sensor::saturated_fraction(f.saturated_pixels(), (c.width * c.height) as u64)
+        };
+        let mut saturated = share(&frame);
         let g = Image::from_vec(c.width, c.height, c.data.iter().map(|&v| v as u8).collect());
         lines += &self.put(it.next().expect("mosaic"), |p| io::write_png_gray8(p, &g))?;
         if o.polarizer_images {
@@ -276,6 +283,7 @@ impl Worker<'_> {
         if o.raw12 {
             let scene12 = s.scene(crate::sensor::Preset::Camera);
             let (f12, _) = render(self.cache, &scene12, false)?;
+            saturated = saturated.max(share(&f12));
             lines += &self.put(it.next().expect("raw12"), |p| {
                 io::write_png_gray16(p, &f12.codes)
             })?;
@@ -285,7 +293,7 @@ impl Worker<'_> {
             lines += &self.put(it.next().expect("dop"), |p| io::write_npy(p, &dop))?;
             lines += &self.put(it.next().expect("aop"), |p| io::write_npy(p, &aop))?;
         }
-        Ok(lines)
+        Ok((lines, saturated))
     }
 }
 
@@ -362,6 +370,12 @@ pub struct BuildSummary {
     pub files: usize,
     /// Samples found complete and kept (`resume`).
     pub skipped: usize,
+    /// Samples built by this run with more than
+    /// [`SATURATION_WARN_FRACTION`](crate::sensor::SATURATION_WARN_FRACTION) of their pixels
+    /// saturated.
+    pub saturated_samples: usize,
+    /// The largest share of saturated pixels of a sample built by this run.
+    pub worst_saturated_fraction: f64,
     /// Seconds spent rendering and writing.
     pub seconds: f64,
     /// Seconds with start-up (description, plan, checks).
@@ -381,6 +395,17 @@ impl std::fmt::Display for BuildSummary {
             "psns dataset: shard {shard}: built {built} samples ({} files), {skipped} already complete, in {secs:.2} s: {rate:.2} images/s ({:.2} s with start-up)",
             self.files, self.total_seconds
         )?;
+        if self.saturated_samples > 0 {
+            writeln!(
+                f,
+                "psns dataset: warning: {} of {built} samples have more than {} % of their pixels \
+                 saturated (worst {:.1} %): they carry no polarization there; shorten the \
+                 exposure (raw12_exposure_us) or use auto-exposure",
+                self.saturated_samples,
+                100.0 * crate::sensor::SATURATION_WARN_FRACTION,
+                100.0 * self.worst_saturated_fraction
+            )?;
+        }
         match &self.merged {
             Merged::Written { files } => write!(
                 f,
@@ -517,9 +542,16 @@ pub fn build(
     }
     let cache = PipelineCache::default();
     let t1 = Instant::now();
+    // (samples over the saturation warning's share, the largest share)
+    let saturation = Mutex::new((0usize, 0.0f64));
     let render_one = |w: &mut Worker, j: u64| -> Result<()> {
         let s = plan.sample(j)?;
-        let lines = w.sample(&s)?;
+        let (lines, sat) = w.sample(&s)?;
+        {
+            let mut m = saturation.lock().unwrap();
+            m.0 += usize::from(sat > crate::sensor::SATURATION_WARN_FRACTION);
+            m.1 = m.1.max(sat);
+        }
         part.lock()
             .unwrap()
             .write_all(lines.as_bytes())
@@ -552,12 +584,15 @@ pub fn build(
     let total_seconds = t0.elapsed().as_secs_f64();
     let merged = merge(&dir, &plan)?;
     lock.release();
+    let (saturated_samples, worst_saturated_fraction) = *saturation.lock().unwrap();
     Ok(Some(BuildSummary {
         dir,
         shard,
         built,
         files,
         skipped,
+        saturated_samples,
+        worst_saturated_fraction,
         seconds,
         total_seconds,
         total_samples: cfg.total(),

@@ -178,6 +178,22 @@ pub fn superpixel_sampled<T: RawPixel>(
     k: usize,
     black: f32,
 ) -> Result<super::PolarImages> {
+    superpixel_sampled_flat(raw, layout, k, black, |_, _| 1.0)
+}
+
+/// [`superpixel_sampled`] of a flat-fielded mosaic: each code less `black` is multiplied by
+/// `gain(row, col)` (e.g. the inverse of the lens's relative illumination at that pixel) before
+/// the block's Stokes are formed. The four pixels of a block sit at different field angles, so
+/// a falloff that changes across the block (a fisheye's near its rim) reads as polarization
+/// unless each pixel is corrected by its own factor. A gain of 1 gives [`superpixel_sampled`]'s
+/// values exactly.
+pub fn superpixel_sampled_flat<T: RawPixel, G: Fn(usize, usize) -> f32 + Sync>(
+    raw: &Image<T>,
+    layout: MosaicLayout,
+    k: usize,
+    black: f32,
+    gain: G,
+) -> Result<super::PolarImages> {
     check_raw(raw)?;
     if k < 2 || !k.is_multiple_of(2) {
         return Err(crate::error::Error::Invalid(format!(
@@ -200,7 +216,9 @@ pub fn superpixel_sampled<T: RawPixel>(
         .for_each(|(i, ((((o0, o1), o2), od), oa))| {
             let rows = [raw.row(k * i), raw.row(k * i + 1)];
             for j in 0..ow {
-                let v = off.map(|(dr, dc)| rows[dr][k * j + dc].to_f32() - black);
+                let v = off.map(|(dr, dc)| {
+                    (rows[dr][k * j + dc].to_f32() - black) * gain(k * i + dr, k * j + dc)
+                });
                 let (s0, s1, s2) = block_stokes(v);
                 o0[j] = s0;
                 o1[j] = s1;

@@ -136,6 +136,38 @@ pub fn polar_from_codes(
     Ok((p, saturated))
 }
 
+/// The flat-field gains (1 / relative illumination, 0 where no light falls) of the four pixels
+/// of every sampled block of [`superpixel_sampled_flat`], block by block in row-major order, each
+/// block's as (row, column) of its pixels. Kept for the next call with the same intrinsics,
+/// falloff and step: a stream's frames all share them, and evaluating the falloff anew cost a
+/// quarter of a full-size frame's estimate.
+fn sampled_gains(i: &Intrinsics, ri: RelativeIllumination, k: usize) -> std::sync::Arc<Vec<f32>> {
+    type Key = (Intrinsics, RelativeIllumination, usize);
+    static CACHE: std::sync::Mutex<Option<(Key, std::sync::Arc<Vec<f32>>)>> =
+        std::sync::Mutex::new(None);
+    let key = (*i, ri, k);
+    let mut c = CACHE.lock().unwrap_or_else(|p| p.into_inner());
+    if let Some((kk, g)) = c.as_ref() {
+        if *kk == key {
+            return g.clone();
+        }
+    }
+    let (ow, oh) = (i.width / k, i.height / k);
+    let mut g = vec![0f32; ow * oh * 4];
+    g.par_chunks_mut((ow * 4).max(1))
+        .enumerate()
+        .for_each(|(bi, row)| {
+            for (n, v) in row.iter_mut().enumerate() {
+                let (bj, dr, dc) = (n / 4, (n / 2) % 2, n % 2);
+                let f = ri.factor(i, (k * bj + dc) as f64, (k * bi + dr) as f64);
+                *v = if f > 0.0 { (1.0 / f) as f32 } else { 0.0 };
+            }
+        });
+    let g = std::sync::Arc::new(g);
+    *c = Some((key, g.clone()));
+    g
+}
+
 /// [`polar_from_codes`] for what the estimators read: with no `--demosaic` and a frame large
 /// enough ([`superpixel_step`]), every k-th superpixel only, with the intrinsics of that sampled
 /// view ([`sampled_intrinsics`]) in the returned setup; otherwise the whole frame.
@@ -151,11 +183,28 @@ pub fn polar_for_estimate(
     match (demosaic, k) {
         (None, Some(k)) => {
             let full = ((1u32 << bits) - 1).min(65535) as u16;
-            let mut p = superpixel_sampled(codes, layout, k, black_level as f32)?;
+            // flat-fielded pixel by pixel: a superpixel's four pixels see different falloff
+            // (on a fisheye near its rim, a few % from one pixel to the next), which otherwise
+            // reads as polarization; S0 is then flat, so the intensity vote takes no falloff
+            let ri = setup.relative_illumination;
+            let mut p = match ri {
+                RelativeIllumination::None => {
+                    superpixel_sampled(codes, layout, k, black_level as f32)?
+                }
+                _ => {
+                    let g = sampled_gains(&setup.intrinsics, ri, k);
+                    let ow = codes.width / k;
+                    // row k i + dr, column k j + dc (dr, dc in 0..2) of block (i, j)
+                    superpixel_sampled_flat(codes, layout, k, black_level as f32, |r, c| {
+                        g[(((r / k) * ow + c / k) * 2 + r % k) * 2 + c % k]
+                    })?
+                }
+            };
             let saturated = mask_saturated_sampled(&mut p.dolp, codes, full, k);
             let mut s = *setup;
             s.intrinsics = sampled_intrinsics(&setup.intrinsics, k);
             s.step = 1;
+            s.relative_illumination = RelativeIllumination::None;
             Ok((p, saturated, s))
         }
         (d, _) => {
@@ -199,12 +248,30 @@ pub fn estimate_codes(
         }),
         // too few usable pixels (saturated, unpolarized) or a sun at the zenith: no heading,
         // zero confidence
-        Err(Error::TooFewPixels(m) | Error::Undetermined(m)) => Ok(CodesEstimate {
+        Err(Error::Undetermined(m)) => Ok(CodesEstimate {
             estimate: None,
             saturated,
             info: None,
             reason: Some(m),
         }),
+        // too few pixels: saturation, when it took more than a few, is the reason to give
+        Err(Error::TooFewPixels(m)) => {
+            let pixels = (codes.width * codes.height) as u64;
+            let reason = match crate::sensor::saturation_warning(saturated as u64, pixels) {
+                Some(w) => format!(
+                    "heading: the frame is saturated: {w} (masked: within one pixel of a code \
+                     at full scale); {}",
+                    m.strip_prefix("heading: ").unwrap_or(&m)
+                ),
+                None => m,
+            };
+            Ok(CodesEstimate {
+                estimate: None,
+                saturated,
+                info: None,
+                reason: Some(reason),
+            })
+        }
         Err(e) => Err(e),
     }
 }

@@ -19,7 +19,7 @@
 //! tests); the yaw is ill-conditioned with the sun near the zenith (confidence says so).
 
 use crate::camera::{rot_x, rot_y, Intrinsics};
-use crate::demosaic::superpixel::superpixel_sampled;
+use crate::demosaic::superpixel::{superpixel_sampled, superpixel_sampled_flat};
 use crate::demosaic::{demosaic_codes, Method, PolarImages};
 use crate::error::{check_range, Error, Result};
 use crate::image::Image;

@@ -1,16 +1,20 @@
 //! Options of `psns heading` (and `psns.heading` in Python), and the estimator's setup they
 //! describe for one image.
 
+use super::scene::FrameArg;
 use super::{parsed, whole, SceneArgs};
 use crate::camera::Attitude;
+use crate::config::SceneConfig;
 use crate::demosaic::Method;
-use crate::heading::{estimate_codes, CodesEstimate, HeadingMethod, HeadingSetup};
+use crate::heading::{
+    attitude_tilt_deg, estimate_codes, CodesEstimate, HeadingMethod, HeadingSetup,
+};
 use crate::io::LoadedRaw;
 use crate::sensor::optics::RelativeIllumination;
 use crate::sensor::{Preset, SensorConfig};
 use crate::{Error, Result};
 use clap::Args;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 
 /// Options of `psns heading`.
 #[derive(Args)]
@@ -19,7 +23,9 @@ pub struct HeadingArgs {
     pub input: PathBuf,
     /// Sun position (--sun-zenith/--sun-azimuth or --time/--lat/--lon), intrinsics
     /// (--width/--height/--focal-length/--pixel-pitch) and the known tilt (--pitch/--roll, ENU).
-    /// A stream gives the sun per frame and the intrinsics in its header (options override them).
+    /// A stream gives the sun per frame and the intrinsics in its header (options override them);
+    /// an image without the sun in the options, the scene.json beside it (as `psns render` wrote
+    /// it). --frame solar reports the yaw from the sun's azimuth instead of from north.
     #[command(flatten)]
     pub scene: SceneArgs,
     /// Demosaic method (the whole frame). Default: bilinear; a frame of more than about 640 000
@@ -89,6 +95,22 @@ impl HeadingArgs {
         })
     }
 
+    /// Whether yaws are reported in the solar frame (`--frame solar`: from the sun's azimuth,
+    /// as `psns render --frame solar` takes them) instead of the ENU frame (from north).
+    pub fn solar_frame(&self) -> bool {
+        matches!(self.scene.frame, Some(FrameArg::Solar))
+    }
+
+    /// An ENU yaw (degrees) in the frame of `--frame`: itself, or minus the sun's azimuth
+    /// (ψ_a = ψ_n − A_s), in [0, 360).
+    pub fn reported_yaw(&self, enu_yaw_deg: f64, sun_azimuth_deg: f64) -> f64 {
+        if self.solar_frame() {
+            (enu_yaw_deg - sun_azimuth_deg).rem_euclid(360.0)
+        } else {
+            enu_yaw_deg
+        }
+    }
+
     /// Options that need a particular `--method`.
     pub fn check_method_options(&self) -> Result<()> {
         if self.fit_sun_elevation && self.method != HeadingMethod::ModelFit {
@@ -125,28 +147,88 @@ impl HeadingArgs {
 
     /// The tilt given as --pitch/--roll (ENU Euler attitude), refusing a yaw or a quaternion.
     pub fn given_tilt(&self) -> Result<(f64, f64)> {
+        self.tilt_of(&self.scene.scene()?)
+    }
+
+    /// The tilt of a scene's attitude (its pitch and roll; never its yaw), refusing `--yaw` and
+    /// `--quaternion` options. A scene file's quaternion gives its tilt.
+    fn tilt_of(&self, cfg: &SceneConfig) -> Result<(f64, f64)> {
         if self.scene.yaw.is_some() || self.scene.quaternion.is_some() {
             return Err(Error::Invalid(
                 "psns heading estimates the yaw: give only the tilt (--pitch, --roll)".into(),
             ));
         }
-        match self.scene.scene()?.camera.attitude {
+        Ok(match cfg.camera.attitude {
             Attitude::Euler {
                 pitch_deg,
                 roll_deg,
                 ..
-            } => Ok((pitch_deg, roll_deg)),
-            Attitude::Quaternion { .. } => Err(Error::Invalid(
-                "psns heading takes the tilt as --pitch/--roll, not a quaternion".into(),
-            )),
-        }
+            } => (pitch_deg, roll_deg),
+            // the tilt is the same in the solar and the ENU frame (they differ by a yaw)
+            Attitude::Quaternion { wxyz, .. } => attitude_tilt_deg(wxyz),
+        })
     }
 
-    /// The estimator's setup for one image: the options' sun (up), intrinsics and tilt.
-    pub fn image_setup(&self) -> Result<HeadingSetup> {
-        let (pitch, roll) = self.given_tilt()?;
-        let mut cfg = self.scene.scene()?;
+    /// Whether the options give the sun: `--time`, or a zenith (or altitude) and an azimuth.
+    fn options_give_sun(&self) -> bool {
+        let s = &self.scene;
+        s.time.is_some()
+            || ((s.sun_zenith.is_some() || s.sun_altitude.is_some()) && s.sun_azimuth.is_some())
+    }
+
+    /// The scene of one image: the options applied onto `--config`, or, when neither gives the
+    /// sun, onto the `scene.json` beside `image` (the file `psns render` writes with the frame:
+    /// sun, intrinsics, lens, tilt and sensor). Returns the scene and the scene file read in
+    /// place of `--config`, if any. With no sun anywhere it refuses, naming the options that
+    /// give one: there is no default sun for a picture of someone's sky. `image` is `None` for
+    /// an array (Python), which has no file beside it.
+    pub fn image_scene(&self, image: Option<&Path>) -> Result<(SceneConfig, Option<PathBuf>)> {
+        let mut args = self.scene.clone();
+        let mut beside = None;
+        if args.config.is_none() && !self.options_give_sun() {
+            if let Some(p) = image
+                .and_then(|i| i.parent())
+                .map(|d| d.join("scene.json"))
+                .filter(|p| p.is_file())
+            {
+                args.config = Some(p.clone());
+                beside = Some(p);
+            }
+        }
+        let cfg = args.scene()?;
+        let sun = &cfg.sun;
+        let complete = sun.time.is_some()
+            || ((sun.zenith_deg.is_some() || sun.altitude_deg.is_some())
+                && sun.azimuth_deg.is_some());
+        if !complete {
+            let what = match image {
+                Some(i) => format!("{} (no scene.json beside it)", i.display()),
+                None => "the array".to_string(),
+            };
+            let given = match &args.config {
+                Some(c) => format!(" nor in {}", c.display()),
+                None => String::new(),
+            };
+            return Err(Error::Invalid(format!(
+                "no sun position for {what}: give --sun-zenith (or --sun-altitude) and \
+                 --sun-azimuth, or --time with --lat and --lon, or --config SCENE (the \
+                 scene.json psns render wrote); none is in the options{given}"
+            )));
+        }
+        Ok((cfg, beside))
+    }
+
+    /// The estimator's setup for one image from [`image_scene`](Self::image_scene): its sun
+    /// (up), intrinsics and tilt, the sensor preset's falloff; and the scene file read beside the
+    /// image, if any.
+    pub fn image_setup(&self, image: Option<&Path>) -> Result<(HeadingSetup, Option<PathBuf>)> {
+        let (mut cfg, beside) = self.image_scene(image)?;
+        let (pitch, roll) = self.tilt_of(&cfg)?;
         if let Some(p) = self.preset {
+            if p != cfg.raw.preset {
+                // the preset named, not the scene file's sensor
+                cfg.raw.sensor = None;
+            }
             cfg.raw.preset = p;
         }
         let sun = cfg.sun.resolve()?;
@@ -163,7 +245,7 @@ impl HeadingArgs {
             .clone()
             .unwrap_or_else(|| SensorConfig::preset(cfg.raw.preset));
         setup.relative_illumination = self.flat_field(sensor.effective_ri())?;
-        Ok(setup)
+        Ok((setup, beside))
     }
 
     /// The estimate from one mosaic (not a stream) with the [`image_setup`](Self::image_setup)

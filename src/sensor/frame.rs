@@ -40,6 +40,46 @@ pub struct RawFrame {
     pub lead_buffer: Option<Vec<u16>>,
 }
 
+/// Above this share of saturated pixels the front-ends warn ([`saturation_warning`]): render,
+/// a stream's first frame, a dataset build's summary, and `psns heading` without an estimate.
+pub const SATURATION_WARN_FRACTION: f64 = 0.01;
+
+impl RawFrame {
+    /// Saturated pixels of the frame ([`Self::saturated`] over the four mosaic positions).
+    pub fn saturated_pixels(&self) -> u64 {
+        self.saturated.iter().map(|&n| n as u64).sum()
+    }
+}
+
+/// `saturated` of `pixels` as a share (0 for an empty frame).
+pub fn saturated_fraction(saturated: u64, pixels: u64) -> f64 {
+    if pixels == 0 {
+        0.0
+    } else {
+        saturated as f64 / pixels as f64
+    }
+}
+
+/// The warning for a frame with more than [`SATURATION_WARN_FRACTION`] of its `pixels`
+/// saturated (`None` otherwise): a saturated pixel carries no polarization.
+///
+/// ```
+/// use psns::sensor::saturation_warning;
+/// assert!(saturation_warning(1, 1000).is_none());
+/// assert!(saturation_warning(500, 1000).unwrap().contains("50.0 % of the pixels are saturated"));
+/// ```
+pub fn saturation_warning(saturated: u64, pixels: u64) -> Option<String> {
+    let f = saturated_fraction(saturated, pixels);
+    (f > SATURATION_WARN_FRACTION).then(|| {
+        format!(
+            "{:.1} % of the pixels are saturated ({saturated} of {pixels}): they carry no \
+             polarization; shorten the exposure or lower the gain (--exposure-us, --gain-db), \
+             or use --auto-exposure",
+            100.0 * f
+        )
+    })
+}
+
 /// What the fast path also makes of a frame, band by band while the codes are in cache
 /// ([`FrameOptions::sink`]).
 #[derive(Clone, Copy, Debug, PartialEq, Eq)]

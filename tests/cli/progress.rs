@@ -16,7 +16,7 @@ fn stream(dir: &std::path::Path, extra: &[&str], env: &[(&str, &str)]) -> Output
         "--height",
         "48",
         "--pixel-pitch",
-        "130",
+        "3.45",
     ])
     .args(["--out", out.to_str().unwrap()])
     .args(extra)

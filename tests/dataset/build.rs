@@ -982,3 +982,28 @@ fn a_big_plan_is_walked_in_bounded_memory() {
     // nothing but the two files given: no temporary left behind
     assert_eq!(std::fs::read_dir(&dir).unwrap().count(), 2);
 }
+
+/// A build whose 12-bit frames are overexposed says so in its summary; a well exposed one does
+/// not.
+#[test]
+fn summary_warns_of_saturated_samples() {
+    let dir = tempfile::tempdir().unwrap();
+    let cfg = |us: &str| {
+        format!(
+            "seed = 3\nwidth = 64\nheight = 48\n[splits]\nNFPI = 2\n[outputs]\nraw12 = true\nraw12_exposure_us = {us}\n"
+        )
+    };
+    let over = write_config(dir.path(), &cfg("5000000"));
+    let o = build(&dir.path().join("over"), &over, &[]);
+    ok(&o);
+    let err = stderr(&o);
+    let line = err
+        .lines()
+        .find(|l| l.contains("saturated"))
+        .unwrap_or_else(|| panic!("no saturation warning: {err}"));
+    assert!(line.contains("2 of 2 samples"), "{line}");
+    let fine = write_config(dir.path(), &cfg("100"));
+    let o = build(&dir.path().join("fine"), &fine, &[]);
+    ok(&o);
+    assert!(!stderr(&o).contains("saturated"), "{}", stderr(&o));
+}

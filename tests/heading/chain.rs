@@ -428,22 +428,33 @@ fn bench_heading_tolerance_quick() {
         .skip(1)
         .map(|l| l.split(',').map(String::from).collect())
         .collect();
-    assert_eq!(rows.len(), 7 * 2 * 3, "{text}");
-    let row = |input: &str, side: &str, m: &str| {
+    // 7 inputs x 2 sides x 3 methods, on the rectilinear frame and each of the four fisheyes
+    assert_eq!(rows.len(), 5 * 7 * 2 * 3, "{text}");
+    let row = |proj: &str, input: &str, side: &str, m: &str| {
         rows.iter()
-            .find(|r| r[0] == input && r[1] == side && r[2] == m)
-            .unwrap_or_else(|| panic!("{input} {side} {m}: {text}"))
+            .find(|r| r[10] == proj && r[0] == input && r[1] == side && r[2] == m)
+            .unwrap_or_else(|| panic!("{proj} {input} {side} {m}: {text}"))
             .clone()
     };
-    for side in ["+", "-"] {
-        let r = row("roll (deg)", side, "model-fit");
-        let from: f64 = r[3].parse().unwrap();
-        assert!(from > 0.0 && from < 40.0, "{r:?}");
-        let r = row("sun azimuth (deg)", side, "model-fit");
-        assert!(r[3].is_empty() && r[5] == "1", "{r:?}");
-        let err: f64 = r[7].parse().unwrap();
-        assert!((err - 20.0).abs() < 0.5, "{r:?}");
+    for proj in [
+        "rectilinear",
+        "equidistant",
+        "equisolid",
+        "stereographic",
+        "orthographic",
+    ] {
+        for side in ["+", "-"] {
+            let r = row(proj, "roll (deg)", side, "model-fit");
+            let from: f64 = r[3].parse().unwrap();
+            assert!(from > 0.0 && from < 40.0, "{r:?}");
+            let r = row(proj, "sun azimuth (deg)", side, "model-fit");
+            assert!(r[3].is_empty() && r[5] == "1", "{r:?}");
+            let err: f64 = r[7].parse().unwrap();
+            assert!((err - 20.0).abs() < 0.5, "{r:?}");
+        }
     }
+    let md = std::fs::read_to_string(out.join("tolerance.md")).unwrap();
+    assert!(md.contains("### equidistant fisheye"), "{md}");
     for f in ["tolerance.md", "tolerance_scan.csv"] {
         assert!(out.join(f).metadata().unwrap().len() > 500, "{f}");
     }

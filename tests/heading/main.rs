@@ -9,3 +9,4 @@ mod common;
 mod budget;
 mod chain;
 mod defaults;
+mod inputs;

@@ -11,6 +11,7 @@ pub mod stream;
 pub mod stream_cpu;
 #[cfg(test)]
 mod tests;
+pub mod tolerance;
 
 use clap::Subcommand;
 use psns::options::SceneArgs;
@@ -190,7 +191,7 @@ pub fn run(what: BenchCmd) -> anyhow::Result<()> {
             let written = if budget {
                 budget::bench_budget(&budget::BudgetOptions { out, quick })?
             } else if tolerance {
-                heading::bench_tolerance(&heading::ToleranceOptions { out, quick })?
+                tolerance::bench_tolerance(&tolerance::ToleranceOptions { out, quick })?
             } else {
                 heading::bench_heading(&heading::HeadingBenchOptions { out, quick })?
             };

@@ -642,6 +642,13 @@ pub fn run_stream(
         Next::End => None,
         Next::Stopped(sig) => die_by(sig),
     };
+    if let Some(f) = &first {
+        let pixels = header.width as u64 * header.height as u64;
+        let saturated = f.meta.saturated.iter().map(|&n| n as u64).sum();
+        if let Some(w) = psns::sensor::saturation_warning(saturated, pixels) {
+            eprintln!("psns: warning: frame {}: {w}", f.meta.index);
+        }
+    }
     let mut out = match out.open(&header) {
         Ok(o) => o,
         Err(e) if e.is_broken_pipe() => {
