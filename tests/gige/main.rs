@@ -3,3 +3,4 @@
 
 mod codecs;
 mod device;
+mod harness;

@@ -10,3 +10,4 @@ mod budget;
 mod chain;
 mod defaults;
 mod inputs;
+mod live;

@@ -3,6 +3,7 @@
 
 pub mod budget;
 pub mod demosaic;
+pub mod error_maps;
 pub mod gige;
 pub mod heading;
 pub mod scenes;
