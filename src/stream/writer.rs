@@ -73,6 +73,12 @@ impl<W: Write> StreamWriter<W> {
         &self.header
     }
 
+    /// The writer the stream goes into (to tune it; writing to it directly would break the
+    /// stream).
+    pub fn get_mut(&mut self) -> &mut W {
+        &mut self.w
+    }
+
     /// Frames written so far.
     pub fn frames_written(&self) -> u64 {
         self.frames

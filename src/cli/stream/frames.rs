@@ -147,10 +147,13 @@ pub(super) enum End {
 }
 
 /// Writes frames as they arrive, paced by `--rate`, counting them (and late ones) in `summary`.
+/// A payload buffer goes back to the render thread once `retain` more frames are written after
+/// it (a pipe holds its pages, [`Output::splice_payloads`]); the last `retain` are never freed.
 pub(super) fn write_loop(
     out: &mut Output,
     mut first: Option<Rendered>,
     frames: &Frames,
+    retain: usize,
     opts: &StreamOptions,
     progress: &mut Progress,
     summary: &mut StreamSummary,
@@ -181,6 +184,9 @@ pub(super) fn write_loop(
         progress.inc(1);
         Ok(())
     };
+    let mut held = HeldPayloads {
+        queue: std::collections::VecDeque::with_capacity(retain + 1),
+    };
     loop {
         let r = match first.take() {
             Some(r) => Ok(r),
@@ -198,14 +204,43 @@ pub(super) fn write_loop(
                         last.meta.flags |= FLAG_LAST;
                     }
                     for mut r in rest {
-                        write(&mut r, false, summary)?;
+                        let written = write(&mut r, false, summary);
+                        held.hold(r.payload, retain, frames);
+                        written?;
                     }
                     return Ok(End::Finished(sig));
                 }
             },
         };
         let mut r = r?;
-        write(&mut r, true, summary)?;
-        let _ = frames.spare.try_send(r.payload);
+        let written = write(&mut r, true, summary);
+        held.hold(r.payload, retain, frames);
+        written?;
+    }
+}
+
+/// Payload buffers a pipe may still refer to: never freed (freed memory is soon reused, and
+/// the reader may not have read them yet), so they live until the process ends.
+struct HeldPayloads {
+    queue: std::collections::VecDeque<Payload>,
+}
+
+impl HeldPayloads {
+    /// Holds a written payload; the one `retain` frames older goes back to the render thread.
+    fn hold(&mut self, p: Payload, retain: usize, frames: &Frames) {
+        self.queue.push_back(p);
+        while self.queue.len() > retain {
+            if let Some(p) = self.queue.pop_front() {
+                let _ = frames.spare.try_send(p);
+            }
+        }
+    }
+}
+
+impl Drop for HeldPayloads {
+    fn drop(&mut self) {
+        for p in self.queue.drain(..) {
+            std::mem::forget(p);
+        }
     }
 }

@@ -39,6 +39,7 @@ use psns::stream::{
 mod frames;
 pub(crate) mod output;
 mod place;
+mod splice;
 use frames::{write_loop, End, Frames, Next};
 pub(crate) use output::grow_pipe;
 use output::{FrameKind, OutputSpec, Pixels};
@@ -254,8 +255,10 @@ struct FrameMaker {
     codes: Vec<u16>,
     /// Payload buffers handed back by the writer, reused (no page faults on fresh memory).
     spare: Option<Receiver<Payload>>,
-    /// Payload buffers made so far (at most [`PAYLOAD_BUFFERS`]).
+    /// Payload buffers made so far, and how many may be: [`PAYLOAD_BUFFERS`], and those a
+    /// pipe holds on to ([`OutputSpec::retains`]).
     made: usize,
+    buffers: usize,
 }
 
 /// Payload buffers in circulation: one being rendered, one queued, one being written. When all
@@ -265,13 +268,13 @@ const PAYLOAD_BUFFERS: usize = 3;
 
 impl FrameMaker {
     /// A payload buffer back from the writer; `None` = make a new one (the first
-    /// [`PAYLOAD_BUFFERS`] frames, or the writer is gone).
+    /// `buffers` frames, or the writer is gone).
     fn spare_payload(&mut self) -> Option<Payload> {
         let rx = self.spare.as_ref()?;
         if let Ok(p) = rx.try_recv() {
             return Some(p);
         }
-        if self.made < PAYLOAD_BUFFERS {
+        if self.made < self.buffers {
             self.made += 1;
             return None;
         }
@@ -618,6 +621,7 @@ pub fn run_stream(
     }
     let header = stream_header(&recorded, &pipe, extra)?;
     let kind = out.frames(&header)?;
+    let retains = out.retains();
     let maker = FrameMaker {
         clock,
         half_exposure_ns: match sc.exposure {
@@ -631,6 +635,7 @@ pub fn run_stream(
         codes: Vec::new(),
         spare: None,
         made: 0,
+        buffers: PAYLOAD_BUFFERS + retains,
         pipe,
     };
     let frames = Frames::start(maker, poses, lookahead, opts.frames)?;
@@ -662,7 +667,19 @@ pub fn run_stream(
     // frames/s and ETA on stderr: a bar on a terminal, plain lines for long jobs otherwise
     let mut progress = Progress::new("psns stream", Unit::Frames, opts.frames, false);
     let mut summary = StreamSummary::default();
-    let end = write_loop(&mut out, first, &frames, opts, &mut progress, &mut summary);
+    let retain = match retains {
+        0 => 0,
+        _ => out.splice_payloads(),
+    };
+    let end = write_loop(
+        &mut out,
+        first,
+        &frames,
+        retain,
+        opts,
+        &mut progress,
+        &mut summary,
+    );
     drop(progress);
     summary.seconds = t_open.elapsed().as_secs_f64();
     let fin = match end {

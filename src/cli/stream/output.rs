@@ -7,12 +7,14 @@
 //! knows nothing of the output.
 
 use super::place::{Landing, Place};
+use super::splice::{is_pipe, PipeOut};
 use crate::cli::bag::{image_prefix_len, BagOptions, BagSource, BagWriter, Compression, McapBag};
 use psns::error::{Error, Result};
 use psns::ros2::ImageEncoding;
 use psns::sensor::packing::{self, PixelFormat};
 use psns::stream::{FileHeader, FileStreamWriter, FrameMeta, StreamWriter};
-use std::io::{BufWriter, Write};
+use std::fs::File;
+use std::io::Write;
 use std::path::Path;
 
 /// Asks the kernel for a 1 MiB buffer on a pipe or FIFO (the default 64 KiB wakes the reader
@@ -73,6 +75,15 @@ impl OutputSpec {
         Ok(OutputSpec { place, bag })
     }
 
+    /// Payload buffers the output may hold on to after they are written: [`super::splice::RETAIN`]
+    /// for a psns stream into a pipe or FIFO, else 0.
+    pub(crate) fn retains(&self) -> usize {
+        match self.bag.is_none() && self.place.is_pipe() {
+            true => super::splice::RETAIN,
+            false => 0,
+        }
+    }
+
     /// A ROS 2 bag (else the psns format).
     pub(crate) fn is_bag(&self) -> bool {
         self.bag.is_some()
@@ -118,11 +129,16 @@ impl OutputSpec {
         // a failure to start leaves nothing behind
         let sink = match (file, &self.bag) {
             (None, _) => {
-                let stdout = std::io::stdout().lock();
-                grow_pipe(stdout.as_raw_fd());
-                let w = BufWriter::with_capacity(1 << 20, stdout);
-                StreamWriter::new(w, header).map(Sink::Stdout)
+                use std::os::fd::AsFd;
+                let stdout = std::io::stdout();
+                let _ = stdout.lock().flush();
+                stdout
+                    .as_fd()
+                    .try_clone_to_owned()
+                    .map_err(|e| Error::io("opening stdout", e))
+                    .and_then(|fd| pipe_writer(File::from(fd), header))
             }
+            (Some(f), None) if is_pipe(&f) => pipe_writer(f, header),
             (Some(f), None) => {
                 grow_pipe(f.as_raw_fd());
                 FileStreamWriter::new(f, header).map(Sink::File)
@@ -204,8 +220,17 @@ impl RawBag {
     }
 }
 
+/// The psns stream to stdout or a FIFO, unbuffered (each record is one vectored write), the
+/// payloads spliced once [`Output::splice_payloads`] says so.
+fn pipe_writer(f: File, header: &FileHeader) -> Result<Sink> {
+    use std::os::fd::AsRawFd;
+    grow_pipe(f.as_raw_fd());
+    StreamWriter::new(PipeOut::new(f), header).map(Sink::Stdout)
+}
+
 enum Sink {
-    Stdout(StreamWriter<BufWriter<std::io::StdoutLock<'static>>>),
+    /// Stdout, or a FIFO: no header to patch at the end.
+    Stdout(StreamWriter<PipeOut>),
     File(FileStreamWriter),
     Bag(Box<BagWriter>),
 }
@@ -242,6 +267,20 @@ impl Output {
                 }
             }
             e => e,
+        }
+    }
+
+    /// From now on payloads go into the pipe by reference when the output is a pipe or FIFO
+    /// ([`super::splice`]); returns how many more frames the caller must then write before it
+    /// changes a payload buffer again, and it must never free one (0: written by copy, no
+    /// such promise).
+    pub(crate) fn splice_payloads(&mut self) -> usize {
+        match self.sink.as_mut() {
+            Some(Sink::Stdout(w)) => match w.get_mut().splice_payloads() {
+                true => super::splice::RETAIN,
+                false => 0,
+            },
+            _ => 0,
         }
     }
 
