@@ -130,15 +130,13 @@ impl Place {
     /// True when the output is a pipe or FIFO (stdout included).
     pub(crate) fn is_pipe(&self) -> bool {
         use std::os::unix::fs::FileTypeExt;
-        let fifo = |m: std::fs::Metadata| m.file_type().is_fifo();
         match self.how {
             How::Stdout => {
                 use std::os::fd::AsFd;
                 let out = std::io::stdout().as_fd().try_clone_to_owned();
-                out.map(File::from)
-                    .is_ok_and(|f| f.metadata().is_ok_and(fifo))
+                out.is_ok_and(|fd| super::splice::is_pipe(&File::from(fd)))
             }
-            How::Special => std::fs::metadata(&self.out).is_ok_and(fifo),
+            How::Special => std::fs::metadata(&self.out).is_ok_and(|m| m.file_type().is_fifo()),
             _ => false,
         }
     }

@@ -112,15 +112,10 @@ fn row_vaes512(
         )
     };
     if whole < n {
-        // the last pixels of a row whose width is not a multiple of 16, one at a time
-        for c in whole..n {
-            let z = crate::sensor::normal::normal_from_bits(key.bits(row, c as u32));
-            let wt = st.weighted(c, s0[c], s1[c], s2[c]);
-            let (m, code) = f.pixel(wt, st.dsnu[c], z);
-            out[c] = code;
-            mu_max = mu_max.max(m.to_bits());
-            code_max = code_max.max(code);
-        }
+        // the last pixels, one at a time
+        let (m, c) = super::row_folded_cols(f, key, s, st, row, whole, out);
+        mu_max = mu_max.max(m);
+        code_max = code_max.max(c);
     }
     (f32::from_bits(mu_max), code_max)
 }

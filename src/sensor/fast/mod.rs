@@ -501,9 +501,9 @@ fn chunk_unfolded(
     full
 }
 
-/// The folded kernel of one row, one pixel at a time (every build but AVX2's, which gives the
-/// same bits): mean electrons, the folded Cornish–Fisher draw, the ADC. Returns the row's
-/// largest mean and largest code.
+/// The folded kernel of one row, one pixel at a time (the portable build; the AVX2 and AVX-512
+/// kernels give the same bits): mean electrons, the folded Cornish–Fisher draw, the ADC.
+/// Returns the row's largest mean and largest code.
 fn row_folded_plain(
     f: &Folded,
     key: &NoiseKey,
@@ -512,8 +512,23 @@ fn row_folded_plain(
     row: u32,
     out: &mut [u16],
 ) -> (f32, u16) {
+    let (mu_max, code_max) = row_folded_cols(f, key, s, st, row, 0, out);
+    (f32::from_bits(mu_max), code_max)
+}
+
+/// [`row_folded_plain`] for columns `c0 ..` of the row (`out` holds the whole row; also the
+/// last columns the vector kernels leave); the largest mean as its bits.
+fn row_folded_cols(
+    f: &Folded,
+    key: &NoiseKey,
+    s: [&[f32]; 3],
+    st: &StaticRow,
+    row: u32,
+    c0: usize,
+    out: &mut [u16],
+) -> (u32, u16) {
     let (mut mu_max, mut code_max) = (0u32, 0u16);
-    for c in 0..out.len() {
+    for c in c0..out.len() {
         let z = normal_from_bits(key.bits(row, c as u32));
         let wt = st.weighted(c, s[0][c], s[1][c], s[2][c]);
         let (m, code) = f.pixel(wt, st.dsnu[c], z);
@@ -522,7 +537,7 @@ fn row_folded_plain(
         mu_max = mu_max.max(m.to_bits());
         code_max = code_max.max(code);
     }
-    (f32::from_bits(mu_max), code_max)
+    (mu_max, code_max)
 }
 
 /// The unfolded kernel for the chunks of a row holding pixels that need it (see [`row_body`]);
