@@ -34,10 +34,10 @@ fn gap(a: f64, b: f64) -> f64 {
     d.min(360.0 - d)
 }
 
-/// Renders a 612 x 512 raw frame (the sensor's field of view, auto-exposed) with the sun at
-/// zenith 30 deg, azimuth 100 deg and the camera at ENU yaw 30 deg into `out`.
-fn render_off_default_sun(out: &Path) {
-    let o = common::psns(&[
+/// Renders a 612 x 512 raw frame (the sensor's field of view, auto-exposed) into `out`, with
+/// `extra` options.
+fn render_small(out: &Path, extra: &[&str]) {
+    let mut args = vec![
         "render",
         "--raw",
         "--auto-exposure",
@@ -47,16 +47,21 @@ fn render_off_default_sun(out: &Path) {
         "512",
         "--pixel-pitch",
         "13.8",
-        "--sun-zenith",
-        "30",
-        "--sun-azimuth",
-        "100",
-        "--yaw",
-        "30",
         "--out",
         s(out),
-    ]);
+    ];
+    args.extend_from_slice(extra);
+    let o = common::psns(&args);
     assert!(o.status.success(), "{}", common::stderr(&o));
+}
+
+/// [`render_small`] with the sun at zenith 30 deg, azimuth 100 deg and the camera at ENU yaw
+/// 30 deg.
+fn render_off_default_sun(out: &Path) {
+    render_small(
+        out,
+        &["--sun-zenith", "30", "--sun-azimuth", "100", "--yaw", "30"],
+    );
 }
 
 /// An image rendered under a sun that is not the default: `psns heading` reads the sun and the
@@ -143,24 +148,7 @@ fn heading_reports_the_yaw_in_the_frame_asked() {
     assert!((0.0..360.0).contains(&solar), "{solar}");
     // a render in the solar frame comes back in it
     let r2 = dir.path().join("r2");
-    let o = common::psns(&[
-        "render",
-        "--raw",
-        "--auto-exposure",
-        "--width",
-        "612",
-        "--height",
-        "512",
-        "--pixel-pitch",
-        "13.8",
-        "--frame",
-        "solar",
-        "--yaw",
-        "75",
-        "--out",
-        s(&r2),
-    ]);
-    assert!(o.status.success(), "{}", common::stderr(&o));
+    render_small(&r2, &["--frame", "solar", "--yaw", "75"]);
     let o = common::psns(&["heading", s(&r2.join("raw.png")), "--frame", "solar"]);
     assert!(o.status.success(), "{}", common::stderr(&o));
     let (head, row) = rows(&o);
