@@ -12,6 +12,7 @@ use crate::sensor::{Preset, SensorConfig};
 use crate::sky::clouds::SoftClouds;
 use crate::sky::{Sky, SkyParams};
 use crate::sun::{self, Place, Refraction, SunPosition};
+use crate::world::{World, WorldConfig};
 use serde::{Deserialize, Serialize};
 use std::path::Path;
 
@@ -255,6 +256,9 @@ pub struct SceneConfig {
     pub camera: CameraConfig,
     /// Raw-frame (sensor) settings.
     pub raw: RawConfig,
+    /// The world around the camera (empty: the open sky).
+    #[serde(skip_serializing_if = "WorldConfig::is_empty")]
+    pub world: WorldConfig,
     /// Outputs of the run that wrote this file (ignored on input).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub derived: Option<Derived>,
@@ -304,14 +308,40 @@ impl SceneConfig {
         i
     }
 
-    /// Resolves the sun, validates everything and builds the sky and the posed camera (lens
-    /// resolved, [`Self::intrinsics`]).
+    /// Resolves the sun, validates everything and builds the sky (with the world, at scene time
+    /// 0) and the posed camera (lens resolved, [`Self::intrinsics`]).
     pub fn build(&self) -> Result<(Sky, Camera)> {
         let sun = self.sun.resolve()?;
         self.sun.check_up(sun)?;
-        let sky = Sky::new(sun, &self.sky)?;
+        let world = self.world_at(0.0)?;
+        let sky = Sky::new(sun, &self.sky)?.with_world(world);
         let cam = Camera::new(self.intrinsics(), &self.camera.attitude, sun.azimuth_deg)?;
         Ok((sky, cam))
+    }
+
+    /// The world prepared with its clouds `t_s` seconds into the scene, its camera mask read
+    /// and checked against the image size; seeded by the camera's seed unless it sets one.
+    pub fn world_at(&self, t_s: f64) -> Result<World> {
+        let mask = match &self.world.camera_mask {
+            None => None,
+            Some(p) => {
+                let g = crate::io::read_gray(p)?;
+                let i = &self.camera.intrinsics;
+                if (g.image.width, g.image.height) != (i.width, i.height) {
+                    return Err(Error::Invalid(format!(
+                        "camera mask {} is {} x {} pixels; it must be the image's size, {} x {}",
+                        p.display(),
+                        g.image.width,
+                        g.image.height,
+                        i.width,
+                        i.height
+                    )));
+                }
+                let (w, h) = (g.image.width, g.image.height);
+                Some((w, h, g.image.data.iter().map(|&v| (v != 0) as u8).collect()))
+            }
+        };
+        World::new(&self.world, self.raw.seed, t_s, mask)
     }
 
     /// Pretty JSON of this scene.

@@ -38,5 +38,6 @@ pub mod stream;
 pub mod sun;
 pub mod trajectory;
 pub mod vmath;
+pub mod world;
 
 pub use error::{Error, Result};

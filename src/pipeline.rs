@@ -14,6 +14,7 @@ use crate::sensor::{self, FastSink, FrameOptions, Radiance, RawFrame, Sensor, Se
 use crate::sky::{Sky, SkyParams};
 use crate::sun::{self, Place, Refraction, SunPosition};
 use crate::trajectory::Pose;
+use crate::world::World;
 use chrono::{DateTime, Utc};
 
 /// What one frame's scene looked like.
@@ -39,6 +40,8 @@ pub struct RawPipeline {
     /// The last sky prepared, with its sun: a stream whose sun stands still (only the attitude
     /// changes) prepares it once.
     sky: std::sync::Mutex<Option<(SunPosition, SkyParams, std::sync::Arc<Sky>)>>,
+    /// The world around the camera at scene time 0 (None: the open sky).
+    world: Option<World>,
 }
 
 impl RawPipeline {
@@ -66,6 +69,11 @@ impl RawPipeline {
         if raw.scene == SceneKind::Flat {
             raw.flat.validate()?;
         }
+        let world = if cfg.world.is_empty() {
+            None
+        } else {
+            Some(cfg.world_at(0.0)?)
+        };
         let sensor = Sensor::new(&sensor_cfg, i, raw.seed)?;
         let mut cfg = cfg.clone();
         cfg.camera.intrinsics = cfg.intrinsics(); // the preset's lens unless one is set
@@ -74,6 +82,7 @@ impl RawPipeline {
             sensor_cfg,
             sensor,
             sky: std::sync::Mutex::new(None),
+            world,
         })
     }
 
@@ -92,19 +101,40 @@ impl RawPipeline {
         &self.sensor
     }
 
-    /// The sky for `sun` and `params`: the one prepared for the previous call when both are the
-    /// same (`Sky::new` is a pure function of the sun and the sky parameters).
-    fn sky_for(&self, sun: SunPosition, params: &SkyParams) -> Result<std::sync::Arc<Sky>> {
+    /// The sky for `sun` and `params`, with the world (its clouds at scene time `t_s`): the one
+    /// prepared for the previous call when the sun and the parameters are the same (`Sky::new`
+    /// is a pure function of the sun and the sky parameters; the world's lighting is too).
+    fn sky_for(
+        &self,
+        sun: SunPosition,
+        params: &SkyParams,
+        t_s: f64,
+    ) -> Result<std::sync::Arc<Sky>> {
         let lock = || self.sky.lock().unwrap_or_else(|e| e.into_inner());
-        if let Some((s, p, sky)) = lock().as_ref() {
-            if *s == sun && p == params {
-                return Ok(sky.clone());
+        let cached = lock()
+            .as_ref()
+            .filter(|(s, p, _)| *s == sun && p == params)
+            .map(|(_, _, sky)| sky.clone());
+        let sky = match cached {
+            Some(sky) => sky,
+            None => {
+                // prepared outside the lock: threads rendering different suns do not wait
+                let mut sky = Sky::new(sun, params)?;
+                if let Some(w) = &self.world {
+                    sky = sky.with_world(w.clone());
+                }
+                let sky = std::sync::Arc::new(sky);
+                *lock() = Some((sun, params.clone(), sky.clone()));
+                sky
             }
+        };
+        // drifting clouds: the same lighting, the clouds moved
+        match &self.world {
+            Some(w) if w.drifts() && t_s != 0.0 => Ok(std::sync::Arc::new(
+                sky.as_ref().clone().with_clouds_at(w, t_s),
+            )),
+            _ => Ok(sky),
         }
-        // prepared outside the lock: threads rendering different suns do not wait for each other
-        let sky = std::sync::Arc::new(Sky::new(sun, params)?);
-        *lock() = Some((sun, params.clone(), sky.clone()));
-        Ok(sky)
     }
 
     /// Sensor-frame Stokes radiance for a sun position and attitude (ignored for a flat field).
@@ -114,16 +144,18 @@ impl RawPipeline {
         sun: SunPosition,
         attitude: &Attitude,
     ) -> Result<(StokesImage, SceneInfo)> {
-        self.stokes_in(&self.cfg.sky, sun, attitude)
+        self.stokes_in(&self.cfg.sky, sun, attitude, 0.0)
     }
 
     /// [`Self::stokes`] under the sky `sky` instead of the configured one (same camera and
-    /// scene otherwise): one pipeline serves scenes that differ only in the sky.
+    /// scene otherwise), `t_s` seconds into the scene (drifting clouds): one pipeline serves
+    /// scenes that differ only in the sky.
     pub fn stokes_in(
         &self,
         sky_params: &SkyParams,
         sun: SunPosition,
         attitude: &Attitude,
+        t_s: f64,
     ) -> Result<(StokesImage, SceneInfo)> {
         let raw: &RawConfig = &self.cfg.raw;
         let i = self.cfg.camera.intrinsics;
@@ -147,7 +179,7 @@ impl RawPipeline {
                     StokesImage::zeros(i.width, i.height)
                 } else {
                     info.sky_valid = true;
-                    let sky = self.sky_for(sun, sky_params)?;
+                    let sky = self.sky_for(sun, sky_params, t_s)?;
                     let opts = StokesOptions {
                         sun_disc: raw.sun_disc_on(),
                     };
@@ -184,10 +216,11 @@ impl RawPipeline {
         &self,
         sun: SunPosition,
         attitude: &Attitude,
+        t_s: f64,
         frame_index: u64,
         codes: Vec<u16>,
     ) -> Result<(RawFrame, SceneInfo)> {
-        self.frame_at_in(&self.cfg.sky, sun, attitude, frame_index, codes)
+        self.frame_at_in(&self.cfg.sky, sun, attitude, t_s, frame_index, codes)
     }
 
     /// [`Self::frame_at`] and the frame's stream payload in `fmt` with its CRC-32 where it comes
@@ -200,6 +233,7 @@ impl RawPipeline {
         &self,
         sun: SunPosition,
         attitude: &Attitude,
+        t_s: f64,
         frame_index: u64,
         codes: Vec<u16>,
         fmt: sensor::packing::PixelFormat,
@@ -212,8 +246,16 @@ impl RawPipeline {
         } else {
             FastSink::None
         };
-        let (f, info) =
-            self.frame_at_sink(&self.cfg.sky, sun, attitude, frame_index, codes, 0, sink)?;
+        let (f, info) = self.frame_at_sink(
+            &self.cfg.sky,
+            sun,
+            attitude,
+            t_s,
+            frame_index,
+            codes,
+            0,
+            sink,
+        )?;
         let crc = if codes_are_payload {
             f.codes_crc32
         } else {
@@ -234,10 +276,20 @@ impl RawPipeline {
         sky: &SkyParams,
         sun: SunPosition,
         attitude: &Attitude,
+        t_s: f64,
         frame_index: u64,
         codes: Vec<u16>,
     ) -> Result<(RawFrame, SceneInfo)> {
-        self.frame_at_sink(sky, sun, attitude, frame_index, codes, 0, FastSink::None)
+        self.frame_at_sink(
+            sky,
+            sun,
+            attitude,
+            t_s,
+            frame_index,
+            codes,
+            0,
+            FastSink::None,
+        )
     }
 
     /// [`Self::frame_at`] with the codes after the first `lead` elements of `buf`, which are
@@ -248,6 +300,7 @@ impl RawPipeline {
         &self,
         sun: SunPosition,
         attitude: &Attitude,
+        t_s: f64,
         frame_index: u64,
         buf: Vec<u16>,
         lead: usize,
@@ -256,6 +309,7 @@ impl RawPipeline {
             &self.cfg.sky,
             sun,
             attitude,
+            t_s,
             frame_index,
             buf,
             lead,
@@ -277,6 +331,7 @@ impl RawPipeline {
         sky: &SkyParams,
         sun: SunPosition,
         attitude: &Attitude,
+        t_s: f64,
         frame_index: u64,
         codes: Vec<u16>,
         lead: usize,
@@ -285,7 +340,7 @@ impl RawPipeline {
         let raw = &self.cfg.raw;
         let psns = self.sensor_cfg.psns.is_some() && !raw.exact;
         if !self.fast() && !psns {
-            let (st, info) = self.stokes_in(sky, sun, attitude)?;
+            let (st, info) = self.stokes_in(sky, sun, attitude, t_s)?;
             let opts = FrameOptions::exact().into_codes_after(codes, lead);
             return Ok((
                 self.sensor
@@ -297,7 +352,7 @@ impl RawPipeline {
         if raw.scene == SceneKind::Sky && raw.soft_clouds.is_none() && raw.sky_grid >= 2 && up {
             let i = self.cfg.camera.intrinsics;
             let cam = Camera::new(i, attitude, sun.azimuth_deg)?;
-            let sky = self.sky_for(sun, sky)?;
+            let sky = self.sky_for(sun, sky, t_s)?;
             let opts = StokesOptions {
                 sun_disc: raw.sun_disc_on(),
             };
@@ -318,7 +373,7 @@ impl RawPipeline {
                 .frame(Radiance::Rows(&grid), frame_index, opts)?;
             return Ok((f, info));
         }
-        let (st, info) = self.stokes_in(sky, sun, attitude)?;
+        let (st, info) = self.stokes_in(sky, sun, attitude, t_s)?;
         let opts = if psns {
             FrameOptions::exact().into_codes_after(codes, lead)
         } else {

@@ -690,7 +690,7 @@ impl Camera {
         let r = py.detach(|| -> psns::Result<_> {
             let sun = sun_cfg.resolve()?;
             sun_cfg.check_up(sun)?;
-            pipe.frame_at(sun, &attitude, index, Vec::new())
+            pipe.frame_at(sun, &attitude, 0.0, index, Vec::new())
         });
         let (f, info) = r.map_err(lib_err)?;
         self.next_index = index + 1;

@@ -15,6 +15,7 @@ pub const RENDER_FILES: &[&str] = &[
     "li.npy",
     "dop.npy",
     "aop.npy",
+    "class.npy",
     "li.png",
     "dop.png",
     "aop.png",

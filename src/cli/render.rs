@@ -59,7 +59,7 @@ pub fn render_ideal_to_dir(cfg: &SceneConfig, target: &Path) -> Result<RenderSum
     let dir = out.path();
     let mut progress = Progress::new("psns render", Unit::Steps, Some(IDEAL_STEPS), false);
     progress.set_message("ideal images");
-    let d = render_ideal(&sky, &cam);
+    let d = render_ideal(&sky, &cam, cfg.raw.sun_disc_on());
     progress.inc(1);
     let mut files = Vec::new();
     write_files(dir, ideal_jobs(&d), &mut progress, &mut files)?;
@@ -81,8 +81,8 @@ pub fn render_ideal_to_dir(cfg: &SceneConfig, target: &Path) -> Result<RenderSum
 /// Peak resident bytes per pixel of `psns render` and `render --raw` (measured at 1000² and
 /// 3000² pixels: 53 and 87 B; rounded up).
 const IDEAL_BYTES_PER_PIXEL: u64 = 56;
-/// Progress steps: the ideal images and their 14 files; the raw frame and its 9 files.
-const IDEAL_STEPS: u64 = 15;
+/// Progress steps: the ideal images and their 15 files; the raw frame and its 9 files.
+const IDEAL_STEPS: u64 = 16;
 const RAW_STEPS: u64 = 10;
 const RAW_BYTES_PER_PIXEL: u64 = 90;
 
@@ -134,15 +134,19 @@ struct Ideal {
     ideal: render::IdealImages,
     q8: [Image<u16>; 4],
     q16: [Image<u16>; 4],
+    /// What each pixel sees (`render::Class` codes).
+    class: Image<u8>,
     render_s: f64,
     extra: serde_json::Map<String, serde_json::Value>,
 }
 
-/// Renders the ideal images (exact per pixel) and the values `scene.json` records.
-fn render_ideal(sky: &psns::sky::Sky, cam: &psns::camera::Camera) -> Ideal {
+/// Renders the ideal images (exact per pixel), the class image and the values `scene.json`
+/// records.
+fn render_ideal(sky: &psns::sky::Sky, cam: &psns::camera::Camera, sun_disc: bool) -> Ideal {
     let t0 = Instant::now();
     let (ideal, pol) = render::render_ideal_polarizers(sky, cam);
     let render_s = t0.elapsed().as_secs_f64();
+    let class = render::class_image(sky, cam, sun_disc);
     let (kappa8, q8) = render::quantize_polarizer_images(&pol, 255.0);
     let (_, q16) = render::quantize_polarizer_images(&pol, 65535.0);
     let valid = ideal.valid.data.iter().filter(|&&v| v != 0).count();
@@ -153,10 +157,23 @@ fn render_ideal(sky: &psns::sky::Sky, cam: &psns::camera::Camera) -> Ideal {
         "ground_pixels".into(),
         (ideal.valid.data.len() - valid).into(),
     );
+    let mut counts = [0usize; 6];
+    for &c in &class.data {
+        counts[c as usize] += 1;
+    }
+    let fractions: serde_json::Map<String, serde_json::Value> = psns::world::Class::ALL
+        .iter()
+        .map(|c| {
+            let f = counts[*c as usize] as f64 / class.data.len().max(1) as f64;
+            (c.name().to_string(), f.into())
+        })
+        .collect();
+    extra.insert("class_fractions".into(), fractions.into());
     Ideal {
         ideal,
         q8,
         q16,
+        class,
         render_s,
         extra,
     }
@@ -169,6 +186,7 @@ fn ideal_jobs(d: &Ideal) -> Vec<FileJob<'_>> {
         job("li.npy", |p| io::write_npy(p, &ideal.li)),
         job("dop.npy", |p| io::write_npy(p, &ideal.dop)),
         job("aop.npy", |p| io::write_npy(p, &ideal.aop_deg)),
+        job("class.npy", |p| io::write_npy(p, &d.class)),
     ];
     for (k, a) in [0, 45, 90, 135].iter().enumerate() {
         let (q8, q16) = (&d.q8[k], &d.q16[k]);
@@ -251,7 +269,7 @@ pub fn render_raw_to_dir(cfg: &SceneConfig, target: &Path) -> Result<RawSummary>
         || {
             ideal_scene
                 .as_ref()
-                .map(|(sky, cam)| render_ideal(sky, cam))
+                .map(|(sky, cam)| render_ideal(sky, cam, cfg.raw.sun_disc_on()))
         },
     );
     let ((frame, info, scene_s), raw_s) = (raw.0?, raw.1);

@@ -221,10 +221,10 @@ fn render(
         key.sky = Default::default();
         let pipe = cache.get(&key)?;
         let f = if truth {
-            let (st, _) = pipe.stokes_in(&scene.sky, sun, attitude)?;
+            let (st, _) = pipe.stokes_in(&scene.sky, sun, attitude, 0.0)?;
             pipe.frame_of(&st, index, true)?
         } else {
-            pipe.frame_at_in(&scene.sky, sun, attitude, index, Vec::new())?
+            pipe.frame_at_in(&scene.sky, sun, attitude, 0.0, index, Vec::new())?
                 .0
         };
         (pipe, f)

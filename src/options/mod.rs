@@ -13,6 +13,7 @@ pub mod raw;
 pub mod render;
 pub mod scene;
 pub mod sky;
+pub mod world;
 
 pub use dataset::{BuildArgs, DatasetCmd, DirArgs, PreviewArgs};
 pub use demosaic::DemosaicArgs;
@@ -21,6 +22,7 @@ pub use raw::RawArgs;
 pub use render::RenderArgs;
 pub use scene::{SceneArgs, SpaArgs};
 pub use sky::SkyArgs;
+pub use world::WorldArgs;
 
 use std::str::FromStr;
 

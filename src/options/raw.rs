@@ -111,7 +111,12 @@ pub struct RawArgs {
 impl RawArgs {
     /// The first raw-frame option given on the command line (they do nothing for ideal images).
     pub fn first_given(&self) -> Option<&'static str> {
-        first_given(&[
+        self.first_given_but("")
+    }
+
+    /// [`Self::first_given`] leaving out the option `skip` (e.g. `seed`, when the world uses it).
+    pub fn first_given_but(&self, skip: &str) -> Option<&'static str> {
+        let given = [
             ("preset", self.preset.is_some()),
             ("flat-radiance", self.flat_radiance.is_some()),
             ("flat-dolp", self.flat_dolp.is_some()),
@@ -136,7 +141,8 @@ impl RawArgs {
             ("filter-width", self.filter_width.is_some()),
             ("off", !self.off.is_empty()),
             ("sensor-set", !self.sensor_set.is_empty()),
-        ])
+        ];
+        first_given(&given.map(|(n, g)| (n, g && n != skip)))
     }
 
     /// Applies the raw options to a scene.

@@ -1,6 +1,6 @@
 //! Options of `psns render` (and `psns.render`/`psns.render_raw` in Python).
 
-use super::{RawArgs, SceneArgs};
+use super::{RawArgs, SceneArgs, WorldArgs};
 use crate::config::{SceneConfig, SceneKind};
 use crate::{Error, Result};
 use clap::Args;
@@ -15,6 +15,9 @@ pub struct RenderArgs {
     #[command(flatten)]
     #[allow(missing_docs)]
     pub raw: RawArgs,
+    #[command(flatten)]
+    #[allow(missing_docs)]
+    pub world: WorldArgs,
     /// Also emulate the sensor: raw.png, raw.tiff, raw.bin, truth_*.npy.
     #[arg(long = "raw")]
     pub raw_frame: bool,
@@ -30,10 +33,16 @@ impl RenderArgs {
     pub fn config(&self) -> Result<(SceneConfig, bool)> {
         let mut cfg = self.scene.scene()?;
         self.raw.apply(&mut cfg)?;
+        self.world.apply(&mut cfg)?;
         // the lens in force (the preset's unless --lens), so scene.json records it
         cfg.camera.intrinsics = cfg.intrinsics();
         let raw = self.raw_frame || cfg.raw.scene == SceneKind::Flat;
-        if let (false, Some(opt)) = (raw, self.raw.first_given()) {
+        // a seeded world (clouds, trees' gaps) takes --seed without --raw too
+        let first = match WorldArgs::seeded(&cfg) {
+            true => self.raw.first_given_but("seed"),
+            false => self.raw.first_given(),
+        };
+        if let (false, Some(opt)) = (raw, first) {
             return Err(Error::Invalid(format!(
                 "--{opt} applies to the raw frame: add --raw (without it psns render writes the ideal images only)"
             )));

@@ -117,7 +117,13 @@ pub(super) fn curvature(nodes: &[[f32; 3]], gw: usize, gh: usize) -> Vec<f32> {
 /// tangential angle per pixel, with a factor 1.5 for its change across the cell). Only for
 /// fisheyes: in a rectilinear camera the horizon is a straight line and a cell whose corners see
 /// sky sees only sky.
-pub(super) fn clear_of_edges(cam: &Camera, col: usize, row: usize, span: usize) -> bool {
+pub(super) fn clear_of_edges(
+    cam: &Camera,
+    world: Option<&Surroundings>,
+    col: usize,
+    row: usize,
+    span: usize,
+) -> bool {
     let i = &cam.intrinsics;
     let Some(ray) = i.ray(col as f64, row as f64) else {
         return false;
@@ -126,11 +132,11 @@ pub(super) fn clear_of_edges(cam: &Camera, col: usize, row: usize, span: usize) 
     let p = i.projection;
     let per_px = 1.0 / (i.focal_px() * p.radial_scale(theta).min(p.tangential_scale(theta)));
     let margin = 1.5 * std::f64::consts::SQRT_2 * span as f64 * per_px;
-    let up = (cam.enu_to_camera.transpose() * ray)
-        .z
-        .clamp(-1.0, 1.0)
-        .asin();
-    std::f64::consts::FRAC_PI_2 - theta > margin && up > margin
+    let d = (cam.enu_to_camera.transpose() * ray).normalize();
+    let up = d.z.clamp(-1.0, 1.0).asin();
+    std::f64::consts::FRAC_PI_2 - theta > margin
+        && up > margin
+        && world.is_none_or(|w| w.world().clear(d, margin, true))
 }
 
 /// Whether the cell (i, j) of a node grid needs more than bilinear interpolation.
@@ -167,7 +173,10 @@ impl<'a> SkyGrid<'a> {
         let sub_step = (step / 4).max(1);
         // fisheyes: a node near the horizon or the image-circle rim counts as invalid, so the
         // cells around it are refined and evaluated exactly (`clear_of_edges`)
-        let fisheye = cam.intrinsics.projection != crate::camera::Projection::Rectilinear;
+        // with a world, every projection: its edges are no straight lines
+        let world = sky.surroundings();
+        let fisheye =
+            cam.intrinsics.projection != crate::camera::Projection::Rectilinear || world.is_some();
         // the nodes (cols[k], r) of one row: Stokes and whether to trust them
         let eval_row = |r: usize, cols: &[usize], span: usize| -> Vec<([f32; 3], bool)> {
             let mut px = vec![PixelSky::default(); cols.len()];
@@ -176,7 +185,7 @@ impl<'a> SkyGrid<'a> {
                 .zip(cols)
                 .map(|(p, &c)| {
                     let [a, b, d] = p.stokes();
-                    let ok = p.valid && (!fisheye || clear_of_edges(cam, c, r, span));
+                    let ok = p.valid && (!fisheye || clear_of_edges(cam, world, c, r, span));
                     ([a as f32, b as f32, d as f32], ok)
                 })
                 .collect()
@@ -564,6 +573,12 @@ impl StokesRows for SkyGrid<'_> {
             &exact,
             [&mut *s0, &mut *s1, &mut *s2],
         );
+        // the camera mask's blocked pixels are black, edges and all
+        if let Some(m) = self.sky.surroundings().and_then(|w| w.world().mask_row(r)) {
+            for (c, _) in m.iter().enumerate().filter(|(_, &v)| v == 0) {
+                (s0[c], s1[c], s2[c]) = (0.0, 0.0, 0.0);
+            }
+        }
         // the solar disc, exactly as render_stokes adds it
         let lo = self.disc.partition_point(|&(k, _)| k < r * w);
         for &(k, add) in self.disc[lo..]

@@ -243,10 +243,16 @@ pub(super) fn sun_disc_pixels(sky: &Sky, cam: &Camera) -> Vec<(usize, f32)> {
                         continue; // outside a fisheye's image circle
                     };
                     let g = d.dot(s_enu).clamp(-1.0, 1.0).acos();
-                    acc += hw.sun_radiance(g);
+                    let l = hw.sun_radiance(g);
+                    // hidden by the world, dimmed by a cloud
+                    acc += match sky.surroundings() {
+                        Some(w) if l > 0.0 => l * w.sun_transmission(d),
+                        _ => l,
+                    };
                 }
             }
-            if acc > 0.0 {
+            let open = sky.surroundings().is_none_or(|w| w.world().open(c, r));
+            if acc > 0.0 && open {
                 out.push((r * wu + c, (acc / 16.0) as f32));
             }
         }

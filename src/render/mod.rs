@@ -15,15 +15,19 @@
 use crate::camera::{Camera, Lens, Projection};
 use crate::image::{Image, StokesImage, StokesRows};
 use crate::sky::hosek::{HosekWilkie, SUN_RADIUS_RAD};
-use crate::sky::{Lane, Sky, SkyLanes, LANES};
+use crate::sky::{Lane, Sky, SkyLanes, Surroundings, LANES};
 use glam::DVec3;
 use rayon::prelude::*;
 
+mod class;
 mod grid;
 mod ideal;
 #[cfg(test)]
 mod tests;
+#[cfg(test)]
+mod world_tests;
 
+pub use class::*;
 pub use grid::*;
 pub use ideal::*;
 
@@ -69,6 +73,14 @@ impl PixelSky {
 /// fisheye's image circle no light arrives: all zero and invalid.
 #[inline]
 pub fn pixel_sky(sky: &Sky, cam: &Camera, col: f64, row: f64) -> PixelSky {
+    if sky.surroundings().is_some() {
+        // the world's lanes, one of them
+        let mut l = ChunkLanes::new();
+        l.col[0] = col;
+        let mut out = [PixelSky::default()];
+        sky_chunk(sky, cam, row, &mut l, &mut out);
+        return out[0];
+    }
     let Some(ray) = cam.intrinsics.ray(col, row) else {
         return PixelSky::default();
     };
@@ -149,26 +161,37 @@ struct ChunkLanes {
     h: Lane,
     ex: Lane,
     ey: Lane,
+    /// With a world: the directions the sky is sampled in, and each lane's index among them.
+    look: SkyLanes,
+    look_idx: [usize; LANES],
+}
+
+impl ChunkLanes {
+    fn new() -> Self {
+        let z = [0.0; LANES];
+        ChunkLanes {
+            col: z,
+            ray: [z; 3],
+            d: [z; 3],
+            lit: [true; LANES],
+            sky: SkyLanes::default(),
+            idx: [0; LANES],
+            ray_sky: [z; 3],
+            u: [z; 3],
+            ec: [z; 3],
+            h: z,
+            ex: z,
+            ey: z,
+            look: SkyLanes::default(),
+            look_idx: [0; LANES],
+        }
+    }
 }
 
 /// [`pixel_sky_cols`], a chunk of [`LANES`] pixels at a time.
 #[inline(always)]
 fn sky_cols_body(sky: &Sky, cam: &Camera, row: usize, cols: &[usize], out: &mut [PixelSky]) {
-    let z = [0.0; LANES];
-    let mut l = ChunkLanes {
-        col: z,
-        ray: [z; 3],
-        d: [z; 3],
-        lit: [true; LANES],
-        sky: SkyLanes::default(),
-        idx: [0; LANES],
-        ray_sky: [z; 3],
-        u: [z; 3],
-        ec: [z; 3],
-        h: z,
-        ex: z,
-        ey: z,
-    };
+    let mut l = ChunkLanes::new();
     for (cs, o) in cols.chunks(LANES).zip(out.chunks_mut(LANES)) {
         for (x, &c) in l.col.iter_mut().zip(cs) {
             *x = c as f64;
@@ -205,31 +228,12 @@ fn sky_chunk(sky: &Sky, cam: &Camera, row: f64, l: &mut ChunkLanes, out: &mut [P
         let v = (mt * DVec3::new(ray[0][j], ray[1][j], ray[2][j])).normalize();
         (d[0][j], d[1][j], d[2][j]) = (v.x, v.y, v.z);
     }
-    // pack the lanes that see the sky (as Sky::sample: v.z > 0, not NaN), with their rays; a
-    // chunk that is all sky (the usual case) is copied as it is
-    let (v, idx, pray) = (&mut l.sky.v, &mut l.idx, &mut l.ray_sky);
-    let all_sky = (0..n).fold(true, |a, j| a & lit[j] & (d[2][j] > 0.0));
-    let k = if all_sky {
-        for a in 0..3 {
-            v[a][..n].copy_from_slice(&d[a][..n]);
-            pray[a][..n].copy_from_slice(&ray[a][..n]);
-        }
-        n
-    } else {
-        let mut k = 0;
-        for j in 0..n {
-            for a in 0..3 {
-                v[a][k] = d[a][j];
-                pray[a][k] = ray[a][j];
-            }
-            idx[k] = j;
-            k += (lit[j] && d[2][j] > 0.0) as usize;
-        }
-        k
+    let (k, all_sky) = match sky.surroundings() {
+        Some(w) => (world_lanes(sky, w, row, l, n), false),
+        None => plain_lanes(sky, l, n),
     };
-    l.sky.n = k;
-    sky.sample_lanes(&mut l.sky);
     let s = &l.sky;
+    let pray = &l.ray_sky;
     // the E-vector into the camera frame and through the lens onto the sensor
     let (ex, ey) = (&mut l.ex, &mut l.ey);
     match intr.lens() {
@@ -285,10 +289,113 @@ fn sky_chunk(sky: &Sky, cam: &Camera, row: f64, l: &mut ChunkLanes, out: &mut [P
         li: sky.params().ground_radiance.unwrap_or(0.0),
         ..PixelSky::default()
     };
-    for (o, &lit) in out.iter_mut().zip(lit.iter()) {
+    for (o, &lit) in out.iter_mut().zip(l.lit.iter()) {
         *o = if lit { ground } else { PixelSky::default() };
     }
     for i in 0..k {
-        out[idx[i]] = px(i);
+        out[l.idx[i]] = px(i);
     }
+}
+
+/// Packs the lanes of `l` that see the sky (as Sky::sample: v.z > 0, not NaN) with their rays
+/// and samples the sky there: (lanes packed, whether all `n` are sky). A chunk that is all sky
+/// (the usual case) is copied as it is.
+#[inline(always)]
+fn plain_lanes(sky: &Sky, l: &mut ChunkLanes, n: usize) -> (usize, bool) {
+    let (d, ray, lit) = (&l.d, &l.ray, &l.lit);
+    let (v, idx, pray) = (&mut l.sky.v, &mut l.idx, &mut l.ray_sky);
+    let all_sky = (0..n).fold(true, |a, j| a & lit[j] & (d[2][j] > 0.0));
+    let k = if all_sky {
+        for a in 0..3 {
+            v[a][..n].copy_from_slice(&d[a][..n]);
+            pray[a][..n].copy_from_slice(&ray[a][..n]);
+        }
+        n
+    } else {
+        let mut k = 0;
+        for j in 0..n {
+            for a in 0..3 {
+                v[a][k] = d[a][j];
+                pray[a][k] = ray[a][j];
+            }
+            idx[k] = j;
+            k += (lit[j] && d[2][j] > 0.0) as usize;
+        }
+        k
+    };
+    l.sky.n = k;
+    sky.sample_lanes(&mut l.sky);
+    (k, all_sky)
+}
+
+/// [`plain_lanes`] with a world around the camera: each lit lane's ray is traced
+/// ([`Surroundings::look`]), the sky sampled where it is seen (along the ray, or mirrored by
+/// glass), and the lanes that see anything but the ground packed with their light. Pixels the
+/// camera mask blocks are black.
+#[inline(always)]
+fn world_lanes(sky: &Sky, w: &Surroundings, row: f64, l: &mut ChunkLanes, n: usize) -> usize {
+    let mut looks: [Option<crate::sky::surroundings::Look>; LANES] = [None; LANES];
+    let mut m = 0;
+    for j in 0..n {
+        if !l.lit[j] {
+            continue;
+        }
+        let dj = DVec3::new(l.d[0][j], l.d[1][j], l.d[2][j]);
+        if dj.is_nan() {
+            continue;
+        }
+        let lk = w.look(dj);
+        if let Some(v) = lk.sample {
+            (l.look.v[0][m], l.look.v[1][m], l.look.v[2][m]) = (v.x, v.y, v.z);
+            l.look_idx[j] = m;
+            m += 1;
+        }
+        looks[j] = Some(lk);
+    }
+    l.look.n = m;
+    sky.sample_lanes(&mut l.look);
+    let ground = sky.params().ground_radiance.unwrap_or(0.0);
+    let (wd, hd) = w.world().mask_size().unwrap_or((1, 1));
+    let r = (row.round().max(0.0) as usize).min(hd - 1);
+    let mut k = 0;
+    for j in 0..n {
+        let Some(lk) = looks[j] else {
+            continue;
+        };
+        let dj = DVec3::new(l.d[0][j], l.d[1][j], l.d[2][j]);
+        let c = (l.col[j].round().max(0.0) as usize).min(wd - 1);
+        let light = if !w.world().open(c, r) {
+            Some(crate::world::optics::Light {
+                radiance: 0.0,
+                dop: 0.0,
+                e: crate::world::optics::horizontal_across(dj),
+            })
+        } else {
+            let s = match lk.sample {
+                Some(_) => {
+                    let i = l.look_idx[j];
+                    crate::sky::SkySample {
+                        valid: true,
+                        gamma_rad: 0.0,
+                        radiance: l.look.radiance[i],
+                        dop: l.look.dop[i],
+                        e: DVec3::new(l.look.e[0][i], l.look.e[1][i], l.look.e[2][i]),
+                    }
+                }
+                None => crate::sky::SkySample::GROUND,
+            };
+            w.shade(dj, &lk, &s, ground)
+        };
+        if let Some(li) = light {
+            l.sky.radiance[k] = li.radiance;
+            l.sky.dop[k] = li.dop;
+            (l.sky.e[0][k], l.sky.e[1][k], l.sky.e[2][k]) = (li.e.x, li.e.y, li.e.z);
+            for a in 0..3 {
+                l.ray_sky[a][k] = l.ray[a][j];
+            }
+            l.idx[k] = j;
+            k += 1;
+        }
+    }
+    k
 }

@@ -37,6 +37,7 @@ pub mod pan;
 pub mod quartic;
 pub mod rayleigh;
 pub mod stability;
+pub mod surroundings;
 pub mod values;
 
 use crate::error::{check_range, Result};
@@ -44,6 +45,7 @@ use crate::sun::SunPosition;
 use crate::vmath;
 use glam::DVec3;
 use serde::{Deserialize, Serialize};
+pub use surroundings::Surroundings;
 pub use values::SkyValues;
 
 /// Which polarization model to use (`docs/sky.md` gives each one's formulas, source and range).
@@ -573,6 +575,8 @@ pub struct Sky {
     cie: Option<cie::CieSky>,
     /// Hosek–Wilkie zenith radiance, the CIE sky's scale.
     cie_zenith: f64,
+    /// The world around the camera, lit by this sky.
+    surroundings: Option<std::sync::Arc<Surroundings>>,
 }
 
 impl Sky {
@@ -601,7 +605,33 @@ impl Sky {
             hw,
             cie,
             cie_zenith,
+            surroundings: None,
         })
+    }
+
+    /// This sky with `world` around the camera (lit by it: [`Surroundings`]); an empty world
+    /// leaves the plain sky.
+    pub fn with_world(mut self, world: crate::world::World) -> Sky {
+        self.surroundings = if world.is_empty() {
+            None
+        } else {
+            Some(std::sync::Arc::new(Surroundings::new(&self, world)))
+        };
+        self
+    }
+
+    /// This sky with the clouds of `world` moved to scene time `t_s` (the lighting kept: it is
+    /// the clear sky's).
+    pub fn with_clouds_at(mut self, world: &crate::world::World, t_s: f64) -> Sky {
+        if let Some(s) = &self.surroundings {
+            self.surroundings = Some(std::sync::Arc::new(s.with_world(world.at(t_s))));
+        }
+        self
+    }
+
+    /// The world around the camera, when there is one.
+    pub fn surroundings(&self) -> Option<&Surroundings> {
+        self.surroundings.as_deref()
     }
 
     /// Whether the sun's disc is in view of the sky: not under an overcast CIE sky (types 1–5).

@@ -14,6 +14,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("memory", 0),
     ("progress", 0),
     ("sun", 1),
+    ("world", 1),
     ("sky", 2),
     ("camera", 3),
     ("render", 4),

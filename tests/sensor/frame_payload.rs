@@ -36,7 +36,7 @@ fn payload_and_crc_match_the_codes() {
         let pipe = small_pipeline(exact, preset);
         let sun = SunPosition::new(40.0, 120.0);
         let att = Attitude::enu(30.0, 50.0, 0.0);
-        let (want, _) = pipe.frame_at(sun, &att, 3, Vec::new()).unwrap();
+        let (want, _) = pipe.frame_at(sun, &att, 0.0, 3, Vec::new()).unwrap();
         for fmt in [
             PixelFormat::Mono8,
             PixelFormat::Mono12p,
@@ -45,7 +45,7 @@ fn payload_and_crc_match_the_codes() {
         ] {
             let mut bytes = Vec::new();
             let (f, _, crc) = pipe
-                .frame_payload_at(sun, &att, 3, Vec::new(), fmt, &mut bytes)
+                .frame_payload_at(sun, &att, 0.0, 3, Vec::new(), fmt, &mut bytes)
                 .unwrap();
             assert_eq!(
                 f.codes.data, want.codes.data,
@@ -85,12 +85,12 @@ fn frame_after_a_lead_keeps_the_lead_and_makes_the_same_codes() {
         let pipe = small_pipeline(exact, preset);
         let sun = SunPosition::new(40.0, 120.0);
         let att = Attitude::enu(30.0, 50.0, 0.0);
-        let (want, _) = pipe.frame_at(sun, &att, 3, Vec::new()).unwrap();
+        let (want, _) = pipe.frame_at(sun, &att, 0.0, 3, Vec::new()).unwrap();
         let n = want.codes.data.len();
         // a fresh buffer shorter than the lead, then a reused one holding stale codes
         let mut buf = vec![7u16, 8];
         for lead in [32usize, 32, 0, 5] {
-            let (f, _) = pipe.frame_at_after(sun, &att, 3, buf, lead).unwrap();
+            let (f, _) = pipe.frame_at_after(sun, &att, 0.0, 3, buf, lead).unwrap();
             assert_eq!((f.codes.width, f.codes.height), (0, 0));
             let b = f.lead_buffer.expect("the buffer comes back");
             assert_eq!(b.len(), lead + n, "exact {exact} {preset:?} lead {lead}");

@@ -23,7 +23,7 @@ use psns::gige::chunk::{self, ChunkValues};
 use psns::gige::gvcp::{self, Command};
 use psns::gige::gvsp::{self, Block, BlockRing, Leader};
 use psns::gige::registers::{Action, Device, DeviceInfo, FrameOrder, Poll, Settings};
-use psns::options::{finite, RawArgs, SceneArgs};
+use psns::options::{finite, RawArgs, SceneArgs, WorldArgs};
 use psns::pipeline::{seconds_to_ns, RawPipeline, SceneClock};
 use psns::sensor::{packing, Exposure};
 use psns::trajectory::Pose;
@@ -51,6 +51,8 @@ pub struct GigeArgs {
     scene: SceneArgs,
     #[command(flatten)]
     raw: RawArgs,
+    #[command(flatten)]
+    world: WorldArgs,
     /// Address to listen on (GVCP) and send the stream from. Default: loopback only.
     #[arg(long, default_value = "127.0.0.1", value_name = "IPV4")]
     address: Ipv4Addr,
@@ -177,6 +179,7 @@ pub fn run(a: GigeArgs) -> anyhow::Result<()> {
     lower_render_priority();
     let mut cfg = a.scene.scene()?;
     a.raw.apply(&mut cfg)?;
+    a.world.apply(&mut cfg)?;
     let (w, h) = (cfg.camera.intrinsics.width, cfg.camera.intrinsics.height);
     if w % 2 != 0 || h % 2 != 0 {
         return Err(Error::Invalid(format!(

@@ -96,7 +96,7 @@ impl Renderer {
                 Image::Codes(_) => {}
             }
         }
-        let (frame, _) = pipe.frame_at(sun, &pose.attitude, order.frame_index, codes)?;
+        let (frame, _) = pipe.frame_at(sun, &pose.attitude, pose.t_s, order.frame_index, codes)?;
         let fmt = s.pixel_format.packing();
         let (sw, sh) = self.sensor_size;
         let full = s.width as usize == sw && s.height as usize == sh;

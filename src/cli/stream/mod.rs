@@ -27,7 +27,7 @@ use glam::DMat3;
 use psns::camera::camera_to_enu_quaternion;
 use psns::config::SceneConfig;
 use psns::error::{Error, Result};
-use psns::options::{finite, whole, RawArgs, SceneArgs};
+use psns::options::{finite, whole, RawArgs, SceneArgs, WorldArgs};
 use psns::pipeline::{seconds_to_ns, RawPipeline, SceneClock};
 use psns::sensor::packing;
 use psns::sensor::Exposure;
@@ -57,6 +57,8 @@ pub struct StreamArgs {
     scene: SceneArgs,
     #[command(flatten)]
     raw: RawArgs,
+    #[command(flatten)]
+    world: WorldArgs,
     #[command(flatten)]
     trajectory: TrajectoryArgs,
     /// Output file, FIFO, or - for stdout.
@@ -109,6 +111,7 @@ pub fn run(a: StreamArgs) -> anyhow::Result<()> {
     }
     let mut cfg = a.scene.scene()?;
     a.raw.apply(&mut cfg)?;
+    a.world.apply(&mut cfg)?;
     let opts = StreamOptions {
         trajectory: a.trajectory.trajectory,
         frames: a.frames,
@@ -300,13 +303,20 @@ impl FrameMaker {
         let (lead, fmt) = (self.kind.lead, self.kind.format);
         let (mut frame, info, crc) = if lead > 0 {
             // a bag's mono16 image: the codes behind room for the message's CDR prefix, no CRC
-            let (f, i) = self
-                .pipe
-                .frame_at_after(sun, &pose.attitude, index, codes, lead)?;
+            let (f, i) =
+                self.pipe
+                    .frame_at_after(sun, &pose.attitude, pose.t_s, index, codes, lead)?;
             (f, i, None)
         } else {
-            self.pipe
-                .frame_payload_at(sun, &pose.attitude, index, codes, fmt, &mut bytes)?
+            self.pipe.frame_payload_at(
+                sun,
+                &pose.attitude,
+                pose.t_s,
+                index,
+                codes,
+                fmt,
+                &mut bytes,
+            )?
         };
         // little-endian Mono16 is the code buffer itself: no packing pass
         let payload = match frame.lead_buffer.take() {
@@ -367,7 +377,8 @@ impl FrameMaker {
             albedo: self.albedo,
         };
         let truth = if self.kind.truth {
-            let (st, _) = self.pipe.stokes(sun, &pose.attitude)?;
+            let sky = &self.pipe.config().sky;
+            let (st, _) = self.pipe.stokes_in(sky, sun, &pose.attitude, pose.t_s)?;
             frame.truth = self.pipe.sensor().truth_for(&st, frame.exposure_us);
             let (dolp, aolp) = frame.truth_dolp_aolp();
             Some((dolp.data, aolp.data))

@@ -1,0 +1,79 @@
+//! The class image: what each pixel sees ([`Class`]: outside the image circle, sky, cloud,
+//! obstruction, ground, the sun's disc), exactly per pixel centre.
+
+use super::*;
+use crate::image::Image;
+use crate::world::{Class, Hit};
+
+/// The class of the pixel (col, row) centre, without the sun's disc.
+pub fn pixel_class(sky: &Sky, cam: &Camera, col: usize, row: usize) -> Class {
+    let Some(d) = cam.pixel_direction(col as f64, row as f64) else {
+        return Class::Outside;
+    };
+    let Some(w) = sky.surroundings() else {
+        return if d.z > 0.0 { Class::Sky } else { Class::Ground };
+    };
+    if !w.world().open(col, row) {
+        return Class::Obstruction;
+    }
+    match w.world().trace(d) {
+        Hit::Sky if d.z > 0.0 => {
+            if w.world().clouds().opacity(d) >= 0.5 {
+                Class::Cloud
+            } else {
+                Class::Sky
+            }
+        }
+        Hit::Sky | Hit::Ground => Class::Ground,
+        _ => Class::Obstruction,
+    }
+}
+
+/// The class of every pixel ([`Class`] codes), with the sun's disc where it is drawn
+/// (`sun_disc`) and seen.
+pub fn class_image(sky: &Sky, cam: &Camera, sun_disc: bool) -> Image<u8> {
+    let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
+    let mut out: Image<u8> = Image::new(w, h);
+    out.data
+        .par_chunks_mut(w.max(1))
+        .enumerate()
+        .for_each(|(r, row)| {
+            for (c, v) in row.iter_mut().enumerate() {
+                *v = pixel_class(sky, cam, c, r) as u8;
+            }
+        });
+    if sun_disc {
+        for (k, _) in sun_disc_pixels(sky, cam) {
+            out.data[k] = Class::Sun as u8;
+        }
+    }
+    out
+}
+
+/// The fraction of the image in each class ([`Class::ALL`] order), counted over every
+/// `stride`-th pixel in each direction (1: every pixel); the sun's disc from its `sun_pixels`
+/// exactly.
+pub fn class_fractions(sky: &Sky, cam: &Camera, stride: usize, sun_pixels: usize) -> [f64; 6] {
+    let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
+    let stride = stride.max(1);
+    let rows: Vec<usize> = (0..h).step_by(stride).collect();
+    let counts = rows
+        .par_iter()
+        .map(|&r| {
+            let mut n = [0usize; 6];
+            for c in (0..w).step_by(stride) {
+                n[pixel_class(sky, cam, c, r) as usize] += 1;
+            }
+            n
+        })
+        .reduce(|| [0; 6], |a, b| std::array::from_fn(|k| a[k] + b[k]));
+    let total: usize = counts.iter().sum();
+    let sun = sun_pixels as f64 / (w * h).max(1) as f64;
+    let mut f: [f64; 6] = std::array::from_fn(|k| counts[k] as f64 / total.max(1) as f64);
+    // the disc is drawn over the sky and the clouds
+    let from_sky = sun.min(f[Class::Sky as usize]);
+    f[Class::Sky as usize] -= from_sky;
+    f[Class::Cloud as usize] -= (sun - from_sky).min(f[Class::Cloud as usize]);
+    f[Class::Sun as usize] = sun;
+    f
+}
