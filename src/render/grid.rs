@@ -36,6 +36,8 @@ pub(super) struct SubGrid {
     rows: Vec<usize>,
     nodes: Vec<[f32; 3]>,
     exact: Vec<bool>,
+    /// Cloud opacity at the nodes (empty without clouds).
+    alpha: Vec<f32>,
 }
 
 /// The sky on a coarse grid of pixel nodes, refined where bilinear interpolation would be off by
@@ -67,6 +69,16 @@ pub struct SkyGrid<'a> {
     /// Solar disc additions to S0: (pixel index, radiance), sorted by index.
     pub(super) disc: Vec<(usize, f32)>,
     exact_pixels: usize,
+    /// With clouds in front of the sky: the nodes sample the sky without them
+    /// ([`Sky::without_direct_clouds`]) and the clouds' opacity, interpolated apart and laid
+    /// over the interpolated sky (`alpha` per node, `cloudy` per band of cells); the exact
+    /// pixels see them as `sky` does.
+    alpha: Vec<f32>,
+    /// Cells refined for the clouds alone (opacity at their nodes, no sky), by band as `subs`.
+    alpha_subs: Vec<SubGrid>,
+    band_alpha: Vec<usize>,
+    cloudy: Vec<bool>,
+    cloud_radiance: f32,
 }
 
 /// Node positions 0, step, 2 step, … and always n − 1.
@@ -139,6 +151,17 @@ pub(super) fn clear_of_edges(
         && world.is_none_or(|w| w.world().clear(d, margin, true))
 }
 
+/// Whether the cloud opacity differs between the corners of cell (i, j) (no clouds: never).
+fn alpha_varies(alpha: &[f32], gw: usize, i: usize, j: usize) -> bool {
+    if alpha.is_empty() {
+        return false;
+    }
+    let a = alpha[j * gw + i];
+    [j * gw + i + 1, (j + 1) * gw + i, (j + 1) * gw + i + 1]
+        .iter()
+        .any(|&k| alpha[k] != a)
+}
+
 /// Whether the cell (i, j) of a node grid needs more than bilinear interpolation.
 pub(super) fn cell_needs_more(
     nodes: &[[f32; 3]],
@@ -175,111 +198,200 @@ impl<'a> SkyGrid<'a> {
         // cells around it are refined and evaluated exactly (`clear_of_edges`)
         // with a world, every projection: its edges are no straight lines
         let world = sky.surroundings();
+        let clear_sky = sky.without_direct_clouds();
+        let split = clear_sky.is_some();
+        let node_sky: &Sky = clear_sky.as_ref().unwrap_or(sky);
         let fisheye =
             cam.intrinsics.projection != crate::camera::Projection::Rectilinear || world.is_some();
         // the nodes (cols[k], r) of one row: Stokes and whether to trust them
-        let eval_row = |r: usize, cols: &[usize], span: usize| -> Vec<([f32; 3], bool)> {
+        let eval_row = |r: usize, cols: &[usize], span: usize| -> Vec<([f32; 3], bool, f32)> {
             let mut px = vec![PixelSky::default(); cols.len()];
-            pixel_sky_cols(sky, cam, r, cols, &mut px);
+            pixel_sky_cols(node_sky, cam, r, cols, &mut px);
             px.iter()
                 .zip(cols)
                 .map(|(p, &c)| {
                     let [a, b, d] = p.stokes();
                     let ok = p.valid && (!fisheye || clear_of_edges(cam, world, c, r, span));
-                    ([a as f32, b as f32, d as f32], ok)
+                    let alpha = match (split, world) {
+                        (true, Some(w)) => cam
+                            .pixel_direction(c as f64, r as f64)
+                            .map_or(0.0, |d| w.direct_opacity(d) as f32),
+                        _ => 0.0,
+                    };
+                    ([a as f32, b as f32, d as f32], ok, alpha)
                 })
                 .collect()
         };
         // the solar disc (sequential) beside the nodes and their refinement
-        let ((nodes, band_subs, subs, exact_pixels), disc) = rayon::join(
-            || {
-                let evaluated: Vec<([f32; 3], bool)> = rows
-                    .par_iter()
-                    // small tasks, for the same reason as the sensor pass's bands
-                    .with_max_len(2)
-                    .flat_map_iter(|&r| eval_row(r, &cols, step))
-                    .collect();
-                let nodes: Vec<[f32; 3]> = evaluated.iter().map(|e| e.0).collect();
-                let valid: Vec<bool> = evaluated.iter().map(|e| e.1).collect();
-                let curv = curvature(&nodes, gw, gh);
-                let tol = tol as f32;
-                let mut flagged = Vec::new();
-                let bands = gh.max(2) - 1;
-                if gw >= 2 && gh >= 2 {
-                    // the test per cell in parallel, the numbering of the flagged ones in order
-                    let mut more = vec![false; (gw - 1) * bands];
-                    more.par_chunks_mut(gw - 1)
-                        .enumerate()
-                        .for_each(|(j, row)| {
-                            for (i, m) in row.iter_mut().enumerate() {
-                                *m = cell_needs_more(&nodes, &valid, &curv, gw, i, j, tol);
-                            }
-                        });
-                    for (k, _) in more.iter().enumerate().filter(|(_, &m)| m) {
-                        flagged.push((k % (gw - 1), k / (gw - 1)));
+        let ((nodes, band_subs, subs, exact_pixels, alpha, (band_alpha, alpha_subs)), disc) =
+            rayon::join(
+                || {
+                    let evaluated: Vec<([f32; 3], bool, f32)> = rows
+                        .par_iter()
+                        // small tasks, for the same reason as the sensor pass's bands
+                        .with_max_len(2)
+                        .flat_map_iter(|&r| eval_row(r, &cols, step))
+                        .collect();
+                    let nodes: Vec<[f32; 3]> = evaluated.iter().map(|e| e.0).collect();
+                    let valid: Vec<bool> = evaluated.iter().map(|e| e.1).collect();
+                    let alpha: Vec<f32> = match split {
+                        true => evaluated.iter().map(|e| e.2).collect(),
+                        false => Vec::new(),
+                    };
+                    let curv = curvature(&nodes, gw, gh);
+                    let tol = tol as f32;
+                    let mut flagged = Vec::new();
+                    let bands = gh.max(2) - 1;
+                    if gw >= 2 && gh >= 2 {
+                        // the test per cell in parallel, the numbering of the flagged ones in order
+                        let mut more = vec![false; (gw - 1) * bands];
+                        more.par_chunks_mut(gw - 1)
+                            .enumerate()
+                            .for_each(|(j, row)| {
+                                for (i, m) in row.iter_mut().enumerate() {
+                                    *m = cell_needs_more(&nodes, &valid, &curv, gw, i, j, tol);
+                                }
+                            });
+                        for (k, _) in more.iter().enumerate().filter(|(_, &m)| m) {
+                            flagged.push((k % (gw - 1), k / (gw - 1)));
+                        }
                     }
-                }
-                // flagged is in row-major order: each band's cells are one run
-                let band_subs: Vec<usize> = (0..=bands)
-                    .map(|j| flagged.partition_point(|&(_, fj)| fj < j))
-                    .collect();
-                let subs: Vec<SubGrid> = flagged
-                    .par_iter()
-                    .map(|&(i, j)| {
-                        let sc = grid_nodes(cols[i], cols[i + 1], sub_step);
-                        let sr = grid_nodes(rows[j], rows[j + 1], sub_step);
-                        let (sw, sh) = (sc.len(), sr.len());
-                        let ev: Vec<([f32; 3], bool)> = sr
-                            .iter()
-                            .flat_map(|&r| eval_row(r, &sc, sub_step))
-                            .collect();
-                        let sn: Vec<[f32; 3]> = ev.iter().map(|e| e.0).collect();
-                        let sv: Vec<bool> = ev.iter().map(|e| e.1).collect();
-                        let scurv = curvature(&sn, sw, sh);
-                        let mut exact = vec![true; (sw - 1) * (sh - 1)];
-                        if sub_step > 1 {
-                            for jj in 0..sh - 1 {
-                                for ii in 0..sw - 1 {
-                                    exact[jj * (sw - 1) + ii] =
-                                        cell_needs_more(&sn, &sv, &scurv, sw, ii, jj, tol);
+                    // flagged is in row-major order: each band's cells are one run
+                    let band_subs: Vec<usize> = (0..=bands)
+                        .map(|j| flagged.partition_point(|&(_, fj)| fj < j))
+                        .collect();
+                    let subs: Vec<SubGrid> = flagged
+                        .par_iter()
+                        .map(|&(i, j)| {
+                            let sc = grid_nodes(cols[i], cols[i + 1], sub_step);
+                            let sr = grid_nodes(rows[j], rows[j + 1], sub_step);
+                            let (sw, sh) = (sc.len(), sr.len());
+                            let ev: Vec<([f32; 3], bool, f32)> = sr
+                                .iter()
+                                .flat_map(|&r| eval_row(r, &sc, sub_step))
+                                .collect();
+                            let sn: Vec<[f32; 3]> = ev.iter().map(|e| e.0).collect();
+                            let sv: Vec<bool> = ev.iter().map(|e| e.1).collect();
+                            let salpha: Vec<f32> = match split {
+                                true => ev.iter().map(|e| e.2).collect(),
+                                false => Vec::new(),
+                            };
+                            let scurv = curvature(&sn, sw, sh);
+                            let mut exact = vec![true; (sw - 1) * (sh - 1)];
+                            if sub_step > 1 {
+                                for jj in 0..sh - 1 {
+                                    for ii in 0..sw - 1 {
+                                        exact[jj * (sw - 1) + ii] =
+                                            cell_needs_more(&sn, &sv, &scurv, sw, ii, jj, tol);
+                                    }
+                                }
+                            }
+                            SubGrid {
+                                cell: i,
+                                step: sub_step,
+                                cols: sc,
+                                rows: sr,
+                                nodes: sn,
+                                exact,
+                                alpha: salpha,
+                            }
+                        })
+                        .collect();
+                    let exact_pixels = subs
+                        .iter()
+                        .map(|s| {
+                            let sw = s.cols.len();
+                            s.exact
+                                .iter()
+                                .enumerate()
+                                .filter(|(_, &e)| e)
+                                .map(|(k, _)| {
+                                    let (ii, jj) = (k % (sw - 1), k / (sw - 1));
+                                    (s.cols[ii + 1] - s.cols[ii]) * (s.rows[jj + 1] - s.rows[jj])
+                                })
+                                .sum::<usize>()
+                        })
+                        .sum();
+                    // cells whose clouds change but whose sky interpolates: the clouds' opacity
+                    // alone on a finer grid (no sky sampled there)
+                    let mut alpha_cells = Vec::new();
+                    if split && gw >= 2 && gh >= 2 {
+                        let refined: std::collections::HashSet<(usize, usize)> =
+                            flagged.iter().copied().collect();
+                        for j in 0..gh - 1 {
+                            for i in 0..gw - 1 {
+                                if alpha_varies(&alpha, gw, i, j) && !refined.contains(&(i, j)) {
+                                    alpha_cells.push((i, j));
                                 }
                             }
                         }
-                        SubGrid {
-                            cell: i,
-                            step: sub_step,
-                            cols: sc,
-                            rows: sr,
-                            nodes: sn,
-                            exact,
-                        }
-                    })
-                    .collect();
-                let exact_pixels = subs
-                    .iter()
-                    .map(|s| {
-                        let sw = s.cols.len();
-                        s.exact
-                            .iter()
-                            .enumerate()
-                            .filter(|(_, &e)| e)
-                            .map(|(k, _)| {
-                                let (ii, jj) = (k % (sw - 1), k / (sw - 1));
-                                (s.cols[ii + 1] - s.cols[ii]) * (s.rows[jj + 1] - s.rows[jj])
-                            })
-                            .sum::<usize>()
-                    })
-                    .sum();
-                (nodes, band_subs, subs, exact_pixels)
-            },
-            || {
-                if opts.sun_disc {
-                    sun_disc_pixels(sky, cam)
-                } else {
-                    Vec::new()
-                }
-            },
-        );
+                    }
+                    let band_alpha: Vec<usize> = (0..=bands)
+                        .map(|j| alpha_cells.partition_point(|&(_, fj)| fj < j))
+                        .collect();
+                    let alpha_subs: Vec<SubGrid> = alpha_cells
+                        .par_iter()
+                        .map(|&(i, j)| {
+                            let sc = grid_nodes(cols[i], cols[i + 1], sub_step);
+                            let sr = grid_nodes(rows[j], rows[j + 1], sub_step);
+                            let w = world.expect("clouds come with a world");
+                            let alpha = sr
+                                .iter()
+                                .flat_map(|&r| {
+                                    sc.iter().map(move |&c| {
+                                        cam.pixel_direction(c as f64, r as f64)
+                                            .map_or(0.0, |d| w.direct_opacity(d) as f32)
+                                    })
+                                })
+                                .collect();
+                            SubGrid {
+                                cell: i,
+                                step: sub_step,
+                                cols: sc,
+                                rows: sr,
+                                nodes: Vec::new(),
+                                exact: Vec::new(),
+                                alpha,
+                            }
+                        })
+                        .collect();
+                    (
+                        nodes,
+                        band_subs,
+                        subs,
+                        exact_pixels,
+                        alpha,
+                        (band_alpha, alpha_subs),
+                    )
+                },
+                || {
+                    if opts.sun_disc {
+                        sun_disc_pixels(sky, cam)
+                    } else {
+                        Vec::new()
+                    }
+                },
+            );
+        // the bands of cells where a node sees a cloud
+        let bands = rows.len().max(2) - 1;
+        let cloudy: Vec<bool> = match split {
+            false => Vec::new(),
+            true => (0..bands)
+                .map(|j| {
+                    let gw = cols.len();
+                    let in_rows = (j..(j + 2).min(rows.len()))
+                        .any(|jj| alpha[jj * gw..(jj + 1) * gw].iter().any(|&a| a > 0.0));
+                    let in_subs = subs[band_subs[j]..band_subs[j + 1]]
+                        .iter()
+                        .chain(&alpha_subs[band_alpha[j]..band_alpha[j + 1]])
+                        .any(|s| s.alpha.iter().any(|&a| a > 0.0));
+                    in_rows || in_subs
+                })
+                .collect(),
+        };
+        let cloud_radiance = sky
+            .surroundings()
+            .map_or(0.0, |w| w.cloud_radiance() as f32);
         SkyGrid {
             step,
             sky,
@@ -293,6 +405,11 @@ impl<'a> SkyGrid<'a> {
             band_subs,
             disc,
             exact_pixels,
+            alpha,
+            alpha_subs,
+            band_alpha,
+            cloudy,
+            cloud_radiance,
         }
     }
 
@@ -500,6 +617,103 @@ pub(super) fn lerp3(a: [f32; 3], b: [f32; 3], f: f32) -> [f32; 3] {
     ]
 }
 
+impl SkyGrid<'_> {
+    /// Lays the clouds over row `r` (band `j`) of the interpolated clear sky: their opacity α
+    /// bilinear between the nodes (the refined cells' own nodes where there are some), then
+    /// S0 ← S0 + α (L_cloud − S0), S1,2 ← (1 − α) S1,2.
+    fn lay_clouds(&self, r: usize, j: usize, s0: &mut [f32], s1: &mut [f32], s2: &mut [f32]) {
+        let w = self.width;
+        thread_local! {
+            static ALPHA_ROW: std::cell::RefCell<Vec<f32>> = const { std::cell::RefCell::new(Vec::new()) };
+        }
+        ALPHA_ROW.with_borrow_mut(|a| {
+            a.resize(w, 0.0);
+            let spans = self.alpha_row(r, j, a);
+            let lc = self.cloud_radiance;
+            // only the cells with a cloud at a corner
+            for (c0, c1) in spans {
+                for c in c0..c1 {
+                    let al = a[c];
+                    s0[c] += al * (lc - s0[c]);
+                    s1[c] *= 1.0 - al;
+                    s2[c] *= 1.0 - al;
+                }
+            }
+        });
+    }
+
+    /// The clouds' opacity along row `r` (band `j`) into `a`, and the column spans where it
+    /// may be above 0 (in order, merged); elsewhere `a` is left as it was.
+    fn alpha_row(&self, r: usize, j: usize, a: &mut [f32]) -> Vec<(usize, usize)> {
+        let mut spans: Vec<(usize, usize)> = Vec::new();
+        let mut extra: Vec<(usize, usize)> = Vec::new();
+        let (w, gw) = (self.width, self.cols.len());
+        let (r0, r1) = (self.rows[j], self.rows[j + 1]);
+        let fy = (r - r0) as f32 / (r1 - r0) as f32;
+        let at = |i: usize| {
+            let (t, b) = (self.alpha[j * gw + i], self.alpha[(j + 1) * gw + i]);
+            t + (b - t) * fy
+        };
+        for i in 0..gw - 1 {
+            let (c0, c1) = (self.cols[i], self.cols[i + 1]);
+            let end = if i + 2 == gw { w } else { c1 };
+            let (l, rr) = (at(i), at(i + 1));
+            if l == 0.0 && rr == 0.0 {
+                continue; // a refined cell with a cloud inside adds its own span below
+            }
+            let inv = 1.0 / (c1 - c0) as f32;
+            for (x, v) in a[c0..end].iter_mut().enumerate() {
+                *v = l + (rr - l) * (x as f32 * inv);
+            }
+            match spans.last_mut() {
+                Some(last) if last.1 >= c0 => last.1 = last.1.max(end),
+                _ => spans.push((c0, end)),
+            }
+        }
+        let refined = self.subs[self.band_subs[j]..self.band_subs[j + 1]].iter();
+        let alpha_only = self.alpha_subs[self.band_alpha[j]..self.band_alpha[j + 1]].iter();
+        for sg in refined.chain(alpha_only) {
+            let i = sg.cell;
+            let c_end = if i + 2 == gw {
+                self.cols[i + 1] + 1
+            } else {
+                self.cols[i + 1]
+            };
+            let (sw, sh) = (sg.cols.len(), sg.rows.len());
+            let jj = ((r - r0) / sg.step).min(sh - 2);
+            let (sr0, sr1) = (sg.rows[jj], sg.rows[jj + 1]);
+            let fy = (r - sr0) as f32 / (sr1 - sr0) as f32;
+            let n = |x: usize, y: usize| sg.alpha[y * sw + x];
+            for ii in 0..sw - 1 {
+                let (a0, a1) = (sg.cols[ii], sg.cols[ii + 1]);
+                let a_end = if ii + 2 == sw { c_end } else { a1 };
+                let l = n(ii, jj) + (n(ii, jj + 1) - n(ii, jj)) * fy;
+                let rr = n(ii + 1, jj) + (n(ii + 1, jj + 1) - n(ii + 1, jj)) * fy;
+                let inv = 1.0 / (a1 - a0) as f32;
+                for (x, v) in a[a0..a_end].iter_mut().enumerate() {
+                    *v = l + (rr - l) * (x as f32 * inv);
+                }
+                if l > 0.0 || rr > 0.0 {
+                    extra.push((a0, a_end));
+                }
+            }
+        }
+        // the refined cells' spans into the coarse ones, in order
+        if !extra.is_empty() {
+            let mut all = std::mem::take(&mut spans);
+            all.extend(extra);
+            all.sort_unstable();
+            for (c0, c1) in all {
+                match spans.last_mut() {
+                    Some(last) if last.1 >= c0 => last.1 = last.1.max(c1),
+                    _ => spans.push((c0, c1)),
+                }
+            }
+        }
+        spans
+    }
+}
+
 impl StokesRows for SkyGrid<'_> {
     fn width(&self) -> usize {
         self.width
@@ -564,6 +778,12 @@ impl StokesRows for SkyGrid<'_> {
                         lerp_span([&mut *s0, &mut *s1, &mut *s2], left, right, a0, a1, a_end);
                     }
                 }
+            }
+        }
+        if !self.cloudy.is_empty() && self.rows.len() >= 2 && self.cols.len() >= 2 {
+            let j = Self::interval(&self.rows, step, r);
+            if self.cloudy[j] {
+                self.lay_clouds(r, j, s0, s1, s2);
             }
         }
         stokes_at(

@@ -191,13 +191,28 @@ impl ChunkLanes {
 /// [`pixel_sky_cols`], a chunk of [`LANES`] pixels at a time.
 #[inline(always)]
 fn sky_cols_body(sky: &Sky, cam: &Camera, row: usize, cols: &[usize], out: &mut [PixelSky]) {
-    let mut l = ChunkLanes::new();
-    for (cs, o) in cols.chunks(LANES).zip(out.chunks_mut(LANES)) {
-        for (x, &c) in l.col.iter_mut().zip(cs) {
-            *x = c as f64;
-        }
-        sky_chunk(sky, cam, row as f64, &mut l, o);
+    thread_local! {
+        /// One per thread: zeroing its ~25 kB per call cost more than the refined cells'
+        /// short rows it evaluates.
+        static LANES_BUF: std::cell::RefCell<Option<Box<ChunkLanes>>> =
+            const { std::cell::RefCell::new(None) };
     }
+    LANES_BUF.with(|cell| {
+        let mut held = cell.try_borrow_mut().ok();
+        let mut own: Option<Box<ChunkLanes>> = None;
+        let l: &mut ChunkLanes = match held.as_deref_mut() {
+            Some(slot) => slot.get_or_insert_with(|| Box::new(ChunkLanes::new())),
+            None => own.insert(Box::new(ChunkLanes::new())),
+        };
+        // the fisheyes set this per lane; a pinhole's lanes are all lit
+        l.lit = [true; LANES];
+        for (cs, o) in cols.chunks(LANES).zip(out.chunks_mut(LANES)) {
+            for (x, &c) in l.col.iter_mut().zip(cs) {
+                *x = c as f64;
+            }
+            sky_chunk(sky, cam, row as f64, l, o);
+        }
+    });
 }
 
 /// [`pixel_sky`] for the pixels (l.col[k], row), k = 0..out.len() ≤ [`LANES`].

@@ -137,38 +137,53 @@ fn the_grid_sees_the_world_the_exact_render_sees() {
         camera_height_m: 1.6,
         ..Default::default()
     };
-    let sky = sky_with(&cfg, SunPosition::new(40.0, 150.0));
-    for (intr, att) in [
-        (zenith_fisheye(300).intrinsics, Attitude::enu(0.0, 0.0, 0.0)),
-        (
-            Intrinsics {
-                pixel_pitch_um: 3.45 * 6.0,
-                ..Intrinsics::with_size(320, 240)
-            },
-            Attitude::enu(10.0, 60.0, 0.0),
-        ),
-    ] {
-        let cam = Camera::new(intr, &att, 150.0).unwrap();
-        let opts = StokesOptions { sun_disc: true };
-        let tol = 2.4e-4;
-        let (exact, _) = render_stokes(&sky, &cam, opts);
-        let (grid, _) = render_stokes_grid(&sky, &cam, opts, 16, tol);
-        let mut worst = 0f64;
-        for i in 0..exact.s0.data.len() {
-            let s0 = exact.s0.data[i] as f64;
-            let err = [
-                (grid.s0.data[i] - exact.s0.data[i]) as f64,
-                (grid.s1.data[i] - exact.s1.data[i]) as f64,
-                (grid.s2.data[i] - exact.s2.data[i]) as f64,
-            ]
-            .iter()
-            .map(|e| e.abs())
-            .sum::<f64>();
-            let rel = if s0 > 0.0 { err / s0 } else { err };
-            worst = worst.max(rel);
+    let mut solid = cfg.clone();
+    solid.clouds.clear();
+    // without clouds the edges are exact and the rest within the tolerance; the clouds'
+    // opacity is interpolated (every 4 pixels across a rim): within a tenth there, and the
+    // image as a whole within the tolerance at its median
+    for (cfg, worst_allowed) in [(solid, 20.0 * 2.4e-4), (cfg, 0.1)] {
+        let sky = sky_with(&cfg, SunPosition::new(40.0, 150.0));
+        for (intr, att) in [
+            (zenith_fisheye(300).intrinsics, Attitude::enu(0.0, 0.0, 0.0)),
+            (
+                Intrinsics {
+                    pixel_pitch_um: 3.45 * 6.0,
+                    ..Intrinsics::with_size(320, 240)
+                },
+                Attitude::enu(10.0, 60.0, 0.0),
+            ),
+        ] {
+            let cam = Camera::new(intr, &att, 150.0).unwrap();
+            let opts = StokesOptions { sun_disc: true };
+            let tol = 2.4e-4;
+            let (exact, _) = render_stokes(&sky, &cam, opts);
+            let (grid, _) = render_stokes_grid(&sky, &cam, opts, 16, tol);
+            let mut worst = 0f64;
+            let mut errs = Vec::new();
+            for i in 0..exact.s0.data.len() {
+                let s0 = exact.s0.data[i] as f64;
+                let err = [
+                    (grid.s0.data[i] - exact.s0.data[i]) as f64,
+                    (grid.s1.data[i] - exact.s1.data[i]) as f64,
+                    (grid.s2.data[i] - exact.s2.data[i]) as f64,
+                ]
+                .iter()
+                .map(|e| e.abs())
+                .sum::<f64>();
+                let rel = if s0 > 0.0 { err / s0 } else { err };
+                worst = worst.max(rel);
+                errs.push(rel);
+            }
+            errs.sort_by(f64::total_cmp);
+            let median = errs[errs.len() / 2];
+            assert!(
+                worst < worst_allowed,
+                "{:?}: worst {worst}",
+                intr.projection
+            );
+            assert!(median < tol, "{:?}: median {median}", intr.projection);
         }
-        // the estimate bounds the error loosely: a few times the tolerance
-        assert!(worst < 20.0 * tol, "{:?}: worst {worst}", intr.projection);
     }
 }
 

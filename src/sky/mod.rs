@@ -629,6 +629,18 @@ impl Sky {
         self
     }
 
+    /// This sky without the clouds in front of it ([`Surroundings::without_direct_clouds`]);
+    /// None when it has no clouds.
+    pub fn without_direct_clouds(&self) -> Option<Sky> {
+        let s = self.surroundings.as_ref()?;
+        if s.world().clouds().is_empty() {
+            return None;
+        }
+        let mut sky = self.clone();
+        sky.surroundings = Some(std::sync::Arc::new(s.without_direct_clouds()));
+        Some(sky)
+    }
+
     /// The world around the camera, when there is one.
     pub fn surroundings(&self) -> Option<&Surroundings> {
         self.surroundings.as_deref()

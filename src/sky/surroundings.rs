@@ -12,6 +12,9 @@ pub struct Surroundings {
     world: World,
     lighting: Lighting,
     cloud_radiance: f64,
+    /// False: rays that see the sky see it without the clouds in front of it (the fast path
+    /// lays the clouds over its interpolated sky itself); reflections keep theirs.
+    direct_clouds: bool,
 }
 
 /// What a view ray needs from the sky after [`Surroundings::look`].
@@ -54,6 +57,30 @@ impl Surroundings {
             world,
             lighting,
             cloud_radiance,
+            direct_clouds: true,
+        }
+    }
+
+    /// These surroundings with the clouds in front of the sky left out (reflected clouds
+    /// kept): what the fast path's nodes see before it lays the clouds over them.
+    pub fn without_direct_clouds(&self) -> Self {
+        Surroundings {
+            direct_clouds: false,
+            ..self.clone()
+        }
+    }
+
+    /// Radiance of a thick cloud.
+    pub fn cloud_radiance(&self) -> f64 {
+        self.cloud_radiance
+    }
+
+    /// The opacity of the clouds in front of the sky along the unit ray `d` (0 where the ray
+    /// meets anything else first or the ground).
+    pub fn direct_opacity(&self, d: DVec3) -> f64 {
+        match self.world.trace(d) {
+            Hit::Sky if d.z > 0.0 => self.world.clouds().opacity(d),
+            _ => 0.0,
         }
     }
 
@@ -63,6 +90,7 @@ impl Surroundings {
             world,
             lighting: self.lighting.clone(),
             cloud_radiance: self.cloud_radiance,
+            direct_clouds: self.direct_clouds,
         }
     }
 
@@ -122,7 +150,12 @@ impl Surroundings {
         ground_radiance: f64,
     ) -> Option<Light> {
         match (look.hit, look.sample) {
-            (Hit::Sky, Some(v)) => Some(self.through_clouds(v, s)),
+            (Hit::Sky, Some(v)) if self.direct_clouds => Some(self.through_clouds(v, s)),
+            (Hit::Sky, Some(_)) => Some(Light {
+                radiance: s.radiance,
+                dop: s.dop,
+                e: s.e,
+            }),
             (Hit::Sky, None) | (Hit::Ground, _) => None,
             (Hit::Glass { normal, index }, v) => {
                 let incoming = match v {

@@ -76,9 +76,9 @@ impl Wind {
 struct Placed {
     c: DVec3,
     opacity: f64,
-    inner: f64,
     outer: f64,
     cos_outer: f64,
+    cos_inner: f64,
 }
 
 /// The clouds at one scene time, indexed by direction: cells of the sphere, equal in
@@ -87,24 +87,11 @@ struct Placed {
 #[derive(Clone, Debug, Default)]
 pub struct CloudField {
     clouds: Vec<Placed>,
-    cells: Vec<Vec<u32>>,
+    index: SphereIndex,
 }
 
-/// Rows (in z) and columns (in azimuth) of the cloud index.
-const INDEX_Z: usize = 32;
-const INDEX_AZ: usize = 64;
-/// The widest margin [`CloudField::clear`] answers from the index (radians, 3°); wider ones
-/// look at every cloud.
-pub const INDEX_MARGIN_RAD: f64 = 3.0 * std::f64::consts::PI / 180.0;
-
-/// The index cell of the unit vector `d`.
-#[inline]
-fn cell_of(d: DVec3) -> usize {
-    let zi = (((d.z + 1.0) * 0.5 * INDEX_Z as f64) as usize).min(INDEX_Z - 1);
-    let a = d.x.atan2(d.y); // -π..π
-    let ai = (((a / std::f64::consts::TAU + 0.5) * INDEX_AZ as f64) as usize).min(INDEX_AZ - 1);
-    zi * INDEX_AZ + ai
-}
+use super::index::SphereIndex;
+pub use super::index::MARGIN_RAD as INDEX_MARGIN_RAD;
 
 fn unit(az_deg: f64, el_deg: f64) -> DVec3 {
     let (a, e) = (az_deg.to_radians(), el_deg.to_radians());
@@ -119,7 +106,7 @@ impl CloudField {
             let axis = DVec3::Z.cross(DVec3::new(a.sin(), a.cos(), 0.0));
             glam::DQuat::from_axis_angle(axis, (w.speed_deg_s * t_s).to_radians())
         });
-        let clouds = clouds
+        let clouds: Vec<Placed> = clouds
             .iter()
             .map(|c| {
                 let mut v = unit(c.azimuth_deg, c.elevation_deg);
@@ -130,73 +117,23 @@ impl CloudField {
                 Placed {
                     c: v,
                     opacity: c.opacity,
-                    inner: r * (1.0 - c.softness),
                     outer: r,
                     cos_outer: r.cos(),
+                    cos_inner: (r * (1.0 - c.softness)).cos(),
                 }
             })
             .collect();
-        let mut f = CloudField {
+        let caps: Vec<(DVec3, f64)> = clouds.iter().map(|p: &Placed| (p.c, p.outer)).collect();
+        CloudField {
             clouds,
-            cells: Vec::new(),
-        };
-        f.index();
-        f
-    }
-
-    /// Lists each cloud in the cells its grown rim can reach: a cell is bounded by the cap
-    /// around its centre through its farthest corner.
-    fn index(&mut self) {
-        if self.clouds.is_empty() {
-            return;
+            index: SphereIndex::new(&caps),
         }
-        let mut cells = vec![Vec::new(); INDEX_Z * INDEX_AZ];
-        let dir = |z: f64, a: f64| {
-            let r = (1.0 - z * z).max(0.0).sqrt();
-            DVec3::new(r * a.sin(), r * a.cos(), z)
-        };
-        for zi in 0..INDEX_Z {
-            let (z0, z1) = (
-                zi as f64 * 2.0 / INDEX_Z as f64 - 1.0,
-                (zi + 1) as f64 * 2.0 / INDEX_Z as f64 - 1.0,
-            );
-            for ai in 0..INDEX_AZ {
-                let step = std::f64::consts::TAU / INDEX_AZ as f64;
-                let (a0, a1) = (
-                    -std::f64::consts::PI + ai as f64 * step,
-                    -std::f64::consts::PI + (ai + 1) as f64 * step,
-                );
-                let centre = dir(0.5 * (z0 + z1), 0.5 * (a0 + a1));
-                // the cap through the corners and the edges' midpoints bounds the cell
-                let mut reach: f64 = 0.0;
-                for z in [z0, 0.5 * (z0 + z1), z1] {
-                    for a in [a0, 0.5 * (a0 + a1), a1] {
-                        reach = reach.max(centre.dot(dir(z, a)).clamp(-1.0, 1.0).acos());
-                    }
-                }
-                // the azimuth bulge between the sampled points, with room to spare
-                let reach = reach * 1.1 + 1e-3;
-                let list = &mut cells[zi * INDEX_AZ + ai];
-                for (k, p) in self.clouds.iter().enumerate() {
-                    let ang = centre.dot(p.c).clamp(-1.0, 1.0).acos();
-                    if ang <= p.outer + INDEX_MARGIN_RAD + reach {
-                        list.push(k as u32);
-                    }
-                }
-            }
-        }
-        self.cells = cells;
     }
 
     /// The clouds that may lie within [`INDEX_MARGIN_RAD`] of `d`.
     #[inline]
     fn near(&self, d: DVec3) -> impl Iterator<Item = &Placed> {
-        let list: &[u32] = if self.cells.is_empty() {
-            &[]
-        } else {
-            &self.cells[cell_of(d)]
-        };
-        list.iter().map(|&k| &self.clouds[k as usize])
+        self.index.near(d).iter().map(|&k| &self.clouds[k as usize])
     }
 
     /// Whether there are none.
@@ -215,7 +152,8 @@ impl CloudField {
     }
 
     /// Opacity along the unit ray `d`: 1 − Π (1 − α_k), α_k the cloud's opacity inside its
-    /// inner radius falling as a smooth step to 0 at its rim.
+    /// inner radius falling to 0 at its rim as a smooth step 3x² − 2x³ in
+    /// x = (cos θ − cos r_out)/(cos r_in − cos r_out), θ the angle from its centre.
     #[inline]
     pub fn opacity(&self, d: DVec3) -> f64 {
         let mut clear = 1.0;
@@ -224,11 +162,11 @@ impl CloudField {
             if c <= p.cos_outer {
                 continue;
             }
-            let ang = c.clamp(-1.0, 1.0).acos();
-            let a = if ang <= p.inner {
+            let a = if c >= p.cos_inner {
                 p.opacity
             } else {
-                let x = ((p.outer - ang) / (p.outer - p.inner)).clamp(0.0, 1.0);
+                // a smooth step in cos(angle): no arccosine per ray
+                let x = ((c - p.cos_outer) / (p.cos_inner - p.cos_outer)).clamp(0.0, 1.0);
                 p.opacity * x * x * (3.0 - 2.0 * x)
             };
             clear *= 1.0 - a;

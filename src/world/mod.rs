@@ -14,6 +14,7 @@ use glam::DVec3;
 use serde::{Deserialize, Serialize};
 
 pub mod clouds;
+mod index;
 pub mod optics;
 mod shapes;
 pub mod skyline;
@@ -195,8 +196,11 @@ pub struct World {
     seed: u64,
     /// The camera-fixed mask: width, height and one byte per pixel (0 blocked).
     mask: Option<(usize, usize, std::sync::Arc<Vec<u8>>)>,
-    /// The edges of everything solid, as arcs on the unit sphere seen from the eye.
+    /// The edges of everything solid, as arcs on the unit sphere seen from the eye: the whole
+    /// great circles, tested always, and the arcs, by the index of their bounding caps.
+    circles: Vec<shapes::Arc>,
     edges: Vec<shapes::Arc>,
+    edge_index: index::SphereIndex,
     /// Bounding cones (axis, angular radius) of the trees, whose foliage has no edge to test.
     cones: Vec<(DVec3, f64)>,
 }
@@ -238,6 +242,10 @@ impl World {
         if let Some(s) = &skyline {
             s.edges(&mut edges);
         }
+        let (circles, edges): (Vec<shapes::Arc>, Vec<shapes::Arc>) =
+            edges.into_iter().partition(|a| a.is_whole());
+        let caps: Vec<(DVec3, f64)> = edges.iter().map(|a| a.cap()).collect();
+        let edge_index = index::SphereIndex::new(&caps);
         let mut cones = Vec::new();
         for t in &cfg.trees {
             t.cones(eye, &mut cones);
@@ -259,7 +267,9 @@ impl World {
             wind: cfg.wind,
             seed,
             mask,
+            circles,
             edges,
+            edge_index,
             cones,
         })
     }
@@ -324,7 +334,19 @@ impl World {
     /// as `d` (no edge of a building, wall or skyline within the margin, no tree's foliage, no
     /// cloud's rim), judged conservatively. Clouds are included when `clouds`.
     pub fn clear(&self, d: DVec3, margin: f64, clouds: bool) -> bool {
-        if self.edges.iter().any(|a| a.distance(d) <= margin) {
+        if self.circles.iter().any(|a| a.distance(d) <= margin) {
+            return false;
+        }
+        let near = |a: &shapes::Arc| a.distance(d) <= margin;
+        let edge_near = if margin > index::MARGIN_RAD {
+            self.edges.iter().any(near)
+        } else {
+            self.edge_index
+                .near(d)
+                .iter()
+                .any(|&k| near(&self.edges[k as usize]))
+        };
+        if edge_near {
             return false;
         }
         if self

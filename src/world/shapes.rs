@@ -478,6 +478,21 @@ impl Arc {
         }
     }
 
+    /// Whether this is a whole great circle.
+    pub(super) fn is_whole(&self) -> bool {
+        self.whole
+    }
+
+    /// A cap holding the arc: (unit centre, angular radius).
+    pub(super) fn cap(&self) -> (DVec3, f64) {
+        let m = self.a + self.b;
+        if m.length_squared() < 1e-20 {
+            return (self.a, std::f64::consts::PI);
+        }
+        let half = 0.5 * self.a.dot(self.b).clamp(-1.0, 1.0).acos();
+        (m.normalize(), half + 1e-9)
+    }
+
     /// Angle (radians) from the unit vector `d` to the nearest point of the arc.
     pub(super) fn distance(&self, d: DVec3) -> f64 {
         self.exact_distance(d) - self.slack

@@ -245,8 +245,16 @@ fn cloud_opacity_and_cover() {
     assert!((f.opacity(dir(90.0, 45.0)) - 0.8).abs() < 1e-12);
     assert!((f.opacity(dir(90.0, 45.0 + 7.9)) - 0.8).abs() < 1e-12);
     assert_eq!(f.opacity(dir(90.0, 45.0 + 10.01)), 0.0);
-    let mid = f.opacity(dir(90.0, 45.0 + 9.0));
+    // a smooth step in cos: half way in cos is half the opacity
+    let (ci, co) = (8f64.to_radians().cos(), 10f64.to_radians().cos());
+    let mid = f.opacity(dir(90.0, 45.0 + (0.5 * (ci + co)).acos().to_degrees()));
     assert!((mid - 0.4).abs() < 1e-9, "{mid}");
+    let mut last = 1.0;
+    for k in 0..=40 {
+        let a = f.opacity(dir(90.0, 45.0 + 7.9 + 0.05 * k as f64));
+        assert!(a <= last, "falls monotonically across the rim");
+        last = a;
+    }
     for cover in [0.1, 0.5] {
         let a = clouds::draw_cover(cover, 7);
         assert_eq!(a, clouds::draw_cover(cover, 7));

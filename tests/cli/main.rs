@@ -16,3 +16,4 @@ mod progress;
 mod raw;
 mod saturation;
 mod tools;
+mod world;

@@ -113,7 +113,7 @@ fn render_reports_its_steps_when_long() {
     let long = run("b", &[("PSNS_PROGRESS_PERIOD_S", "0")]);
     assert!(
         long.iter()
-            .any(|l| l.starts_with("psns render: 25/25 steps")),
+            .any(|l| l.starts_with("psns render: 26/26 steps")),
         "{long:?}"
     );
 }

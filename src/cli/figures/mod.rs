@@ -3,6 +3,7 @@
 
 pub mod sensor;
 pub mod sky;
+pub mod world;
 
 use super::progress::{Progress, Unit};
 use super::vis;
@@ -18,7 +19,7 @@ pub struct FiguresArgs {
     /// Output directory (regenerate the docs' pictures with `--out docs/img`).
     #[arg(long, default_value = "out-figures")]
     out: PathBuf,
-    /// Only this group of pictures: sky, sensor or lens (default: all).
+    /// Only this group of pictures: sky, sensor, lens or world (default: all).
     #[arg(long, value_enum, value_name = "GROUP")]
     only: Option<Group>,
 }
@@ -32,6 +33,8 @@ pub enum Group {
     Sensor,
     /// The lens and projection figures of docs/camera.md.
     Lens,
+    /// The world around the camera of docs/world.md.
+    World,
 }
 
 /// Runs `psns figures`.
@@ -50,6 +53,7 @@ pub fn run(a: FiguresArgs) -> anyhow::Result<()> {
         (Group::Sky, SKY_FIGURE_STEPS),
         (Group::Sensor, sensor::SENSOR_FIGURE_STEPS),
         (Group::Lens, LENS_FIGURE_STEPS),
+        (Group::World, world::WORLD_FIGURE_STEPS),
     ]
     .iter()
     .filter(|(g, _)| want(*g))
@@ -65,6 +69,9 @@ pub fn run(a: FiguresArgs) -> anyhow::Result<()> {
     }
     if want(Group::Lens) {
         files.extend(lens_figures(&a.out, &mut progress)?);
+    }
+    if want(Group::World) {
+        files.extend(world::world_figures(&a.out, &mut progress)?);
     }
     for f in files {
         progress.println(format!("wrote {f}"));
