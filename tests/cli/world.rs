@@ -41,10 +41,7 @@ fn bad_worlds_exit_2_with_the_value_and_its_range() {
         (vec!["--skyline", &high], &["95", "-90..90"]),
         (vec!["--skyline", &nan], &["not a finite number"]),
         (vec!["--canyon", "20,NaN,0"], &["not a finite number"]),
-        (
-            vec!["--canyon", "-3,6,0"],
-            &["canyon width", "-3", "allowed"],
-        ),
+        (vec!["--canyon=-3,6,0"], &["canyon width", "-3", "allowed"]),
         (vec!["--config", &around], &["around the observer"]),
         (
             vec!["--cloud-cover", "1.5"],
