@@ -114,7 +114,7 @@ impl Split {
             .ok_or_else(|| Error::OutOfRange {
                 name: "splits".into(),
                 value: name.into(),
-                allowed: "NFPI, GNIIPI, GNIICPI, TNFPI, TGNIIPI, TGNIICPI".into(),
+                allowed: Split::ALL.map(Split::name).join(", "),
             })
     }
 }

@@ -76,16 +76,12 @@ impl GevPixelFormat {
     /// LUCID's vendor code (PFNC's with the top bit set) for the polarized ones.
     pub fn code(self) -> u32 {
         let pfnc = self.packing().pfnc_code();
-        if matches!(
-            self,
-            GevPixelFormat::PolarizeMono8
-                | GevPixelFormat::PolarizeMono12p
-                | GevPixelFormat::PolarizeMono12Packed
-                | GevPixelFormat::PolarizeMono16
-        ) {
-            pfnc | 0x8000_0000
-        } else {
-            pfnc
+        use GevPixelFormat::*;
+        match self {
+            Mono8 | Mono12p | Mono12Packed | Mono16 => pfnc,
+            PolarizeMono8 | PolarizeMono12p | PolarizeMono12Packed | PolarizeMono16 => {
+                pfnc | 0x8000_0000
+            }
         }
     }
 
@@ -111,10 +107,9 @@ impl GevPixelFormat {
 
     /// ADC depth in bits on the real camera: 8 for the 8-bit formats, 12 otherwise.
     pub fn adc_bits(self) -> u8 {
-        if self.packing() == PixelFormat::Mono8 {
-            8
-        } else {
-            12
+        match self.packing() {
+            PixelFormat::Mono8 => 8,
+            PixelFormat::Mono12p | PixelFormat::Mono12Packed | PixelFormat::Mono16 => 12,
         }
     }
 

@@ -69,37 +69,17 @@ pub enum PolarizationModel {
     Asymmetric,
 }
 
+crate::names::name_table!(PolarizationModel {
+    Wang => "wang",
+    Rayleigh => "rayleigh",
+    DepolarizedRayleigh => "depolarized-rayleigh",
+    Berry => "berry",
+    Pan => "pan",
+    Queen => "queen",
+    Asymmetric => "asymmetric",
+});
+
 impl PolarizationModel {
-    /// Every model.
-    pub const ALL: [PolarizationModel; 7] = [
-        PolarizationModel::Wang,
-        PolarizationModel::Rayleigh,
-        PolarizationModel::DepolarizedRayleigh,
-        PolarizationModel::Berry,
-        PolarizationModel::Pan,
-        PolarizationModel::Queen,
-        PolarizationModel::Asymmetric,
-    ];
-
-    /// The name used on the command line and in scene files.
-    ///
-    /// ```
-    /// use psns::sky::PolarizationModel;
-    /// assert_eq!(PolarizationModel::DepolarizedRayleigh.name(), "depolarized-rayleigh");
-    /// assert_eq!("queen".parse::<PolarizationModel>().unwrap(), PolarizationModel::Queen);
-    /// ```
-    pub fn name(self) -> &'static str {
-        match self {
-            PolarizationModel::Wang => "wang",
-            PolarizationModel::Rayleigh => "rayleigh",
-            PolarizationModel::DepolarizedRayleigh => "depolarized-rayleigh",
-            PolarizationModel::Berry => "berry",
-            PolarizationModel::Pan => "pan",
-            PolarizationModel::Queen => "queen",
-            PolarizationModel::Asymmetric => "asymmetric",
-        }
-    }
-
     /// True for the models built on Berry's quartic field (their neutral points can be placed).
     pub fn is_quartic(self) -> bool {
         !matches!(
@@ -115,7 +95,10 @@ impl PolarizationModel {
             PolarizationModel::Pan | PolarizationModel::Queen | PolarizationModel::Asymmetric => {
                 NeutralLaw::Pan
             }
-            _ => NeutralLaw::Fixed,
+            PolarizationModel::Wang
+            | PolarizationModel::Rayleigh
+            | PolarizationModel::DepolarizedRayleigh
+            | PolarizationModel::Berry => NeutralLaw::Fixed,
         }
     }
 }
@@ -129,16 +112,11 @@ impl std::fmt::Display for PolarizationModel {
 impl std::str::FromStr for PolarizationModel {
     type Err = crate::Error;
     fn from_str(s: &str) -> Result<Self> {
-        let t = s.trim().to_ascii_lowercase();
-        PolarizationModel::ALL
-            .into_iter()
-            .find(|m| m.name() == t)
-            .ok_or_else(|| crate::Error::OutOfRange {
-                name: "model".into(),
-                value: s.into(),
-                allowed: "wang, rayleigh, depolarized-rayleigh, berry, pan, queen, asymmetric"
-                    .into(),
-            })
+        PolarizationModel::from_name(s).ok_or_else(|| crate::Error::OutOfRange {
+            name: "model".into(),
+            value: s.into(),
+            allowed: PolarizationModel::names(),
+        })
     }
 }
 
@@ -163,6 +141,11 @@ pub enum DopNorm {
     Wilkie,
 }
 
+crate::names::name_table!(DopNorm {
+    Clamp => "clamp",
+    Wilkie => "wilkie",
+});
+
 /// Form of the PSNS eq. (5) DOP (`sky.md` §5, `docs/sky.md`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -176,6 +159,11 @@ pub enum DopModel {
     /// domain (low sun, T = 10 at θ_s = 70°, T < 2.5 with a high sun, 1.2 < T < 1.645).
     WangPaper,
 }
+
+crate::names::name_table!(DopModel {
+    WangBounded => "wang-bounded",
+    WangPaper => "wang-paper",
+});
 
 /// Sky parameters other than the sun position.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
@@ -261,7 +249,12 @@ impl SkyParams {
     pub fn validate(&self) -> Result<()> {
         match self.model {
             PolarizationModel::Wang => dop::check_turbidity(self.turbidity, self.dop_model)?,
-            _ => check_range("turbidity", self.turbidity, 1.0, 10.0)?,
+            PolarizationModel::Rayleigh
+            | PolarizationModel::DepolarizedRayleigh
+            | PolarizationModel::Berry
+            | PolarizationModel::Pan
+            | PolarizationModel::Queen
+            | PolarizationModel::Asymmetric => check_range("turbidity", self.turbidity, 1.0, 10.0)?,
         };
         check_range("wavelength", self.wavelength_nm, 320.0, 720.0)?;
         check_range("albedo", self.albedo, 0.0, 1.0)?;

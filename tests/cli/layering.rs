@@ -12,6 +12,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("simd", 0),
     ("vmath", 0),
     ("memory", 0),
+    ("names", 0),
     ("progress", 0),
     ("sun", 1),
     ("sky", 2),

@@ -11,6 +11,7 @@ mod full_disk;
 mod layering;
 mod lens;
 mod messages;
+mod names;
 mod outputs;
 mod progress;
 mod raw;

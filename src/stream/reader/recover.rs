@@ -198,7 +198,7 @@ pub(super) fn infer_header(
                     vec![]
                 }
             }
-            _ => vec![(2 * p) / 3, (2 * p) / 3 + 1]
+            PixelFormat::Mono12p | PixelFormat::Mono12Packed => vec![(2 * p) / 3, (2 * p) / 3 + 1]
                 .into_iter()
                 .filter(|&n| n.checked_mul(3).map(|x| x.div_ceil(2)) == Some(p))
                 .collect(),
