@@ -7,6 +7,7 @@
 mod common;
 
 mod commands;
+mod completeness;
 mod full_disk;
 mod layering;
 mod lens;
