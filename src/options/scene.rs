@@ -5,7 +5,7 @@ use super::{finite, finite_list, first_given, integer, parsed};
 use crate::camera::{Attitude, AttitudeFrame, Lens, Projection};
 use crate::config::SceneConfig;
 use crate::sky::cie::Radiance;
-use crate::sky::{DopModel, DopNorm, NeutralLaw, PolarizationModel};
+use crate::sky::{DopModel, DopNorm, PolarizationModel};
 use crate::sun::{Place, Refraction};
 use clap::Args;
 use std::path::PathBuf;
@@ -215,23 +215,9 @@ impl SceneArgs {
         k.turbidity = self.turbidity.unwrap_or(k.turbidity);
         k.wavelength_nm = self.wavelength.unwrap_or(k.wavelength_nm);
         k.albedo = self.albedo.unwrap_or(k.albedo);
-        let one_point = self.babinet.is_some() != self.brewster.is_some();
-        if self.neutral_distance.is_some() || self.babinet.is_some() || self.brewster.is_some() {
-            if one_point && k.law() == NeutralLaw::Pan {
-                return Err(crate::Error::Invalid(format!(
-                    "--model {} places both neutral points by Pan's law: to fix them give both \
-                     --babinet and --brewster, or --neutral-distance",
-                    k.model
-                )));
-            }
-            k.neutral_law = Some(NeutralLaw::Fixed);
-        }
-        if let Some(d) = self.neutral_distance {
-            k.babinet_deg = d;
-            k.brewster_deg = d;
-        }
-        k.babinet_deg = self.babinet.unwrap_or(k.babinet_deg);
-        k.brewster_deg = self.brewster.unwrap_or(k.brewster_deg);
+        k.fix_neutral_points(self.neutral_distance, self.babinet, self.brewster, |o| {
+            format!("--{}", o.replace('_', "-"))
+        })?;
         k.dop_max = self.dop_max.unwrap_or(k.dop_max);
         k.depolarization_ratio = self.depolarization_ratio.unwrap_or(k.depolarization_ratio);
         if self.arago.is_some() {

@@ -165,6 +165,23 @@ crate::names::name_table!(DopModel {
     WangPaper => "wang-paper",
 });
 
+impl std::fmt::Display for DopModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for DopModel {
+    type Err = crate::Error;
+    fn from_str(s: &str) -> Result<Self> {
+        DopModel::from_name(s).ok_or_else(|| crate::Error::OutOfRange {
+            name: "dop-model".into(),
+            value: s.into(),
+            allowed: DopModel::names(),
+        })
+    }
+}
+
 /// Sky parameters other than the sun position.
 #[derive(Clone, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
@@ -234,6 +251,50 @@ impl SkyParams {
     /// The neutral-point law in force: the scene's, or the model's own.
     pub fn law(&self) -> NeutralLaw {
         self.neutral_law.unwrap_or(self.model.default_law())
+    }
+
+    /// Fixes the neutral points as every front-end does: `distance` places both, `babinet` and
+    /// `brewster` each (after `distance`), and any of them sets the fixed law. A model on Pan's
+    /// law moves both points, so fixing one alone is refused. `key` spells an option's name the
+    /// front-end's way in that message (`--babinet`, or `babinet` in a dataset description).
+    ///
+    /// ```
+    /// use psns::sky::{NeutralLaw, PolarizationModel, SkyParams};
+    /// let mut k = SkyParams { model: PolarizationModel::Pan, ..Default::default() };
+    /// let e = k.fix_neutral_points(None, Some(20.0), None, |o| o.to_string()).unwrap_err();
+    /// assert!(e.to_string().contains("give both babinet and brewster, or neutral_distance"));
+    /// k.fix_neutral_points(Some(30.0), None, None, |o| o.to_string()).unwrap();
+    /// assert_eq!((k.law(), k.babinet_deg, k.brewster_deg), (NeutralLaw::Fixed, 30.0, 30.0));
+    /// ```
+    pub fn fix_neutral_points(
+        &mut self,
+        distance: Option<f64>,
+        babinet: Option<f64>,
+        brewster: Option<f64>,
+        key: impl Fn(&str) -> String,
+    ) -> Result<()> {
+        if distance.is_none() && babinet.is_none() && brewster.is_none() {
+            return Ok(());
+        }
+        if babinet.is_some() != brewster.is_some() && self.law() == NeutralLaw::Pan {
+            return Err(crate::Error::Invalid(format!(
+                "{} {} places both neutral points by Pan's law: to fix them give both {} and \
+                 {}, or {}",
+                key("model"),
+                self.model,
+                key("babinet"),
+                key("brewster"),
+                key("neutral_distance")
+            )));
+        }
+        self.neutral_law = Some(NeutralLaw::Fixed);
+        if let Some(d) = distance {
+            self.babinet_deg = d;
+            self.brewster_deg = d;
+        }
+        self.babinet_deg = babinet.unwrap_or(self.babinet_deg);
+        self.brewster_deg = brewster.unwrap_or(self.brewster_deg);
+        Ok(())
     }
 
     /// (Babinet, Brewster) distances from the sun, degrees, for a sun at zenith angle
