@@ -422,9 +422,10 @@ impl DatasetConfig {
             return Err(Error::range("sky_grid", self.sky_grid as f64, "1..64"));
         }
         if self.splits.is_empty() {
-            return Err(Error::Invalid(
-                "splits is empty: list at least one folder (NFPI, GNIIPI, GNIICPI, TNFPI, TGNIIPI, TGNIICPI) with its number of samples".into(),
-            ));
+            return Err(Error::Invalid(format!(
+                "splits is empty: list at least one folder ({}) with its number of samples",
+                Split::ALL.map(Split::name).join(", ")
+            )));
         }
         for (name, &n) in &self.splits {
             Split::from_name(name)?;

@@ -124,7 +124,14 @@ fn bad_descriptions_name_the_key_and_range() {
             "width = 66\n",
             "width = 66 is out of range (allowed a non-zero multiple of 4)",
         ),
-        ("[splits]\nNFP = 3\n", "splits = NFP is out of range"),
+        (
+            "[splits]\nNFP = 3\n",
+            "splits = NFP is out of range (allowed NFPI, GNIIPI, GNIICPI, TNFPI, TGNIIPI, TGNIICPI)",
+        ),
+        (
+            "[splits]\n",
+            "list at least one folder (NFPI, GNIIPI, GNIICPI, TNFPI, TGNIIPI, TGNIICPI)",
+        ),
         (
             "[splits]\nNFPI = 0\n",
             "splits.NFPI = 0 is out of range (allowed 1..10000000)",

@@ -506,7 +506,10 @@ impl PolarizationField {
             PolarizationModel::Rayleigh | PolarizationModel::DepolarizedRayleigh => {
                 self.rayleigh(v, cross, sin_g2, cos_g)
             }
-            _ => self.quartic_dop_e(v),
+            PolarizationModel::Berry
+            | PolarizationModel::Pan
+            | PolarizationModel::Queen
+            | PolarizationModel::Asymmetric => self.quartic_dop_e(v),
         };
         (
             cos_t,
@@ -752,7 +755,10 @@ impl Sky {
                     (e[0][j], e[1][j], e[2][j]) = (ej.x, ej.y, ej.z);
                 }
             }
-            _ => {
+            PolarizationModel::Berry
+            | PolarizationModel::Pan
+            | PolarizationModel::Queen
+            | PolarizationModel::Asymmetric => {
                 for j in 0..n {
                     let (d, ej) = p.quartic_dop_e(DVec3::new(v[0][j], v[1][j], v[2][j]));
                     dop[j] = d;
