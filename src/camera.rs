@@ -24,6 +24,11 @@ pub enum AttitudeFrame {
     Enu,
 }
 
+crate::names::name_table!(AttitudeFrame {
+    Solar => "solar",
+    Enu => "enu",
+});
+
 /// Camera orientation.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(tag = "kind", rename_all = "lowercase")]
@@ -222,27 +227,15 @@ pub enum Projection {
     Orthographic,
 }
 
+crate::names::name_table!(Projection {
+    Rectilinear => "rectilinear",
+    Equidistant => "equidistant",
+    Equisolid => "equisolid",
+    Stereographic => "stereographic",
+    Orthographic => "orthographic",
+});
+
 impl Projection {
-    /// Every projection, in the order of the CLI's list.
-    pub const ALL: [Projection; 5] = [
-        Projection::Rectilinear,
-        Projection::Equidistant,
-        Projection::Equisolid,
-        Projection::Stereographic,
-        Projection::Orthographic,
-    ];
-
-    /// The name used on the command line and in scene files.
-    pub fn name(self) -> &'static str {
-        match self {
-            Projection::Rectilinear => "rectilinear",
-            Projection::Equidistant => "equidistant",
-            Projection::Equisolid => "equisolid",
-            Projection::Stereographic => "stereographic",
-            Projection::Orthographic => "orthographic",
-        }
-    }
-
     /// Normalised image radius ρ = r/f of the field angle θ (radians), `None` outside the field
     /// (rectilinear: θ ≥ 90°; fisheyes: θ > 90°, outside the image circle).
     #[inline]
@@ -328,15 +321,12 @@ impl std::fmt::Display for Projection {
 impl std::str::FromStr for Projection {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
-        let l = s.trim().to_ascii_lowercase();
-        Projection::ALL
-            .into_iter()
-            .find(|p| p.name() == l)
-            .ok_or_else(|| {
-                Error::Invalid(format!(
-                    "projection '{s}' is unknown (allowed rectilinear, equidistant, equisolid, stereographic, orthographic)"
-                ))
-            })
+        Projection::from_name(s).ok_or_else(|| {
+            Error::Invalid(format!(
+                "projection '{s}' is unknown (allowed {})",
+                Projection::names()
+            ))
+        })
     }
 }
 
@@ -376,18 +366,12 @@ pub enum Lens {
     Ideal,
 }
 
+crate::names::name_table!(Lens {
+    Pinhole => "pinhole",
+    Ideal => "ideal",
+});
+
 impl Lens {
-    /// Both lens models, in the CLI's order.
-    pub const ALL: [Lens; 2] = [Lens::Pinhole, Lens::Ideal];
-
-    /// The name used on the command line and in scene files.
-    pub fn name(self) -> &'static str {
-        match self {
-            Lens::Pinhole => "pinhole",
-            Lens::Ideal => "ideal",
-        }
-    }
-
     /// Sensor-plane vector (x, y) of the camera-frame E-vector `e` of a ray with unit
     /// camera-frame direction `d` (its angle is the sensor AOP; its length is not normalised).
     #[inline(always)]
@@ -453,13 +437,9 @@ impl std::fmt::Display for Lens {
 impl std::str::FromStr for Lens {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
-        let l = s.trim().to_ascii_lowercase();
-        Lens::ALL
-            .into_iter()
-            .find(|p| p.name() == l)
-            .ok_or_else(|| {
-                Error::Invalid(format!("lens '{s}' is unknown (allowed pinhole, ideal)"))
-            })
+        Lens::from_name(s).ok_or_else(|| {
+            Error::Invalid(format!("lens '{s}' is unknown (allowed {})", Lens::names()))
+        })
     }
 }
 

@@ -136,6 +136,11 @@ pub enum SceneKind {
     Flat,
 }
 
+crate::names::name_table!(SceneKind {
+    Sky => "sky",
+    Flat => "flat",
+});
+
 /// Flat-field scene parameters.
 #[derive(Clone, Copy, Debug, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]

@@ -24,6 +24,7 @@ pub mod heading;
 pub mod image;
 pub mod io;
 pub mod memory;
+pub mod names;
 pub mod options;
 pub mod pipeline;
 pub mod progress;

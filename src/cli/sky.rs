@@ -159,37 +159,44 @@ pub const MAP_WAVELENGTHS: [f64; 5] = [380.0, 450.0, 550.0, 650.0, 720.0];
 /// One model's map: per turbidity, the cells (sun zenith × wavelength) or the refusal.
 type ModelMap = Vec<(f64, std::result::Result<Vec<MapCell>, String>)>;
 
-/// The rows of the map: the two forms of the Wang DOP, then the models whose polarization does
-/// not depend on turbidity or wavelength (evaluated once per sun zenith, at T = 4 and 450 nm,
-/// and drawn across every turbidity).
-const MAP_ROWS: [(&str, PolarizationModel, DopModel); 7] = [
-    ("wang-paper", PolarizationModel::Wang, DopModel::WangPaper),
-    (
-        "wang-bounded",
-        PolarizationModel::Wang,
-        DopModel::WangBounded,
-    ),
-    (
-        "depolarized-rayleigh",
-        PolarizationModel::DepolarizedRayleigh,
-        DopModel::WangBounded,
-    ),
-    ("berry", PolarizationModel::Berry, DopModel::WangBounded),
-    ("pan", PolarizationModel::Pan, DopModel::WangBounded),
-    ("queen", PolarizationModel::Queen, DopModel::WangBounded),
-    (
-        "asymmetric",
-        PolarizationModel::Asymmetric,
-        DopModel::WangBounded,
-    ),
-];
+/// A model's rows of the map (name, DOP form): the two forms of the Wang DOP; one row for each
+/// model whose polarization depends on neither turbidity nor wavelength (evaluated once per sun
+/// zenith, at T = 4 and 450 nm, and drawn across every turbidity); none for `rayleigh`, which is
+/// `depolarized-rayleigh` with the depolarization ratio 0 (the same field and DOP law, so its
+/// row would repeat that one's at a slightly higher peak).
+fn map_rows(model: PolarizationModel) -> &'static [(&'static str, DopModel)] {
+    match model {
+        PolarizationModel::Wang => &[
+            ("wang-paper", DopModel::WangPaper),
+            ("wang-bounded", DopModel::WangBounded),
+        ],
+        PolarizationModel::Rayleigh => &[],
+        PolarizationModel::DepolarizedRayleigh => {
+            &[("depolarized-rayleigh", DopModel::WangBounded)]
+        }
+        PolarizationModel::Berry => &[("berry", DopModel::WangBounded)],
+        PolarizationModel::Pan => &[("pan", DopModel::WangBounded)],
+        PolarizationModel::Queen => &[("queen", DopModel::WangBounded)],
+        PolarizationModel::Asymmetric => &[("asymmetric", DopModel::WangBounded)],
+    }
+}
+
+/// The rows of the map, top to bottom: every model's [`map_rows`] in the order of
+/// [`PolarizationModel::ALL`].
+fn all_map_rows() -> Vec<(&'static str, PolarizationModel, DopModel)> {
+    PolarizationModel::ALL
+        .into_iter()
+        .flat_map(|m| map_rows(m).iter().map(move |&(n, d)| (n, m, d)))
+        .collect()
+}
 
 /// Writes `dop_stability.csv`, `.svg` and `.png` into `dir` (created if missing; other
 /// files are left alone). Returns the files written.
 pub fn write_stability(base: &SkyParams, dir: &Path) -> Result<Vec<String>> {
     let ts = map_turbidities();
     let zs = map_sun_zeniths();
-    let steps: usize = MAP_ROWS
+    let rows = all_map_rows();
+    let steps: usize = rows
         .iter()
         .map(|r| {
             if r.1 == PolarizationModel::Wang {
@@ -206,7 +213,7 @@ pub fn write_stability(base: &SkyParams, dir: &Path) -> Result<Vec<String>> {
         false,
     );
     let mut maps: Vec<(&str, bool, ModelMap)> = Vec::new();
-    for (name, model, m) in MAP_ROWS {
+    for (name, model, m) in rows {
         let asym = model == PolarizationModel::Asymmetric;
         let p = SkyParams {
             model,
@@ -348,7 +355,7 @@ fn cell_color(r: &std::result::Result<Vec<MapCell>, String>, z: f64, k: usize) -
     }
 }
 
-/// The map as a small PNG without text: rows as [`MAP_ROWS`]; columns pinned low, pinned high,
+/// The map as a small PNG without text: rows as [`all_map_rows`]; columns pinned low, pinned high,
 /// jump, AOP shift; in each panel turbidity grows to the right (one 8-px column per value of
 /// [`map_turbidities`]) and sun zenith downwards (4 px per 2°).
 fn map_png(maps: &[(&str, ModelMap)], zs: &[f64]) -> psns::image::Image<[u8; 3]> {
@@ -460,4 +467,35 @@ fn draw_map(
     }
     root.present()?;
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every model has its rows on the map but `rayleigh` (see [`map_rows`]), in the order of
+    /// the docs' map.
+    #[test]
+    fn every_model_but_rayleigh_has_map_rows() {
+        for m in PolarizationModel::ALL {
+            let rows = map_rows(m);
+            assert_eq!(rows.is_empty(), m == PolarizationModel::Rayleigh, "{m}");
+            for (name, _) in rows {
+                assert!(name.starts_with(m.name()), "{name} is a row of {m}");
+            }
+        }
+        let names: Vec<&str> = all_map_rows().iter().map(|r| r.0).collect();
+        assert_eq!(
+            names,
+            [
+                "wang-paper",
+                "wang-bounded",
+                "depolarized-rayleigh",
+                "berry",
+                "pan",
+                "queen",
+                "asymmetric"
+            ]
+        );
+    }
 }

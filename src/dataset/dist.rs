@@ -173,3 +173,89 @@ impl Dist {
         }
     }
 }
+
+/// The distribution of a named value (a sky model, a radiance, a DOP form), parsed by the
+/// value's own type as the command line parses it.
+///
+/// In TOML: a name (always that value, e.g. `model = "rayleigh"`) or `{ values = ["wang",
+/// "rayleigh"] }` (uniform choice).
+#[derive(Clone, Debug, PartialEq)]
+pub enum Pick<T> {
+    /// Always this value.
+    Fixed(T),
+    /// Uniform choice among values (at least one).
+    Choice(Vec<T>),
+}
+
+impl<T: Copy> Pick<T> {
+    /// The value of one draw.
+    pub(super) fn draw<R: Rng>(&self, rng: &mut R) -> T {
+        match self {
+            Pick::Fixed(v) => *v,
+            Pick::Choice(v) => v[rng.random_range(0..v.len())],
+        }
+    }
+
+    /// Every value it can draw.
+    pub fn values(&self) -> Vec<T> {
+        match self {
+            Pick::Fixed(v) => vec![*v],
+            Pick::Choice(v) => v.clone(),
+        }
+    }
+}
+
+impl<T: fmt::Display> Serialize for Pick<T> {
+    fn serialize<S: Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        match self {
+            Pick::Fixed(v) => s.serialize_str(&v.to_string()),
+            Pick::Choice(v) => {
+                let names: Vec<String> = v.iter().map(|x| x.to_string()).collect();
+                let mut m = s.serialize_map(Some(1))?;
+                m.serialize_entry("values", &names)?;
+                m.end()
+            }
+        }
+    }
+}
+
+impl<'de, T> Deserialize<'de> for Pick<T>
+where
+    T: std::str::FromStr<Err = Error>,
+{
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        struct V<T>(std::marker::PhantomData<T>);
+        impl<'de, T: std::str::FromStr<Err = Error>> Visitor<'de> for V<T> {
+            type Value = Pick<T>;
+            fn expecting(&self, f: &mut fmt::Formatter) -> fmt::Result {
+                f.write_str("a name or { values = [\"a\", \"b\", ...] }")
+            }
+            fn visit_str<E: de::Error>(self, v: &str) -> std::result::Result<Pick<T>, E> {
+                v.parse().map(Pick::Fixed).map_err(E::custom)
+            }
+            fn visit_map<A: MapAccess<'de>>(
+                self,
+                mut m: A,
+            ) -> std::result::Result<Pick<T>, A::Error> {
+                let mut values = None;
+                while let Some(k) = m.next_key::<String>()? {
+                    match k.as_str() {
+                        "values" => values = Some(m.next_value::<Vec<String>>()?),
+                        other => return Err(de::Error::unknown_field(other, &["values"])),
+                    }
+                }
+                let values = values.ok_or_else(|| de::Error::missing_field("values"))?;
+                if values.is_empty() {
+                    return Err(de::Error::custom("values is empty: give at least one"));
+                }
+                values
+                    .iter()
+                    .map(|v| v.parse().map_err(de::Error::custom))
+                    .collect::<std::result::Result<Vec<T>, _>>()
+                    .map(Pick::Choice)
+            }
+        }
+        d.deserialize_any(V(std::marker::PhantomData))
+    }
+}

@@ -19,6 +19,8 @@ use crate::camera::{Attitude, AttitudeFrame, Intrinsics};
 use crate::config::{SceneConfig, SunConfig};
 use crate::error::{check_range, num, Error, Result};
 use crate::sensor::Preset;
+use crate::sky::cie::Radiance;
+use crate::sky::{DopModel, PolarizationModel};
 use crate::sun::SunPosition;
 use rand::Rng;
 use serde::de::{self, MapAccess, Visitor};
@@ -114,7 +116,7 @@ impl Split {
             .ok_or_else(|| Error::OutOfRange {
                 name: "splits".into(),
                 value: name.into(),
-                allowed: "NFPI, GNIIPI, GNIICPI, TNFPI, TGNIIPI, TGNIICPI".into(),
+                allowed: Split::ALL.map(Split::name).join(", "),
             })
     }
 }
@@ -217,6 +219,22 @@ pub struct DatasetConfig {
     pub wavelength_nm: Dist,
     /// Ground albedo.
     pub albedo: Dist,
+    /// Polarization model (`psns render --model`): a name or `{ values = [...] }`.
+    pub model: Pick<PolarizationModel>,
+    /// Sky radiance (`psns render --radiance`): `hosek`, `cie:N`, or a choice.
+    pub radiance: Pick<Radiance>,
+    /// Form of the Wang DOP (`psns render --dop-model`).
+    pub dop_model: Pick<DopModel>,
+    /// Distance of both neutral points from the sun, degrees (`psns render --neutral-distance`);
+    /// with `babinet` and `brewster` absent too, each model's own law.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub neutral_distance: Option<Dist>,
+    /// Babinet point's distance above the sun, degrees (`psns render --babinet`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub babinet: Option<Dist>,
+    /// Brewster point's distance below the sun, degrees (`psns render --brewster`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub brewster: Option<Dist>,
     /// Fraction of samples (0..1, drawn per sample) with soft unpolarized clouds blended into the
     /// sky (`psns render --clouds`). Above 0 every sample gets a camera seed of its own, drawn
     /// from the dataset seed and its frame index, so that the clouds (seeded by the camera seed)
@@ -260,6 +278,12 @@ impl Default for DatasetConfig {
             turbidity: uniform(1.7, 10.0, 0.1),
             wavelength_nm: uniform(380.0, 720.0, 1.0),
             albedo: uniform(0.0, 1.0, 0.01),
+            model: Pick::Fixed(PolarizationModel::default()),
+            radiance: Pick::Fixed(Radiance::default()),
+            dop_model: Pick::Fixed(DopModel::default()),
+            neutral_distance: None,
+            babinet: None,
+            brewster: None,
             soft_clouds: 0.0,
             outputs: Outputs::default(),
         }
@@ -398,9 +422,10 @@ impl DatasetConfig {
             return Err(Error::range("sky_grid", self.sky_grid as f64, "1..64"));
         }
         if self.splits.is_empty() {
-            return Err(Error::Invalid(
-                "splits is empty: list at least one folder (NFPI, GNIIPI, GNIICPI, TNFPI, TGNIIPI, TGNIICPI) with its number of samples".into(),
-            ));
+            return Err(Error::Invalid(format!(
+                "splits is empty: list at least one folder ({}) with its number of samples",
+                Split::ALL.map(Split::name).join(", ")
+            )));
         }
         for (name, &n) in &self.splits {
             Split::from_name(name)?;
@@ -415,6 +440,7 @@ impl DatasetConfig {
         for (p, d) in PARAMS.iter().zip(self.dists()) {
             d.validate(p.key, p.lo, p.hi)?;
         }
+        self.validate_neutral_points()?;
         check_range("soft_clouds", self.soft_clouds, 0.0, 1.0)?;
         if let Some(d) = &self.outputs.raw12_exposure_us {
             if !self.outputs.raw12 {
@@ -441,6 +467,42 @@ impl DatasetConfig {
             st.lat_deg.validate("sun_time.lat_deg", -90.0, 90.0)?;
             st.lon_deg.validate("sun_time.lon_deg", -180.0, 180.0)?;
             check_range("sun_time.min_altitude_deg", st.min_altitude_deg, 0.0, 89.0)?;
+        }
+        Ok(())
+    }
+
+    /// The neutral-point keys: in range, `neutral_distance` or the other two, and both points
+    /// for a model on Pan's law (as `psns render` takes them).
+    fn validate_neutral_points(&self) -> Result<()> {
+        let keys = [
+            ("neutral_distance", &self.neutral_distance),
+            ("babinet", &self.babinet),
+            ("brewster", &self.brewster),
+        ];
+        for (k, d) in keys {
+            if let Some(d) = d {
+                d.validate(k, 0.0, 60.0)?;
+            }
+        }
+        if self.neutral_distance.is_some() && (self.babinet.is_some() || self.brewster.is_some()) {
+            return Err(Error::Invalid(
+                "give the neutral points by neutral_distance or by babinet and brewster, not both"
+                    .into(),
+            ));
+        }
+        let given = |d: &Option<Dist>| d.as_ref().map(|_| 25.0);
+        for model in self.model.values() {
+            let mut sky = crate::sky::SkyParams {
+                model,
+                ..Default::default()
+            };
+            sky.fix_neutral_points(
+                given(&self.neutral_distance),
+                given(&self.babinet),
+                given(&self.brewster),
+                |k| k.to_string(),
+            )?;
+            sky.validate()?;
         }
         Ok(())
     }
@@ -489,10 +551,35 @@ impl DatasetConfig {
             turbidity: v[6],
             wavelength_nm: v[7],
             albedo: v[8],
+            model: self
+                .model
+                .draw(&mut crate::rng::dataset_rng(self.seed, frame_index, 16)),
+            radiance: self
+                .radiance
+                .draw(&mut crate::rng::dataset_rng(self.seed, frame_index, 17)),
+            dop_model: self.dop_model.draw(&mut crate::rng::dataset_rng(
+                self.seed,
+                frame_index,
+                18,
+            )),
+            neutral_distance: None,
+            babinet: None,
+            brewster: None,
             when: None,
             raw12_exposure_us: None,
             soft_clouds: false,
         };
+        let points = [
+            (&self.neutral_distance, &mut sample.neutral_distance, 19),
+            (&self.babinet, &mut sample.babinet, 20),
+            (&self.brewster, &mut sample.brewster, 21),
+        ];
+        for (d, out, id) in points {
+            if let Some(d) = d {
+                let mut rng = crate::rng::dataset_rng(self.seed, frame_index, id);
+                *out = Some(d.draw(&mut rng, 0.1));
+            }
+        }
         if self.soft_clouds > 0.0 {
             let mut rng = crate::rng::dataset_rng(self.seed, frame_index, 14);
             sample.soft_clouds = rng.random::<f64>() < self.soft_clouds;

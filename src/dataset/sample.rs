@@ -92,6 +92,18 @@ pub struct Sample {
     pub wavelength_nm: f64,
     /// Ground albedo.
     pub albedo: f64,
+    /// Polarization model.
+    pub model: PolarizationModel,
+    /// Sky radiance.
+    pub radiance: Radiance,
+    /// Form of the Wang DOP.
+    pub dop_model: DopModel,
+    /// Distance of both neutral points from the sun, degrees (`None`: not given).
+    pub neutral_distance: Option<f64>,
+    /// Babinet point's distance, degrees (`None`: not given).
+    pub babinet: Option<f64>,
+    /// Brewster point's distance, degrees (`None`: not given).
+    pub brewster: Option<f64>,
     /// Time and place of the sun (descriptions with `sun_time`).
     pub when: Option<When>,
     /// Exposure of the 12-bit camera frame, µs; `None` = auto-exposure.
@@ -101,7 +113,7 @@ pub struct Sample {
 }
 
 /// Header of `labels.csv`.
-pub const LABEL_HEADER: &str = "split,file,yaw_deg,pitch_deg,roll_deg,frame,focal_length_mm,pixel_pitch_um,sun_altitude_deg,sun_azimuth_deg,turbidity,wavelength_nm,albedo,seed,frame_index,sun_cam_x,sun_cam_y,sun_cam_z,preset,width,height,sky_grid,number,time_utc,lat_deg,lon_deg,raw12_exposure_us,soft_clouds";
+pub const LABEL_HEADER: &str = "split,file,yaw_deg,pitch_deg,roll_deg,frame,focal_length_mm,pixel_pitch_um,sun_altitude_deg,sun_azimuth_deg,turbidity,wavelength_nm,albedo,seed,frame_index,sun_cam_x,sun_cam_y,sun_cam_z,preset,width,height,sky_grid,number,time_utc,lat_deg,lon_deg,raw12_exposure_us,soft_clouds,model,radiance,dop_model,babinet,brewster";
 
 impl Sample {
     /// `<prefix><Number>_<Yaw>_<Pitch>_<Roll>_<FocalLength>_<SolarAltitude>_<Turbidity>_<Wavelength>_<GroundAlbedo>`.
@@ -160,6 +172,14 @@ impl Sample {
         c.sky.turbidity = self.turbidity;
         c.sky.wavelength_nm = self.wavelength_nm;
         c.sky.albedo = self.albedo;
+        c.sky.model = self.model;
+        c.sky.radiance = self.radiance;
+        c.sky.dop_model = self.dop_model;
+        c.sky
+            .fix_neutral_points(self.neutral_distance, self.babinet, self.brewster, |k| {
+                k.to_string()
+            })
+            .expect("the description's neutral points are checked with its models");
         c.camera.intrinsics = Intrinsics {
             width: self.width,
             height: self.height,
@@ -198,15 +218,33 @@ impl Sample {
             (true, Some(us)) => us.to_string(),
         };
         format!(
-            "{},{exposure},{}",
+            "{},{exposure},{},{}",
             self.label_row_base(),
-            u8::from(self.soft_clouds)
+            u8::from(self.soft_clouds),
+            self.sky_labels()
         )
     }
 
     /// The row of `labels.csv` of a dataset without the 12-bit frame.
     pub fn label_row(&self) -> String {
         self.label_row_with(false)
+    }
+
+    /// The sky columns: model, radiance, DOP form, and the neutral points in force (degrees from
+    /// the sun when fixed, `pan` on Pan's law, empty for a model without them).
+    fn sky_labels(&self) -> String {
+        let sky = self.scene(self.split.preset()).sky;
+        let (b, w) = if !sky.model.is_quartic() {
+            (String::new(), String::new())
+        } else if sky.law() == crate::sky::NeutralLaw::Pan {
+            ("pan".into(), "pan".into())
+        } else {
+            (sky.babinet_deg.to_string(), sky.brewster_deg.to_string())
+        };
+        format!(
+            "{},{},{},{b},{w}",
+            self.model, self.radiance, self.dop_model
+        )
     }
 
     pub(super) fn label_row_base(&self) -> String {

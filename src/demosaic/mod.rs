@@ -54,29 +54,15 @@ pub enum Method {
     Eari,
 }
 
-impl Method {
-    /// Every method, cheapest first.
-    pub const ALL: [Method; 6] = [
-        Method::Superpixel,
-        Method::Bilinear,
-        Method::Bicubic,
-        Method::Ppid,
-        Method::Newton,
-        Method::Eari,
-    ];
-
-    /// Lower-case name as parsed by [`FromStr`].
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::Superpixel => "superpixel",
-            Method::Bilinear => "bilinear",
-            Method::Bicubic => "bicubic",
-            Method::Ppid => "ppid",
-            Method::Newton => "newton",
-            Method::Eari => "eari",
-        }
-    }
-}
+// every method, cheapest first
+crate::names::name_table!(Method {
+    Superpixel => "superpixel",
+    Bilinear => "bilinear",
+    Bicubic => "bicubic",
+    Ppid => "ppid",
+    Newton => "newton",
+    Eari => "eari",
+});
 
 impl fmt::Display for Method {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
@@ -92,16 +78,12 @@ impl FromStr for Method {
     /// assert!("vng".parse::<Method>().is_err());
     /// ```
     fn from_str(s: &str) -> Result<Self> {
-        let t = s.trim().to_ascii_lowercase();
-        Method::ALL
-            .iter()
-            .copied()
-            .find(|m| m.name() == t)
-            .ok_or_else(|| {
-                Error::Invalid(format!(
-                    "unknown demosaic method '{s}' (allowed: superpixel, bilinear, bicubic, ppid, newton, eari)"
-                ))
-            })
+        Method::from_name(s).ok_or_else(|| {
+            Error::Invalid(format!(
+                "unknown demosaic method '{s}' (allowed: {})",
+                Method::names()
+            ))
+        })
     }
 }
 

@@ -43,19 +43,19 @@ pub enum GevPixelFormat {
     PolarizeMono16,
 }
 
-impl GevPixelFormat {
-    /// Every format, in the order of the GenICam enumeration.
-    pub const ALL: [GevPixelFormat; 8] = [
-        GevPixelFormat::Mono8,
-        GevPixelFormat::Mono12p,
-        GevPixelFormat::Mono12Packed,
-        GevPixelFormat::Mono16,
-        GevPixelFormat::PolarizeMono8,
-        GevPixelFormat::PolarizeMono12p,
-        GevPixelFormat::PolarizeMono12Packed,
-        GevPixelFormat::PolarizeMono16,
-    ];
+// the GenICam enumeration's entries, in its order
+crate::names::name_table!(GevPixelFormat {
+    Mono8 => "Mono8",
+    Mono12p => "Mono12p",
+    Mono12Packed => "Mono12Packed",
+    Mono16 => "Mono16",
+    PolarizeMono8 => "PolarizeMono8",
+    PolarizeMono12p => "PolarizeMono12p",
+    PolarizeMono12Packed => "PolarizeMono12Packed",
+    PolarizeMono16 => "PolarizeMono16",
+});
 
+impl GevPixelFormat {
     /// The packing of the bytes (the Mono twin).
     pub fn packing(self) -> PixelFormat {
         use GevPixelFormat::*;
@@ -76,31 +76,12 @@ impl GevPixelFormat {
     /// LUCID's vendor code (PFNC's with the top bit set) for the polarized ones.
     pub fn code(self) -> u32 {
         let pfnc = self.packing().pfnc_code();
-        if matches!(
-            self,
-            GevPixelFormat::PolarizeMono8
-                | GevPixelFormat::PolarizeMono12p
-                | GevPixelFormat::PolarizeMono12Packed
-                | GevPixelFormat::PolarizeMono16
-        ) {
-            pfnc | 0x8000_0000
-        } else {
-            pfnc
-        }
-    }
-
-    /// The GenICam enumeration entry's name.
-    pub fn name(self) -> &'static str {
         use GevPixelFormat::*;
         match self {
-            Mono8 => "Mono8",
-            Mono12p => "Mono12p",
-            Mono12Packed => "Mono12Packed",
-            Mono16 => "Mono16",
-            PolarizeMono8 => "PolarizeMono8",
-            PolarizeMono12p => "PolarizeMono12p",
-            PolarizeMono12Packed => "PolarizeMono12Packed",
-            PolarizeMono16 => "PolarizeMono16",
+            Mono8 | Mono12p | Mono12Packed | Mono16 => pfnc,
+            PolarizeMono8 | PolarizeMono12p | PolarizeMono12Packed | PolarizeMono16 => {
+                pfnc | 0x8000_0000
+            }
         }
     }
 
@@ -111,10 +92,9 @@ impl GevPixelFormat {
 
     /// ADC depth in bits on the real camera: 8 for the 8-bit formats, 12 otherwise.
     pub fn adc_bits(self) -> u8 {
-        if self.packing() == PixelFormat::Mono8 {
-            8
-        } else {
-            12
+        match self.packing() {
+            PixelFormat::Mono8 => 8,
+            PixelFormat::Mono12p | PixelFormat::Mono12Packed | PixelFormat::Mono16 => 12,
         }
     }
 
@@ -152,5 +132,21 @@ mod tests {
             GevPixelFormat::Mono12Packed.image_bytes(2448, 2048),
             Some(7_520_256)
         );
+    }
+
+    /// The device offers every stream pixel format, under its PFNC name and LUCID's polarized
+    /// one, with the PFNC code.
+    #[test]
+    fn every_pixel_format_has_its_two_names() {
+        for p in PixelFormat::ALL {
+            let twins: Vec<GevPixelFormat> = GevPixelFormat::ALL
+                .into_iter()
+                .filter(|g| g.packing() == p)
+                .collect();
+            let names: Vec<&str> = twins.iter().map(|g| g.name()).collect();
+            let polarized = format!("Polarize{}", p.pfnc_name());
+            assert_eq!(names, [p.pfnc_name(), polarized.as_str()], "{p}");
+            assert_eq!(twins[0].code(), p.pfnc_code(), "{p}");
+        }
     }
 }

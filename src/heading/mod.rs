@@ -123,22 +123,11 @@ pub enum HeadingMethod {
     Hough,
 }
 
-impl HeadingMethod {
-    /// Every method.
-    pub const ALL: [HeadingMethod; 3] = [
-        HeadingMethod::Eigen,
-        HeadingMethod::ModelFit,
-        HeadingMethod::Hough,
-    ];
-    /// The name used on the command line.
-    pub fn name(self) -> &'static str {
-        match self {
-            HeadingMethod::Eigen => "eigen",
-            HeadingMethod::ModelFit => "model-fit",
-            HeadingMethod::Hough => "hough",
-        }
-    }
-}
+crate::names::name_table!(HeadingMethod {
+    Eigen => "eigen",
+    ModelFit => "model-fit",
+    Hough => "hough",
+});
 
 impl std::fmt::Display for HeadingMethod {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
@@ -149,15 +138,12 @@ impl std::fmt::Display for HeadingMethod {
 impl std::str::FromStr for HeadingMethod {
     type Err = Error;
     fn from_str(s: &str) -> Result<Self> {
-        let t = s.trim().to_ascii_lowercase();
-        HeadingMethod::ALL
-            .into_iter()
-            .find(|m| m.name() == t)
-            .ok_or_else(|| {
-                Error::Invalid(format!(
-                    "heading method '{s}' is unknown (allowed: eigen, model-fit, hough)"
-                ))
-            })
+        HeadingMethod::from_name(s).ok_or_else(|| {
+            Error::Invalid(format!(
+                "heading method '{s}' is unknown (allowed: {})",
+                HeadingMethod::names()
+            ))
+        })
     }
 }
 

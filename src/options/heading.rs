@@ -1,9 +1,8 @@
 //! Options of `psns heading` (and `psns.heading` in Python), and the estimator's setup they
 //! describe for one image.
 
-use super::scene::FrameArg;
 use super::{parsed, whole, SceneArgs};
-use crate::camera::Attitude;
+use crate::camera::{Attitude, AttitudeFrame};
 use crate::config::SceneConfig;
 use crate::demosaic::Method;
 use crate::heading::{
@@ -98,7 +97,7 @@ impl HeadingArgs {
     /// Whether yaws are reported in the solar frame (`--frame solar`: from the sun's azimuth,
     /// as `psns render --frame solar` takes them) instead of the ENU frame (from north).
     pub fn solar_frame(&self) -> bool {
-        matches!(self.scene.frame, Some(FrameArg::Solar))
+        matches!(self.scene.frame, Some(AttitudeFrame::Solar))
     }
 
     /// An ENU yaw (degrees) in the frame of `--frame`: itself, or minus the sun's azimuth

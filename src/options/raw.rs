@@ -4,17 +4,8 @@
 use super::{finite, first_given, integer, parsed, whole};
 use crate::config::{SceneConfig, SceneKind};
 use crate::sensor::packing::PixelFormat;
-use crate::sensor::{Exposure, Preset, SensorConfig};
+use crate::sensor::{Exposure, Preset, SensorConfig, Stages};
 use clap::{Args, ValueEnum};
-
-/// The values of `--scene`.
-// the variants are the option values (clap shows no help for them)
-#[allow(missing_docs)]
-#[derive(Clone, Copy, ValueEnum)]
-pub enum SceneKindArg {
-    Sky,
-    Flat,
-}
 
 /// The values of `--sun-disc`.
 // the variants are the option values (clap shows no help for them)
@@ -33,7 +24,7 @@ pub struct RawArgs {
     pub preset: Option<Preset>,
     /// Scene for raw frames: the sky or a uniform flat field.
     #[arg(long, value_enum)]
-    pub scene: Option<SceneKindArg>,
+    pub scene: Option<SceneKind>,
     /// Flat-field radiance, W m^-2 sr^-1 nm^-1.
     #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "R")]
     pub flat_radiance: Option<f64>,
@@ -153,10 +144,7 @@ impl RawArgs {
             r.sensor = None;
         }
         if let Some(k) = self.scene {
-            r.scene = match k {
-                SceneKindArg::Sky => SceneKind::Sky,
-                SceneKindArg::Flat => SceneKind::Flat,
-            };
+            r.scene = k;
         }
         r.flat.radiance = self.flat_radiance.unwrap_or(r.flat.radiance);
         r.flat.dolp = self.flat_dolp.unwrap_or(r.flat.dolp);
@@ -221,7 +209,7 @@ impl RawArgs {
                         return Err(crate::Error::OutOfRange {
                             name: "off".into(),
                             value: st.into(),
-                            allowed: "ri, polarizer_er, polarizer_orientation, prnu, crosstalk, dark, shot, fwc_clip, dsnu, read, quantize".into(),
+                            allowed: Stages::NAMES.join(", "),
                         })
                     }
                 }

@@ -5,51 +5,10 @@ use super::{finite, finite_list, first_given, integer, parsed};
 use crate::camera::{Attitude, AttitudeFrame, Lens, Projection};
 use crate::config::SceneConfig;
 use crate::sky::cie::Radiance;
-use crate::sky::{DopModel, DopNorm, NeutralLaw, PolarizationModel};
+use crate::sky::{DopModel, DopNorm, PolarizationModel};
 use crate::sun::{Place, Refraction};
-use clap::{Args, ValueEnum};
+use clap::Args;
 use std::path::PathBuf;
-
-/// The values of `--model`.
-// the variants are the option values (clap shows no help for them)
-#[allow(missing_docs)]
-#[derive(Clone, Copy, ValueEnum)]
-pub enum ModelArg {
-    Wang,
-    Rayleigh,
-    DepolarizedRayleigh,
-    Berry,
-    Pan,
-    Queen,
-    Asymmetric,
-}
-
-/// The values of `--dop-norm`.
-// the variants are the option values (clap shows no help for them)
-#[allow(missing_docs)]
-#[derive(Clone, Copy, ValueEnum)]
-pub enum NormArg {
-    Clamp,
-    Wilkie,
-}
-
-/// The values of `--dop-model`.
-// the variants are the option values (clap shows no help for them)
-#[allow(missing_docs)]
-#[derive(Clone, Copy, ValueEnum)]
-pub enum DopModelArg {
-    WangBounded,
-    WangPaper,
-}
-
-/// The values of `--frame`.
-// the variants are the option values (clap shows no help for them)
-#[allow(missing_docs)]
-#[derive(Clone, Copy, ValueEnum)]
-pub enum FrameArg {
-    Solar,
-    Enu,
-}
 
 /// Scene options shared by `render`, `sky` (and later commands). Every option overrides the
 /// value from `--config`.
@@ -87,7 +46,7 @@ pub struct SceneArgs {
     /// queen (Pan's points, DOP = |w|/(2-|w|)), asymmetric (four independent neutral points);
     /// docs/sky.md.
     #[arg(long, value_enum)]
-    pub model: Option<ModelArg>,
+    pub model: Option<PolarizationModel>,
     /// Sky radiance: hosek (Hosek-Wilkie, default) or cie:N (CIE S 011 standard sky N = 1..15,
     /// scaled to the Hosek-Wilkie zenith; 1-5 overcast, without the sun's disc).
     #[arg(long, value_parser = parsed::<Radiance>, value_name = "hosek|cie:N")]
@@ -130,11 +89,11 @@ pub struct SceneArgs {
     pub ground_radiance: Option<f64>,
     /// DOP normalisation of the Wang model (clamp: none; wilkie: 2/π).
     #[arg(long, value_enum)]
-    pub dop_norm: Option<NormArg>,
+    pub dop_norm: Option<DopNorm>,
     /// Form of the Wang DOP: wang-bounded (default; stable for turbidity 1.7..10, the paper's
     /// values at the default scene) or wang-paper (eq. (5) as published, turbidity 1..10).
     #[arg(long, value_enum)]
-    pub dop_model: Option<DopModelArg>,
+    pub dop_model: Option<DopModel>,
     /// Camera yaw, degrees.
     #[arg(long, value_parser = finite, allow_negative_numbers = true, value_name = "DEG")]
     pub yaw: Option<f64>,
@@ -147,7 +106,7 @@ pub struct SceneArgs {
     /// Reference frame of yaw/pitch/roll (or of --quaternion): enu (yaw from north, the compass
     /// heading `psns heading` reports; the default) or solar (yaw from the sun's azimuth, as PSNS).
     #[arg(long, value_enum)]
-    pub frame: Option<FrameArg>,
+    pub frame: Option<AttitudeFrame>,
     /// Attitude quaternion W,X,Y,Z (Hamilton, scalar first) rotating camera vectors into the frame.
     #[arg(long, value_parser = finite_list::<4>, allow_negative_numbers = true,
           conflicts_with_all = ["yaw", "pitch", "roll"], value_name = "W,X,Y,Z")]
@@ -248,15 +207,7 @@ impl SceneArgs {
         }
         let k = &mut c.sky;
         if let Some(m) = self.model {
-            k.model = match m {
-                ModelArg::Wang => PolarizationModel::Wang,
-                ModelArg::Rayleigh => PolarizationModel::Rayleigh,
-                ModelArg::DepolarizedRayleigh => PolarizationModel::DepolarizedRayleigh,
-                ModelArg::Berry => PolarizationModel::Berry,
-                ModelArg::Pan => PolarizationModel::Pan,
-                ModelArg::Queen => PolarizationModel::Queen,
-                ModelArg::Asymmetric => PolarizationModel::Asymmetric,
-            };
+            k.model = m;
         }
         if let Some(r) = self.radiance {
             k.radiance = r;
@@ -264,23 +215,9 @@ impl SceneArgs {
         k.turbidity = self.turbidity.unwrap_or(k.turbidity);
         k.wavelength_nm = self.wavelength.unwrap_or(k.wavelength_nm);
         k.albedo = self.albedo.unwrap_or(k.albedo);
-        let one_point = self.babinet.is_some() != self.brewster.is_some();
-        if self.neutral_distance.is_some() || self.babinet.is_some() || self.brewster.is_some() {
-            if one_point && k.law() == NeutralLaw::Pan {
-                return Err(crate::Error::Invalid(format!(
-                    "--model {} places both neutral points by Pan's law: to fix them give both \
-                     --babinet and --brewster, or --neutral-distance",
-                    k.model
-                )));
-            }
-            k.neutral_law = Some(NeutralLaw::Fixed);
-        }
-        if let Some(d) = self.neutral_distance {
-            k.babinet_deg = d;
-            k.brewster_deg = d;
-        }
-        k.babinet_deg = self.babinet.unwrap_or(k.babinet_deg);
-        k.brewster_deg = self.brewster.unwrap_or(k.brewster_deg);
+        k.fix_neutral_points(self.neutral_distance, self.babinet, self.brewster, |o| {
+            format!("--{}", o.replace('_', "-"))
+        })?;
         k.dop_max = self.dop_max.unwrap_or(k.dop_max);
         k.depolarization_ratio = self.depolarization_ratio.unwrap_or(k.depolarization_ratio);
         if self.arago.is_some() {
@@ -293,22 +230,13 @@ impl SceneArgs {
             k.ground_radiance = self.ground_radiance;
         }
         if let Some(n) = self.dop_norm {
-            k.dop_norm = match n {
-                NormArg::Clamp => DopNorm::Clamp,
-                NormArg::Wilkie => DopNorm::Wilkie,
-            };
+            k.dop_norm = n;
         }
         if let Some(m) = self.dop_model {
-            k.dop_model = match m {
-                DopModelArg::WangBounded => DopModel::WangBounded,
-                DopModelArg::WangPaper => DopModel::WangPaper,
-            };
+            k.dop_model = m;
         }
         let cam = &mut c.camera;
-        let frame_given = self.frame.map(|f| match f {
-            FrameArg::Solar => AttitudeFrame::Solar,
-            FrameArg::Enu => AttitudeFrame::Enu,
-        });
+        let frame_given = self.frame;
         let euler_given = self.yaw.is_some() || self.pitch.is_some() || self.roll.is_some();
         match (self.quaternion, cam.attitude) {
             (Some(q), current) => {

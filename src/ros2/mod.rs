@@ -111,7 +111,9 @@ impl ImageEncoding {
     pub fn of_pixel_format(f: PixelFormat) -> Self {
         match f {
             PixelFormat::Mono8 => ImageEncoding::Mono8,
-            _ => ImageEncoding::Mono16,
+            PixelFormat::Mono12p | PixelFormat::Mono12Packed | PixelFormat::Mono16 => {
+                ImageEncoding::Mono16
+            }
         }
     }
 
@@ -286,7 +288,9 @@ pub fn distortion(p: Projection) -> (DistortionModel, Vec<f64>) {
     match p {
         Projection::Rectilinear => (DistortionModel::PlumbBob, vec![0.0; 5]),
         Projection::Equidistant => (DistortionModel::Equidistant, vec![0.0; 4]),
-        _ => (DistortionModel::Equidistant, kannala_brandt_fit(p).to_vec()),
+        Projection::Equisolid | Projection::Stereographic | Projection::Orthographic => {
+            (DistortionModel::Equidistant, kannala_brandt_fit(p).to_vec())
+        }
     }
 }
 

@@ -96,22 +96,56 @@ impl Default for Stages {
 }
 
 impl Stages {
+    /// Every stage's name (its field, as `--off` and scene files write it), in pipeline order.
+    pub const NAMES: [&'static str; 11] = {
+        // a stage added without a name here does not compile
+        let Stages {
+            ri: _,
+            polarizer_er: _,
+            polarizer_orientation: _,
+            prnu: _,
+            crosstalk: _,
+            dark: _,
+            shot: _,
+            fwc_clip: _,
+            dsnu: _,
+            read: _,
+            quantize: _,
+        } = Stages::NONE;
+        [
+            "ri",
+            "polarizer_er",
+            "polarizer_orientation",
+            "prnu",
+            "crosstalk",
+            "dark",
+            "shot",
+            "fwc_clip",
+            "dsnu",
+            "read",
+            "quantize",
+        ]
+    };
+
     /// Every stage off (the exact float model of `sensor.md` §6).
     pub fn none() -> Self {
-        Stages {
-            ri: false,
-            polarizer_er: false,
-            polarizer_orientation: false,
-            prnu: false,
-            crosstalk: false,
-            dark: false,
-            shot: false,
-            fwc_clip: false,
-            dsnu: false,
-            read: false,
-            quantize: false,
-        }
+        Self::NONE
     }
+
+    const NONE: Stages = Stages {
+        ri: false,
+        polarizer_er: false,
+        polarizer_orientation: false,
+        prnu: false,
+        crosstalk: false,
+        dark: false,
+        shot: false,
+        fwc_clip: false,
+        dsnu: false,
+        read: false,
+        quantize: false,
+    };
+
     /// Only the noise-free ideal model with RI and ADC: polarizer non-idealities, fixed patterns,
     /// crosstalk, dark current and noise off; RI, full-well clip and quantisation on.
     pub fn ideal() -> Self {

@@ -45,15 +45,15 @@ pub enum PixelFormat {
     Mono16,
 }
 
-impl PixelFormat {
-    /// All formats.
-    pub const ALL: [PixelFormat; 4] = [
-        PixelFormat::Mono8,
-        PixelFormat::Mono12p,
-        PixelFormat::Mono12Packed,
-        PixelFormat::Mono16,
-    ];
+// the command line's names: the PFNC names in lower case
+crate::names::name_table!(PixelFormat {
+    Mono8 => "mono8",
+    Mono12p => "mono12p",
+    Mono12Packed => "mono12packed",
+    Mono16 => "mono16",
+});
 
+impl PixelFormat {
     /// Standard PFNC code.
     pub fn pfnc_code(self) -> u32 {
         match self {
@@ -104,15 +104,12 @@ impl FromStr for PixelFormat {
     type Err = Error;
     /// Case-insensitive `mono8`, `mono12p`, `mono12packed`, `mono16`.
     fn from_str(s: &str) -> Result<Self> {
-        let l = s.trim().to_ascii_lowercase();
-        Self::ALL
-            .into_iter()
-            .find(|f| f.pfnc_name().to_ascii_lowercase() == l)
-            .ok_or_else(|| {
-                Error::Invalid(format!(
-                    "pixel format '{s}' is unknown (allowed mono8, mono12p, mono12packed, mono16)"
-                ))
-            })
+        Self::from_name(s).ok_or_else(|| {
+            Error::Invalid(format!(
+                "pixel format '{s}' is unknown (allowed {})",
+                Self::names()
+            ))
+        })
     }
 }
 
@@ -142,7 +139,7 @@ pub fn codes_are_payload(fmt: PixelFormat) -> bool {
 pub fn bits_valid(fmt: PixelFormat, bit_depth: u8) -> u8 {
     match fmt {
         PixelFormat::Mono8 => 8,
-        _ => bit_depth,
+        PixelFormat::Mono12p | PixelFormat::Mono12Packed | PixelFormat::Mono16 => bit_depth,
     }
 }
 

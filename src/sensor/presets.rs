@@ -42,24 +42,16 @@ pub enum Preset {
     Gniicpi,
 }
 
-impl Preset {
-    /// All presets.
-    pub const ALL: [Preset; 4] = [
-        Preset::Camera,
-        Preset::Nfpi,
-        Preset::Gniipi,
-        Preset::Gniicpi,
-    ];
-}
+crate::names::name_table!(Preset {
+    Camera => "camera",
+    Nfpi => "nfpi",
+    Gniipi => "gniipi",
+    Gniicpi => "gniicpi",
+});
 
 impl fmt::Display for Preset {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
-        f.write_str(match self {
-            Preset::Camera => "camera",
-            Preset::Nfpi => "nfpi",
-            Preset::Gniipi => "gniipi",
-            Preset::Gniicpi => "gniicpi",
-        })
+        f.write_str(self.name())
     }
 }
 
@@ -67,17 +59,11 @@ impl FromStr for Preset {
     type Err = Error;
     /// Parses `camera`, `nfpi`, `gniipi`, `gniicpi` (case-insensitive).
     fn from_str(s: &str) -> Result<Self> {
-        match s.trim().to_ascii_lowercase().as_str() {
-            "camera" => Ok(Preset::Camera),
-            "nfpi" => Ok(Preset::Nfpi),
-            "gniipi" => Ok(Preset::Gniipi),
-            "gniicpi" => Ok(Preset::Gniicpi),
-            _ => Err(Error::OutOfRange {
-                name: "preset".into(),
-                value: s.to_string(),
-                allowed: "camera, nfpi, gniipi, gniicpi".into(),
-            }),
-        }
+        Preset::from_name(s).ok_or_else(|| Error::OutOfRange {
+            name: "preset".into(),
+            value: s.to_string(),
+            allowed: Preset::names(),
+        })
     }
 }
 

@@ -71,37 +71,17 @@ pub enum PolarizationModel {
     Asymmetric,
 }
 
+crate::names::name_table!(PolarizationModel {
+    Wang => "wang",
+    Rayleigh => "rayleigh",
+    DepolarizedRayleigh => "depolarized-rayleigh",
+    Berry => "berry",
+    Pan => "pan",
+    Queen => "queen",
+    Asymmetric => "asymmetric",
+});
+
 impl PolarizationModel {
-    /// Every model.
-    pub const ALL: [PolarizationModel; 7] = [
-        PolarizationModel::Wang,
-        PolarizationModel::Rayleigh,
-        PolarizationModel::DepolarizedRayleigh,
-        PolarizationModel::Berry,
-        PolarizationModel::Pan,
-        PolarizationModel::Queen,
-        PolarizationModel::Asymmetric,
-    ];
-
-    /// The name used on the command line and in scene files.
-    ///
-    /// ```
-    /// use psns::sky::PolarizationModel;
-    /// assert_eq!(PolarizationModel::DepolarizedRayleigh.name(), "depolarized-rayleigh");
-    /// assert_eq!("queen".parse::<PolarizationModel>().unwrap(), PolarizationModel::Queen);
-    /// ```
-    pub fn name(self) -> &'static str {
-        match self {
-            PolarizationModel::Wang => "wang",
-            PolarizationModel::Rayleigh => "rayleigh",
-            PolarizationModel::DepolarizedRayleigh => "depolarized-rayleigh",
-            PolarizationModel::Berry => "berry",
-            PolarizationModel::Pan => "pan",
-            PolarizationModel::Queen => "queen",
-            PolarizationModel::Asymmetric => "asymmetric",
-        }
-    }
-
     /// True for the models built on Berry's quartic field (their neutral points can be placed).
     pub fn is_quartic(self) -> bool {
         !matches!(
@@ -117,7 +97,10 @@ impl PolarizationModel {
             PolarizationModel::Pan | PolarizationModel::Queen | PolarizationModel::Asymmetric => {
                 NeutralLaw::Pan
             }
-            _ => NeutralLaw::Fixed,
+            PolarizationModel::Wang
+            | PolarizationModel::Rayleigh
+            | PolarizationModel::DepolarizedRayleigh
+            | PolarizationModel::Berry => NeutralLaw::Fixed,
         }
     }
 }
@@ -131,16 +114,11 @@ impl std::fmt::Display for PolarizationModel {
 impl std::str::FromStr for PolarizationModel {
     type Err = crate::Error;
     fn from_str(s: &str) -> Result<Self> {
-        let t = s.trim().to_ascii_lowercase();
-        PolarizationModel::ALL
-            .into_iter()
-            .find(|m| m.name() == t)
-            .ok_or_else(|| crate::Error::OutOfRange {
-                name: "model".into(),
-                value: s.into(),
-                allowed: "wang, rayleigh, depolarized-rayleigh, berry, pan, queen, asymmetric"
-                    .into(),
-            })
+        PolarizationModel::from_name(s).ok_or_else(|| crate::Error::OutOfRange {
+            name: "model".into(),
+            value: s.into(),
+            allowed: PolarizationModel::names(),
+        })
     }
 }
 
@@ -165,6 +143,11 @@ pub enum DopNorm {
     Wilkie,
 }
 
+crate::names::name_table!(DopNorm {
+    Clamp => "clamp",
+    Wilkie => "wilkie",
+});
+
 /// Form of the PSNS eq. (5) DOP (`sky.md` §5, `docs/sky.md`).
 #[derive(Clone, Copy, Debug, Default, PartialEq, Eq, Serialize, Deserialize)]
 #[serde(rename_all = "kebab-case")]
@@ -177,6 +160,28 @@ pub enum DopModel {
     /// Eq. (5) exactly as published (clamped to [0, 1]); pins to 0 or 1 in parts of the
     /// domain (low sun, T = 10 at θ_s = 70°, T < 2.5 with a high sun, 1.2 < T < 1.645).
     WangPaper,
+}
+
+crate::names::name_table!(DopModel {
+    WangBounded => "wang-bounded",
+    WangPaper => "wang-paper",
+});
+
+impl std::fmt::Display for DopModel {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+impl std::str::FromStr for DopModel {
+    type Err = crate::Error;
+    fn from_str(s: &str) -> Result<Self> {
+        DopModel::from_name(s).ok_or_else(|| crate::Error::OutOfRange {
+            name: "dop-model".into(),
+            value: s.into(),
+            allowed: DopModel::names(),
+        })
+    }
 }
 
 /// Sky parameters other than the sun position.
@@ -250,6 +255,50 @@ impl SkyParams {
         self.neutral_law.unwrap_or(self.model.default_law())
     }
 
+    /// Fixes the neutral points as every front-end does: `distance` places both, `babinet` and
+    /// `brewster` each (after `distance`), and any of them sets the fixed law. A model on Pan's
+    /// law moves both points, so fixing one alone is refused. `key` spells an option's name the
+    /// front-end's way in that message (`--babinet`, or `babinet` in a dataset description).
+    ///
+    /// ```
+    /// use psns::sky::{NeutralLaw, PolarizationModel, SkyParams};
+    /// let mut k = SkyParams { model: PolarizationModel::Pan, ..Default::default() };
+    /// let e = k.fix_neutral_points(None, Some(20.0), None, |o| o.to_string()).unwrap_err();
+    /// assert!(e.to_string().contains("give both babinet and brewster, or neutral_distance"));
+    /// k.fix_neutral_points(Some(30.0), None, None, |o| o.to_string()).unwrap();
+    /// assert_eq!((k.law(), k.babinet_deg, k.brewster_deg), (NeutralLaw::Fixed, 30.0, 30.0));
+    /// ```
+    pub fn fix_neutral_points(
+        &mut self,
+        distance: Option<f64>,
+        babinet: Option<f64>,
+        brewster: Option<f64>,
+        key: impl Fn(&str) -> String,
+    ) -> Result<()> {
+        if distance.is_none() && babinet.is_none() && brewster.is_none() {
+            return Ok(());
+        }
+        if babinet.is_some() != brewster.is_some() && self.law() == NeutralLaw::Pan {
+            return Err(crate::Error::Invalid(format!(
+                "{} {} places both neutral points by Pan's law: to fix them give both {} and \
+                 {}, or {}",
+                key("model"),
+                self.model,
+                key("babinet"),
+                key("brewster"),
+                key("neutral_distance")
+            )));
+        }
+        self.neutral_law = Some(NeutralLaw::Fixed);
+        if let Some(d) = distance {
+            self.babinet_deg = d;
+            self.brewster_deg = d;
+        }
+        self.babinet_deg = babinet.unwrap_or(self.babinet_deg);
+        self.brewster_deg = brewster.unwrap_or(self.brewster_deg);
+        Ok(())
+    }
+
     /// (Babinet, Brewster) distances from the sun, degrees, for a sun at zenith angle
     /// `sun_zenith_deg`: the fixed ones or Pan's law ([`Self::law`]).
     pub fn neutral_distances(&self, sun_zenith_deg: f64) -> (f64, f64) {
@@ -263,7 +312,12 @@ impl SkyParams {
     pub fn validate(&self) -> Result<()> {
         match self.model {
             PolarizationModel::Wang => dop::check_turbidity(self.turbidity, self.dop_model)?,
-            _ => check_range("turbidity", self.turbidity, 1.0, 10.0)?,
+            PolarizationModel::Rayleigh
+            | PolarizationModel::DepolarizedRayleigh
+            | PolarizationModel::Berry
+            | PolarizationModel::Pan
+            | PolarizationModel::Queen
+            | PolarizationModel::Asymmetric => check_range("turbidity", self.turbidity, 1.0, 10.0)?,
         };
         check_range("wavelength", self.wavelength_nm, 320.0, 720.0)?;
         check_range("albedo", self.albedo, 0.0, 1.0)?;
@@ -454,7 +508,10 @@ impl PolarizationField {
             PolarizationModel::Rayleigh | PolarizationModel::DepolarizedRayleigh => {
                 self.rayleigh(v, cross, sin_g2, cos_g)
             }
-            _ => self.quartic_dop_e(v),
+            PolarizationModel::Berry
+            | PolarizationModel::Pan
+            | PolarizationModel::Queen
+            | PolarizationModel::Asymmetric => self.quartic_dop_e(v),
         };
         (
             cos_t,
@@ -740,7 +797,10 @@ impl Sky {
                     (e[0][j], e[1][j], e[2][j]) = (ej.x, ej.y, ej.z);
                 }
             }
-            _ => {
+            PolarizationModel::Berry
+            | PolarizationModel::Pan
+            | PolarizationModel::Queen
+            | PolarizationModel::Asymmetric => {
                 for j in 0..n {
                     let (d, ej) = p.quartic_dop_e(DVec3::new(v[0][j], v[1][j], v[2][j]));
                     dop[j] = d;

@@ -7,10 +7,12 @@
 mod common;
 
 mod commands;
+mod completeness;
 mod full_disk;
 mod layering;
 mod lens;
 mod messages;
+mod names;
 mod outputs;
 mod progress;
 mod raw;

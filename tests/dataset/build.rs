@@ -84,7 +84,7 @@ pub(crate) fn ok(o: &std::process::Output) {
 }
 
 /// The rows of a `labels.csv`, each a map from column name to value.
-fn label_rows(labels: &str) -> Vec<BTreeMap<&str, &str>> {
+pub(crate) fn label_rows(labels: &str) -> Vec<BTreeMap<&str, &str>> {
     let mut lines = labels.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
     lines

@@ -9,3 +9,4 @@ mod common;
 mod build;
 mod plan;
 mod recipes;
+mod scene;

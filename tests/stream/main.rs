@@ -7,6 +7,7 @@
 mod common;
 
 mod cli;
+mod completeness;
 mod nav_reader;
 mod readers;
 mod recordings;

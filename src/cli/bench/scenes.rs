@@ -91,7 +91,8 @@ impl FromStr for Scene {
             .find(|m| m.name() == t)
             .ok_or_else(|| {
                 Error::Invalid(format!(
-                    "unknown scene '{s}' (allowed: clear-sky, occluder-edge, sun-in-view, clouds, low-light, turbid)"
+                    "unknown scene '{s}' (allowed: {})",
+                    Scene::ALL.map(Scene::name).join(", ")
                 ))
             })
     }

@@ -10,11 +10,13 @@
 use crate::cli::progress::Progress;
 use crate::cli::vis;
 use psns::camera::{Attitude, Camera};
+use psns::config::SceneConfig;
 use psns::error::{Error, Result};
 use psns::image::Image;
 use psns::io;
 use psns::pipeline::RawPipeline;
 use psns::sensor::emva::{pair_stats, photon_transfer, PairStats, PhotonTransfer};
+use psns::sensor::mosaic::MosaicLayout;
 use psns::sensor::{
     flat_field, Exposure, FrameOptions, Preset, Radiance, RawFrame, Sensor, SensorConfig,
 };
@@ -514,19 +516,32 @@ fn median(mut v: Vec<f64>) -> f64 {
 /// Steps of [`sensor_figures`] counted by its progress.
 pub const SENSOR_FIGURE_STEPS: u64 = 6;
 
+/// Where the sensor figures go: the files written and the numbers of `sensor_numbers.json`.
+struct Figures<'a> {
+    dir: &'a Path,
+    files: Vec<String>,
+    numbers: serde_json::Map<String, serde_json::Value>,
+}
+
+impl Figures<'_> {
+    /// The path of figure `name`, listed among the files written.
+    fn put(&mut self, name: &str) -> std::path::PathBuf {
+        let p = self.dir.join(name);
+        self.files.push(p.display().to_string());
+        p
+    }
+}
+
 /// Writes the sensor figures into `dir`; returns the files written. Counts
 /// [`SENSOR_FIGURE_STEPS`] steps on `progress`.
 pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>> {
     std::fs::create_dir_all(dir)
         .map_err(|e| Error::io(format!("creating {}", dir.display()), e))?;
-    let mut files = Vec::new();
-    let mut numbers = serde_json::Map::new();
-    let mut put = |name: &str| {
-        let p = dir.join(name);
-        files.push(p.display().to_string());
-        p
+    let mut out = Figures {
+        dir,
+        files: Vec::new(),
+        numbers: serde_json::Map::new(),
     };
-
     progress.set_message("sensor: raw frame");
     // 1. the default camera frame of the default sky, on the exact (reference) path the pipeline
     // section describes: every pixel's sky evaluated, the reference noise (the pictures then do
@@ -535,13 +550,42 @@ pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>
     cfg.raw.exact = true;
     let pipe = RawPipeline::new(&cfg)?;
     let layout = pipe.sensor_config().layout;
+    let frame = default_frame(&cfg, &pipe, &mut out)?;
+    progress.inc(1);
+    progress.set_message("sensor: mosaic zoom, sun frame");
+    mosaic_zoom_and_sun(&cfg, &pipe, &frame, &mut out)?;
+    progress.inc(1);
+    progress.set_message("sensor: channels");
+    channels(&frame, &layout, &mut out)?;
+    progress.inc(1);
+    progress.set_message("sensor: presets");
+    presets(&cfg, &frame, &mut out)?;
+    progress.inc(1);
+    progress.set_message("sensor: photon transfer");
+    photon_transfer_figure(&mut out)?;
+    progress.inc(1);
+    progress.set_message("sensor: DoLP truth vs superpixel");
+    dolp_truth_vs_superpixel(&frame, &layout, &mut out)?;
+    let numbers = std::mem::take(&mut out.numbers);
+    let json = serde_json::to_string_pretty(&serde_json::Value::Object(numbers))
+        .expect("numbers serialize");
+    io::write_atomic(&out.put("sensor_numbers.json"), |w| {
+        std::io::Write::write_all(w, json.as_bytes())
+            .map_err(|e| Error::io("writing sensor_numbers.json", e))
+    })?;
+    progress.inc(1);
+    Ok(out.files)
+}
+
+/// Figure 1: the default camera frame (`raw_frame.png`) and the brightest channel's electron
+/// rate.
+fn default_frame(cfg: &SceneConfig, pipe: &RawPipeline, out: &mut Figures) -> Result<RawFrame> {
     let (frame, _) = pipe.render_configured()?;
     let bits = frame.bit_depth;
-    let max = psns::sensor::adc::max_code(bits);
     let gray = codes_gray(&frame.codes, bits);
     let small = vis::downsample(&gray, 4);
-    io::write_png_gray8(&put("raw_frame.png"), &vis::gray8(&small, 255.0))?;
-    numbers.insert(
+    io::write_png_gray8(&out.put("raw_frame.png"), &vis::gray8(&small, 255.0))?;
+    out.numbers.insert(
         "default_frame".into(),
         serde_json::json!({
             "exposure_us": frame.exposure_us,
@@ -555,7 +599,7 @@ pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>
     let (st, _) = pipe.stokes(sun, &cfg.camera.attitude)?;
     let bright = brightest_channel_rates(pipe.sensor(), &st)?;
     let radiance: Vec<f64> = st.s0.data.iter().map(|&v| v as f64).collect();
-    numbers.insert(
+    out.numbers.insert(
         "brightest_channel_rate".into(),
         serde_json::json!({
             "superpixels": bright.len(),
@@ -566,9 +610,18 @@ pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>
             "radiance_max": percentile(radiance, 100.0),
         }),
     );
+    Ok(frame)
+}
 
-    progress.inc(1);
-    progress.set_message("sensor: mosaic zoom, sun frame");
+/// Figure 2: the mosaic where the truth DoLP is highest, and the sun in view at two exposures
+/// (`raw_mosaic_zoom.png`, `raw_sun_frame.png`).
+fn mosaic_zoom_and_sun(
+    cfg: &SceneConfig,
+    pipe: &RawPipeline,
+    frame: &RawFrame,
+    out: &mut Figures,
+) -> Result<()> {
+    let max = psns::sensor::adc::max_code(frame.bit_depth);
     // 2a. 24 × 24 crop where the truth DoLP is highest, ×12
     let (dolp, _) = frame.truth_dolp_aolp();
     let block = 24;
@@ -633,23 +686,23 @@ pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>
         .max(1) as f64;
     let sun_rgb = enlarge(&codes_rgb_saturation(&sun_crop, sun_white, max), 9);
     io::write_png_rgb8(
-        &put("raw_mosaic_zoom.png"),
+        &out.put("raw_mosaic_zoom.png"),
         &vis::hstack(&[&zoom_rgb, &sun_rgb], 8),
     )?;
     let long_view = saturation_overview(&sun_frame.codes, 8, max as f64, max);
     let short_view = saturation_overview(&short.codes, 8, max as f64 / 16.0, max);
     io::write_png_rgb8(
-        &put("raw_sun_frame.png"),
+        &out.put("raw_sun_frame.png"),
         &vis::hstack(&[&long_view, &short_view], 4),
     )?;
-    numbers.insert(
+    out.numbers.insert(
         "mosaic_zoom".into(),
         serde_json::json!({
             "row": at.0, "col": at.1, "size": block, "mean_truth_dolp": best,
             "display_white_code": zmax,
         }),
     );
-    numbers.insert(
+    out.numbers.insert(
         "sun_view".into(),
         serde_json::json!({
             "attitude_enu_yaw_deg": sun.azimuth_deg, "pitch_deg": pitch,
@@ -664,9 +717,11 @@ pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>
             "crop_display_white_code": sun_white,
         }),
     );
+    Ok(())
+}
 
-    progress.inc(1);
-    progress.set_message("sensor: channels");
+/// Figure 3: the four channel sub-images and their ratios to the mean (`raw_channels.png`).
+fn channels(frame: &RawFrame, layout: &MosaicLayout, out: &mut Figures) -> Result<()> {
     // 3. the four channel sub-images, common scale; second row: I_k / mean of the four
     let subs: Vec<Image<u16>> = (0..4)
         .map(|ch| {
@@ -708,16 +763,18 @@ pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>
     let r2: Vec<&Image<[u8; 3]>> = row2.iter().collect();
     let (a, b) = (vis::hstack(&r1, 4), vis::hstack(&r2, 4));
     io::write_png_gray8(
-        &put("raw_channels.png"),
+        &out.put("raw_channels.png"),
         &rgb_to_gray(&vis::vstack(&[&a, &b], 4)),
     )?;
-    numbers.insert(
+    out.numbers.insert(
         "channels".into(),
         serde_json::json!({ "display_white_code": ch_white }),
     );
+    Ok(())
+}
 
-    progress.inc(1);
-    progress.set_message("sensor: presets");
+/// Figure 4: the PSNS presets beside the camera, same sky (`psns_presets.png`).
+fn presets(cfg: &SceneConfig, frame: &RawFrame, out: &mut Figures) -> Result<()> {
     // 4. PSNS presets and the camera, same sky: full frames /8 and a 152 × 128 corner crop ×2
     let mut top = Vec::new();
     let mut bottom = Vec::new();
@@ -753,22 +810,25 @@ pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>
     let bt: Vec<&Image<[u8; 3]>> = bottom.iter().collect();
     let (a, b) = (vis::hstack(&t, 6), vis::hstack(&bt, 8));
     io::write_png_gray8(
-        &put("psns_presets.png"),
+        &out.put("psns_presets.png"),
         &rgb_to_gray(&vis::vstack(&[&a, &b], 6)),
     )?;
-    numbers.insert("presets".into(), serde_json::Value::Object(preset_numbers));
+    out.numbers
+        .insert("presets".into(), serde_json::Value::Object(preset_numbers));
+    Ok(())
+}
 
-    progress.inc(1);
-    progress.set_message("sensor: photon transfer");
+/// Figure 5: the photon transfer curve (`photon_transfer.svg`).
+fn photon_transfer_figure(out: &mut Figures) -> Result<()> {
     // 5. photon transfer
     let ptc = photon_transfer_data(&ptc_sensor_config(), 256, 256, 2024, 2)?;
     let svg = photon_transfer_svg(&ptc)?;
-    io::write_atomic(&put("photon_transfer.svg"), |w| {
+    io::write_atomic(&out.put("photon_transfer.svg"), |w| {
         std::io::Write::write_all(w, svg.as_bytes())
             .map_err(|e| Error::io("writing photon_transfer.svg", e))
     })?;
     let c = &ptc.config;
-    numbers.insert(
+    out.numbers.insert(
         "photon_transfer".into(),
         serde_json::json!({
             "frame": [ptc.width, ptc.height], "seed": 2024, "pairs_per_level": ptc.pairs,
@@ -781,11 +841,18 @@ pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>
             "points": ptc.levels.iter().map(|l| [l.exposure_us, l.stats.mean, l.stats.var]).collect::<Vec<_>>(),
         }),
     );
+    Ok(())
+}
 
-    progress.inc(1);
-    progress.set_message("sensor: DoLP truth vs superpixel");
+/// Figure 6: the truth DoLP against a plain superpixel estimate
+/// (`dolp_truth_vs_superpixel.png`).
+fn dolp_truth_vs_superpixel(
+    frame: &RawFrame,
+    layout: &MosaicLayout,
+    out: &mut Figures,
+) -> Result<()> {
     // 6. DoLP: ground truth vs a plain superpixel estimate from the raw codes
-    let [est, tru] = superpixel_dolp(&frame, &layout);
+    let [est, tru] = superpixel_dolp(frame, layout);
     let diff = Image::from_vec(
         est.width,
         est.height,
@@ -799,7 +866,7 @@ pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>
     let b = vis::dop_rgb(&vis::downsample(&est, 6), None);
     let c = vis::gray_rgb(&vis::gray8(&vis::downsample(&diff, 6), 1.0));
     io::write_png_rgb8(
-        &put("dolp_truth_vs_superpixel.png"),
+        &out.put("dolp_truth_vs_superpixel.png"),
         &vis::hstack(&[&a, &b, &c], 4),
     )?;
     let d: Vec<f64> = est
@@ -809,22 +876,14 @@ pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>
         .filter(|(_, &t)| t > 0.1)
         .map(|(&e, &t)| (e / t) as f64)
         .collect();
-    numbers.insert(
+    out.numbers.insert(
         "superpixel_dolp".into(),
         serde_json::json!({
             "median_ratio_estimate_over_truth": median(d),
             "truth_dolp_max": tru.data.iter().copied().fold(0.0f32, f32::max),
         }),
     );
-
-    let json = serde_json::to_string_pretty(&serde_json::Value::Object(numbers))
-        .expect("numbers serialize");
-    io::write_atomic(&put("sensor_numbers.json"), |w| {
-        std::io::Write::write_all(w, json.as_bytes())
-            .map_err(|e| Error::io("writing sensor_numbers.json", e))
-    })?;
-    progress.inc(1);
-    Ok(files)
+    Ok(())
 }
 
 #[cfg(test)]

@@ -109,46 +109,151 @@ pub(super) fn infer_header(
         v.resize(FILE_HEADER_SIZE, 0);
         v
     };
-    let (w_s, h_s, code_s) = (u32_le(&hb, 20), u32_le(&hb, 24), u32_le(&hb, 28));
-    let (p_s, s_s) = (u64_le(&hb, 48), u64_le(&hb, 56));
+    let stored = Stored::read(&hb);
     let found = frames_in(buf, 3);
     let mut how: Vec<String> = Vec::new();
-    // stride: between the first two frame headers, else from the first one's position
+    let mut stride = stride_between(buf, &found, eof, &mut how);
+    let payload = payload_by_crc(buf, &found, &mut stride, &mut how);
+    // the payload size to match: CRC-proven, else the header's if it fits the stride
+    let (p_s, s_s) = (stored.payload, stored.stride);
+    let target = payload.or_else(|| {
+        let ok = stride.map_or(s_s == stride_for(p_s), |s| s == stride_for(p_s));
+        (ok && p_s > 0 && p_s <= crate::stream::MAX_PAYLOAD).then(|| {
+            how.push(format!("payload {p_s} B from the header (fits the stride)"));
+            p_s
+        })
+    });
+    let cands = candidates(target, hint, &stored);
+    let (w_s, h_s, code_s) = (stored.width, stored.height, stored.code);
+    let said = format!(
+        "frames found: {}; stride {}; payload {}; header fields say {w_s} x {h_s}, PFNC 0x{code_s:08X}, payload {p_s} B, stride {s_s} B",
+        found.len(),
+        stride.map_or("unknown".into(), |s| format!("{s} B")),
+        target.map_or("unknown".into(), |p| format!("{p} B")),
+    );
+    let (fmt, width, height) = best_candidate(&cands, &damage, &said)?;
+    if let Some(s) = stride {
+        let size = payload_size_checked(fmt, width as usize, height as usize).map(|p| p as u64);
+        if size.map(stride_for) != Some(s) {
+            return Err(Error::Invalid(format!(
+                "{damage}; {width} x {height} {fmt} has stride {} B but the frames found are {s} B apart",
+                size.map_or(0, stride_for)
+            )));
+        }
+    }
+    for (name, given, same) in [
+        ("width", hint.width.is_some(), width == w_s),
+        ("height", hint.height.is_some(), height == h_s),
+        (
+            "pixel format",
+            hint.pixel_format.is_some(),
+            Some(fmt) == stored.format(),
+        ),
+    ] {
+        how.push(if given {
+            format!("{name} given")
+        } else if same {
+            format!("{name} from the header")
+        } else {
+            format!("{name} inferred (header field disagrees)")
+        });
+    }
+    let mut defaults = Vec::new();
+    let header = other_fields(&hb, fmt, width, height, &mut defaults);
+    header.validate()?;
+    // read from the first frame if it lies inside the header's 4096 bytes, else after them
+    let start = found
+        .first()
+        .map_or(FILE_HEADER_SIZE, |f| f.pos.min(FILE_HEADER_SIZE))
+        .min(buf.len());
+    let geometry = format!(
+        "{width} x {height} {fmt} (payload {} B, stride {} B): {}",
+        header.payload_size(),
+        header.stride(),
+        how.join(", ")
+    );
+    Ok((
+        header,
+        start,
+        Recovery {
+            damage,
+            geometry,
+            defaults,
+        },
+    ))
+}
+
+/// The geometry fields of a damaged file header, as stored.
+struct Stored {
+    width: u32,
+    height: u32,
+    code: u32,
+    payload: u64,
+    stride: u64,
+}
+
+impl Stored {
+    fn read(hb: &[u8]) -> Stored {
+        Stored {
+            width: u32_le(hb, 20),
+            height: u32_le(hb, 24),
+            code: u32_le(hb, 28),
+            payload: u64_le(hb, 48),
+            stride: u64_le(hb, 56),
+        }
+    }
+
+    /// The stored pixel format, if its code is one.
+    fn format(&self) -> Option<PixelFormat> {
+        PixelFormat::from_pfnc(self.code).ok()
+    }
+}
+
+/// The stride: between the first two frame headers found, else from the first one's position
+/// (or, at the end of the data, from the single frame's record).
+fn stride_between(buf: &[u8], found: &[Found], eof: bool, how: &mut Vec<String>) -> Option<u64> {
     let page = FILE_HEADER_SIZE as u64;
-    let mut stride: Option<u64> = None;
-    if let [a, b, ..] = found.as_slice() {
+    if let [a, b, ..] = found {
         let (d, di) = ((b.pos - a.pos) as u64, b.index.wrapping_sub(a.index));
         if b.index > a.index && d % di == 0 && (d / di) % page == 0 && d / di > 0 {
-            stride = Some(d / di);
             how.push(format!(
                 "stride {} B between frames {} and {}",
                 d / di,
                 a.index,
                 b.index
             ));
+            return Some(d / di);
         }
     }
-    if let (None, Some(a)) = (stride, found.first()) {
-        let off = a.pos as u64;
-        if a.index > 0 && off > page && (off - page).is_multiple_of(a.index) {
-            let s = (off - page) / a.index;
-            if s.is_multiple_of(page) && s > 0 {
-                stride = Some(s);
-                how.push(format!("stride {s} B from frame {} at byte {off}", a.index));
-            }
-        } else if eof && found.len() == 1 {
-            let s = (buf.len() - a.pos) as u64;
-            if s.is_multiple_of(page) && s > 0 {
-                stride = Some(s);
-                how.push(format!("stride {s} B from the single frame's record"));
-            }
+    let a = found.first()?;
+    let off = a.pos as u64;
+    if a.index > 0 && off > page && (off - page).is_multiple_of(a.index) {
+        let s = (off - page) / a.index;
+        if s.is_multiple_of(page) && s > 0 {
+            how.push(format!("stride {s} B from frame {} at byte {off}", a.index));
+            return Some(s);
+        }
+    } else if eof && found.len() == 1 {
+        let s = (buf.len() - a.pos) as u64;
+        if s.is_multiple_of(page) && s > 0 {
+            how.push(format!("stride {s} B from the single frame's record"));
+            return Some(s);
         }
     }
-    // exact payload size: the length whose CRC matches a frame header's payload CRC
-    let mut payload: Option<u64> = None;
-    for f in &found {
+    None
+}
+
+/// The exact payload size: the only length (within the stride, if known) whose CRC matches a
+/// frame header's payload CRC; sets the stride from it when none was found.
+fn payload_by_crc(
+    buf: &[u8],
+    found: &[Found],
+    stride: &mut Option<u64>,
+    how: &mut Vec<String>,
+) -> Option<u64> {
+    for f in found {
         let data = &buf[f.pos + FRAME_HEADER_SIZE..];
-        let (lo, hi) = match stride {
+        let (lo, hi) = match *stride {
             Some(s) => (
                 (s as usize).saturating_sub(FILE_HEADER_SIZE + FRAME_HEADER_SIZE - 1),
                 s as usize - FRAME_HEADER_SIZE,
@@ -159,26 +264,46 @@ pub(super) fn infer_header(
             continue;
         }
         if let [p] = crc_lengths(data, lo, hi, f.pcrc)[..] {
-            payload = Some(p as u64);
             how.push(format!(
                 "payload {p} B from the payload CRC of frame {}",
                 f.index
             ));
             if stride.is_none() {
-                stride = Some(stride_for(p as u64));
+                *stride = Some(stride_for(p as u64));
             }
-            break;
+            return Some(p as u64);
         }
     }
-    // the payload size to match: CRC-proven, else the header's if it fits the stride
-    let target = payload.or_else(|| {
-        let ok = stride.map_or(s_s == stride_for(p_s), |s| s == stride_for(p_s));
-        (ok && p_s > 0 && p_s <= crate::stream::MAX_PAYLOAD).then(|| {
-            how.push(format!("payload {p_s} B from the header (fits the stride)"));
-            p_s
-        })
-    });
-    let stored_fmt = PixelFormat::from_pfnc(code_s).ok();
+    None
+}
+
+/// Pixel counts whose payload in format `f` is `p` bytes.
+fn pixel_counts(f: PixelFormat, p: u64) -> Vec<u64> {
+    match f {
+        PixelFormat::Mono8 => vec![p],
+        PixelFormat::Mono16 => {
+            if p.is_multiple_of(2) {
+                vec![p / 2]
+            } else {
+                vec![]
+            }
+        }
+        PixelFormat::Mono12p | PixelFormat::Mono12Packed => vec![(2 * p) / 3, (2 * p) / 3 + 1]
+            .into_iter()
+            .filter(|&n| n.checked_mul(3).map(|x| x.div_ceil(2)) == Some(p))
+            .collect(),
+    }
+}
+
+/// The geometries (score, format, width, height) whose payload is `target` bytes, each scored
+/// by the stored and given fields it keeps, best first; without a target, the user's geometry.
+fn candidates(
+    target: Option<u64>,
+    hint: &RecoverHint,
+    stored: &Stored,
+) -> Vec<(u32, PixelFormat, u32, u32)> {
+    let (w_s, h_s) = (stored.width, stored.height);
+    let stored_fmt = stored.format();
     let fmts: Vec<PixelFormat> = match hint.pixel_format {
         Some(f) => vec![f],
         None => PixelFormat::ALL.to_vec(),
@@ -186,24 +311,7 @@ pub(super) fn infer_header(
     let size = |f: PixelFormat, w: u32, h: u32| {
         payload_size_checked(f, w as usize, h as usize).map(|p| p as u64)
     };
-    // candidates (format, width, height) and how many stored fields each keeps
     let mut cands: Vec<(u32, PixelFormat, u32, u32)> = Vec::new();
-    let n_of = |f: PixelFormat, p: u64| -> Vec<u64> {
-        match f {
-            PixelFormat::Mono8 => vec![p],
-            PixelFormat::Mono16 => {
-                if p.is_multiple_of(2) {
-                    vec![p / 2]
-                } else {
-                    vec![]
-                }
-            }
-            _ => vec![(2 * p) / 3, (2 * p) / 3 + 1]
-                .into_iter()
-                .filter(|&n| n.checked_mul(3).map(|x| x.div_ceil(2)) == Some(p))
-                .collect(),
-        }
-    };
     let ok_dim = |x: u64| (1..=65_535).contains(&x);
     if let Some(p) = target {
         for &f in &fmts {
@@ -211,7 +319,7 @@ pub(super) fn infer_header(
             let ws = hint.width.unwrap_or(w_s);
             let hs = hint.height.unwrap_or(h_s);
             pairs.push((ws, hs));
-            for n in n_of(f, p) {
+            for n in pixel_counts(f, p) {
                 if hint.width.is_none() && hs > 0 && n % hs as u64 == 0 && ok_dim(n / hs as u64) {
                     pairs.push(((n / hs as u64) as u32, hs));
                 }
@@ -238,62 +346,41 @@ pub(super) fn infer_header(
         cands.push((3, f, w, h));
     }
     cands.sort_by_key(|c| std::cmp::Reverse(c.0));
-    let said = format!(
-        "frames found: {}; stride {}; payload {}; header fields say {w_s} x {h_s}, PFNC 0x{code_s:08X}, payload {p_s} B, stride {s_s} B",
-        found.len(),
-        stride.map_or("unknown".into(), |s| format!("{s} B")),
-        target.map_or("unknown".into(), |p| format!("{p} B")),
-    );
-    let best = match cands.as_slice() {
-        [] => {
-            return Err(Error::Invalid(format!(
-                "{damage}; cannot infer the frame geometry ({said}): give width, height and pixel format"
-            )))
-        }
-        [a, b, ..] if a.0 == b.0 => {
-            return Err(Error::Invalid(format!(
-                "{damage}; frame geometry ambiguous ({} x {} {} or {} x {} {}; {said}): give width, height and pixel format",
-                a.2, a.3, a.1, b.2, b.3, b.1
-            )))
-        }
-        [a, ..] if a.0 < 2 => {
-            return Err(Error::Invalid(format!(
-                "{damage}; only {} x {} {} fits the frames, which disagrees with more than one header field ({said}): give width, height and pixel format",
-                a.2, a.3, a.1
-            )))
-        }
-        [a, ..] => *a,
-    };
-    let (_, fmt, width, height) = best;
-    if let Some(s) = stride {
-        if size(fmt, width, height).map(stride_for) != Some(s) {
-            return Err(Error::Invalid(format!(
-                "{damage}; {width} x {height} {fmt} has stride {} B but the frames found are {s} B apart",
-                size(fmt, width, height).map_or(0, stride_for)
-            )));
-        }
+    cands
+}
+
+/// The one best candidate, or why there is none (`said`: what the frames and the header say).
+fn best_candidate(
+    cands: &[(u32, PixelFormat, u32, u32)],
+    damage: &str,
+    said: &str,
+) -> Result<(PixelFormat, u32, u32)> {
+    match cands {
+        [] => Err(Error::Invalid(format!(
+            "{damage}; cannot infer the frame geometry ({said}): give width, height and pixel format"
+        ))),
+        [a, b, ..] if a.0 == b.0 => Err(Error::Invalid(format!(
+            "{damage}; frame geometry ambiguous ({} x {} {} or {} x {} {}; {said}): give width, height and pixel format",
+            a.2, a.3, a.1, b.2, b.3, b.1
+        ))),
+        [a, ..] if a.0 < 2 => Err(Error::Invalid(format!(
+            "{damage}; only {} x {} {} fits the frames, which disagrees with more than one header field ({said}): give width, height and pixel format",
+            a.2, a.3, a.1
+        ))),
+        [a, ..] => Ok((a.1, a.2, a.3)),
     }
-    let mut agree = Vec::new();
-    for (name, given, same) in [
-        ("width", hint.width.is_some(), width == w_s),
-        ("height", hint.height.is_some(), height == h_s),
-        (
-            "pixel format",
-            hint.pixel_format.is_some(),
-            Some(fmt) == stored_fmt,
-        ),
-    ] {
-        agree.push(if given {
-            format!("{name} given")
-        } else if same {
-            format!("{name} from the header")
-        } else {
-            format!("{name} inferred (header field disagrees)")
-        });
-    }
-    how.extend(agree);
+}
+
+/// The header with the inferred geometry and its other fields as stored when valid, else
+/// defaults (each listed in `defaults`).
+fn other_fields(
+    hb: &[u8],
+    fmt: PixelFormat,
+    width: u32,
+    height: u32,
+    defaults: &mut Vec<String>,
+) -> FileHeader {
     // the other fields: as stored when valid, else defaults
-    let mut defaults = Vec::new();
     let bits = u16::from_le_bytes([hb[32], hb[33]]);
     let bits_ok = if fmt == PixelFormat::Mono8 {
         bits == 8
@@ -340,14 +427,14 @@ pub(super) fn infer_header(
         1
     };
     let text = |off: usize, what: &str, defaults: &mut Vec<String>| {
-        crate::stream::get_str(&hb, off, what).unwrap_or_else(|_| {
+        crate::stream::get_str(hb, off, what).unwrap_or_else(|_| {
             defaults.push(format!("{what} (empty)"));
             String::new()
         })
     };
-    let producer = text(160, "producer", &mut defaults);
-    let preset = text(192, "preset", &mut defaults);
-    let (jo, jl) = (u32_le(&hb, 224) as usize, u32_le(&hb, 228) as usize);
+    let producer = text(160, "producer", defaults);
+    let preset = text(192, "preset", defaults);
+    let (jo, jl) = (u32_le(hb, 224) as usize, u32_le(hb, 228) as usize);
     let json = if jo == 0 && jl == 0 {
         String::new()
     } else if jo >= JSON_OFFSET
@@ -374,7 +461,7 @@ pub(super) fn infer_header(
     if end > 1 {
         defaults.push(format!("end status ({end} -> 0)"));
     }
-    let header = FileHeader {
+    FileHeader {
         version_minor: u16::from_le_bytes([hb[10], hb[11]]),
         width,
         height,
@@ -385,31 +472,10 @@ pub(super) fn infer_header(
         angle_sense,
         frame_count: 0,
         aborted: end == 1,
-        seed: u64_le(&hb, 72),
+        seed: u64_le(hb, 72),
         camera: CameraConstants::from_array(cam),
         producer,
         preset,
         json,
-    };
-    header.validate()?;
-    // read from the first frame if it lies inside the header's 4096 bytes, else after them
-    let start = found
-        .first()
-        .map_or(FILE_HEADER_SIZE, |f| f.pos.min(FILE_HEADER_SIZE))
-        .min(buf.len());
-    let geometry = format!(
-        "{width} x {height} {fmt} (payload {} B, stride {} B): {}",
-        header.payload_size(),
-        header.stride(),
-        how.join(", ")
-    );
-    Ok((
-        header,
-        start,
-        Recovery {
-            damage,
-            geometry,
-            defaults,
-        },
-    ))
+    }
 }
