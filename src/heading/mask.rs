@@ -268,21 +268,21 @@ pub fn find_sky_mask(view: &PolarView, setup: &HeadingSetup) -> Result<FoundMask
     let mut fs = *setup;
     fs.step = step_for_samples(setup, MASK_FIT_SAMPLES);
     let mut dolp_k = view.dolp.clone();
-    let cell_of = |row: usize, col: usize| {
-        let ci = ((row + g / 2) / g).min(ni - 1);
-        let cj = ((col + g / 2) / g).min(nj - 1);
-        ci * nj + cj
-    };
+    // the nearest grid pixel of each row and column
+    let near = |x: usize, n: usize| ((x + g / 2) / g).min(n - 1);
+    let cell_cols: Vec<usize> = (0..i.width).map(|c| near(c, nj)).collect();
+    let cell_of = |row: usize, col: usize| near(row, ni) * nj + cell_cols[col];
     while iterations < MASK_ITERATIONS {
         // the view with every pixel whose nearest cell is not kept marked unusable
-        for row in 0..i.height {
-            for col in 0..i.width {
-                let k = row * i.width + col;
-                dolp_k.data[k] = if keep[cell_of(row, col)] {
-                    view.dolp.data[k]
-                } else {
-                    f32::NAN
-                };
+        for ((row, out), src) in dolp_k
+            .data
+            .chunks_mut(i.width)
+            .enumerate()
+            .zip(view.dolp.data.chunks(i.width))
+        {
+            let keep_row = &keep[near(row, ni) * nj..][..nj];
+            for ((o, &d), &c) in out.iter_mut().zip(src).zip(&cell_cols) {
+                *o = if keep_row[c] { d } else { f32::NAN };
             }
         }
         let v = PolarView {

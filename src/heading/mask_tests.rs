@@ -289,3 +289,20 @@ fn little_sky_left_lowers_the_confidence() {
     let f = get(&rows, HeadingMethod::ModelFit, Masking::Found);
     assert!(f[1] < 0.1 && f[2] > 0.5 * sky_factor(f[3]), "{rows:?}");
 }
+
+/// A frame's mask on a view of every k-th superpixel: a sample is sky when its whole 2 × 2 block
+/// is; a mask of another size than the images is refused.
+#[test]
+fn a_frame_mask_is_sampled_by_whole_superpixels() {
+    let mut m = Image::from_vec(40, 24, vec![1u8; 40 * 24]);
+    *m.get_mut(9, 8) = 0;
+    *m.get_mut(10, 20) = 0; // between blocks: no sample reads it
+    let s = sampled_mask(&m, 4);
+    assert_eq!((s.width, s.height), (10, 6));
+    let holes: Vec<usize> = (0..60).filter(|&q| s.data[q] == 0).collect();
+    assert_eq!(holes, vec![2 * 10 + 2]);
+    let d = Image::from_vec(10, 6, vec![0.3f32; 60]);
+    let md = masked_dolp(&d, &s).unwrap();
+    assert!(md.data[22].is_nan() && md.data[21] == 0.3);
+    assert!(masked_dolp(&d, &m).is_err());
+}
