@@ -33,8 +33,6 @@ mod codes;
 mod eigen;
 mod hough;
 mod mask;
-#[cfg(test)]
-mod mask_tests;
 mod model_fit;
 mod stats;
 #[cfg(test)]

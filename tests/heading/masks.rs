@@ -3,11 +3,16 @@
 //! street canyon's walls, a tree), estimated with the mask found from the frame, a given mask, or
 //! none.
 
-use super::*;
-use crate::camera::{Attitude, Camera, Projection};
-use crate::config::SceneConfig;
-use crate::image::StokesImage;
-use crate::pipeline::RawPipeline;
+use glam::DVec3;
+use psns::camera::{Attitude, Camera, Intrinsics, Projection};
+use psns::config::SceneConfig;
+use psns::heading::{
+    error_stats, estimate_codes, masked_dolp, sampled_mask, sky_factor, wrap180, HeadingEstimate,
+    HeadingMethod, HeadingSetup,
+};
+use psns::image::{Image, StokesImage};
+use psns::pipeline::RawPipeline;
+use psns::sensor::mosaic::MosaicLayout;
 
 /// What hides the sky: a street canyon's walls (height in m; the street 20 m wide along azimuth
 /// 0, walls to the east and west), a tree (a disc of foliage of this angular radius at azimuth
@@ -77,8 +82,8 @@ fn obstructed(cut: Cut, yaw: f64) -> Obstructed {
         ..Intrinsics::with_size(512, 512)
     };
     cfg.camera.attitude = Attitude::enu(yaw, 0.0, 0.0);
-    let mut sensor = crate::sensor::SensorConfig::preset(cfg.raw.preset);
-    sensor.exposure = crate::sensor::Exposure::auto();
+    let mut sensor = psns::sensor::SensorConfig::preset(cfg.raw.preset);
+    sensor.exposure = psns::sensor::Exposure::auto();
     let ri = sensor.effective_ri();
     cfg.raw.sensor = Some(sensor);
     let pipe = RawPipeline::new(&cfg).unwrap();
@@ -204,8 +209,8 @@ fn get(rows: &[(HeadingMethod, Masking, [f64; 4])], m: HeadingMethod, mk: Maskin
 /// is the true one to 1 % of the image circle, every estimator is on the yaw with it (the model
 /// fit within the 0.5° RMS target by far), and without it the model fit, right as it is, loses
 /// its confidence (the walls' noise, polarized by chance, reads as a sky that does not fit).
-/// Measured over 12 yaws (`cargo test --release --lib heading::mask_tests -- --nocapture`):
-/// RMS error without mask / found / given: eigen 0.595 / 0.540 / 0.540°, model fit 0.010 /
+/// Measured over 12 yaws (`cargo test --release --test heading masks -- --nocapture`):
+/// RMS error without mask / found / given: eigen 0.595 / 0.541 / 0.540°, model fit 0.010 /
 /// 0.009 / 0.009°, Hough 0.296 / 0.296 / 0.296°; model-fit confidence 0.44 / 0.89 / 0.88; sky
 /// fraction 0.690 / 0.577 / 0.579 (0.963 / 0.913 on the clear sky).
 #[test]
@@ -273,7 +278,7 @@ fn a_clear_sky_keeps_its_answers_with_the_found_mask() {
 }
 
 /// Confidence falls with the sky left: walls of 20 m leave 24 % of the image circle to the
-/// estimate, and no confidence exceeds [`sky_factor`] of it (0.69; without the factor the model
+/// estimate, and no confidence exceeds `sky_factor` of it (0.69; without the factor the model
 /// fit's would be 0.89 here, its error 0.02°).
 #[test]
 fn little_sky_left_lowers_the_confidence() {
