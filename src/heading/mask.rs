@@ -6,8 +6,8 @@
 //! every estimator and the intensity vote already skip ([`masked_dolp`]).
 //!
 //! The mask found from the frame ([`find_sky_mask`], [`HeadingSetup::find_mask`]) is decided on
-//! the grid of pixels the eigenvector and Hough methods sample ([`sample_step`]); every pixel
-//! takes the decision of its nearest grid pixel. A grid pixel is not sky when
+//! a grid of about [`MASK_GRID_SAMPLES`] pixels (every [`HeadingSetup::step`]-th or sparser);
+//! every pixel takes the decision of its nearest grid pixel. A grid pixel is not sky when
 //! - its AoLP or DoLP is not finite (a clipped pixel, or outside a given mask), or it looks below
 //!   the level horizon (ground, with the known tilt);
 //! - its intensity S0, flat-fielded by [`HeadingSetup::relative_illumination`], is more than
@@ -51,6 +51,9 @@ pub const MASK_MAJORITY: f64 = 0.5;
 pub const MASK_ITERATIONS: usize = 4;
 /// The iteration stops when fewer than this share of the usable grid pixels would change.
 pub const MASK_CHANGE_TOL: f64 = 0.005;
+/// Grid pixels the found mask decides about: every `step`-th pixel ([`HeadingSetup::step`]) or
+/// sparser, so that about this many are read.
+pub const MASK_GRID_SAMPLES: f64 = 10_000.0;
 /// Pixels the model fits of the iteration read (a quarter of [`MODEL_FIT_SAMPLES`]): the mask
 /// needs the sky model to a fraction of [`MASK_AGREE_FLOOR_DEG`], not the final yaw.
 pub const MASK_FIT_SAMPLES: f64 = 3_000.0;
@@ -193,7 +196,7 @@ pub fn find_sky_mask(view: &PolarView, setup: &HeadingSetup) -> Result<FoundMask
             view.dolp.width, view.dolp.height, i.width, i.height
         )));
     }
-    let g = sample_step(setup);
+    let g = step_for_samples(setup, MASK_GRID_SAMPLES);
     let (ni, nj) = (i.height.div_ceil(g), i.width.div_ceil(g));
     let tilt = rot_y(setup.roll_deg.to_radians()) * rot_x(setup.pitch_deg.to_radians());
     let tt = tilt.transpose();
