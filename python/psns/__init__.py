@@ -174,11 +174,13 @@ def heading(raw: np.ndarray, **sun_and_tilt: Any) -> Dict[str, float]:
     ``method`` (model-fit, eigen, hough), ``demosaic``, ``bits``, and ``preset`` (the sensor
     preset the frame was made with: its lens and edge falloff) or ``vignetting_cos_power`` (the
     falloff's cos^N law, for the 180 degree decision near the horizon), ``frame`` ("enu", the
-    default: yaw from north; "solar": from the sun's azimuth). The estimate uses nothing
-    else. Returns ``yaw_deg`` (NaN when too few pixels are usable or the sun is within 0.27
-    degrees of the zenith), ``confidence`` (0..1), ``pixels``, ``saturated_pixels`` and
-    ``residual_deg`` (RMS AoLP residual against the estimator's sky model at that yaw, DoLP^2
-    weighted; NaN without a yaw; large when the tilt, sun or lens given do not fit the sky).
+    default: yaw from north; "solar": from the sun's azimuth), ``mask`` ("auto", the default:
+    the sky found from the frame; "none"; or a PNG/TIFF of the frame's size, nonzero = sky).
+    The estimate uses nothing else. Returns ``yaw_deg`` (NaN when too few pixels are usable or
+    the sun is within 0.27 degrees of the zenith), ``confidence`` (0..1), ``pixels``,
+    ``saturated_pixels``, ``residual_deg`` (RMS AoLP residual against the estimator's sky model
+    at that yaw, DoLP^2 weighted; NaN without a yaw; large when the tilt, sun or lens given do
+    not fit the sky) and ``sky_fraction`` (the share of the image used as sky; 0 without a yaw).
     """
     return _psns.heading(raw, **sun_and_tilt)
 

@@ -423,12 +423,14 @@ fn heading<'py>(
             d.set_item("confidence", e.confidence)?;
             d.set_item("pixels", e.pixels)?;
             d.set_item("residual_deg", e.residual_deg)?;
+            d.set_item("sky_fraction", e.sky_fraction)?;
         }
         None => {
             d.set_item("yaw_deg", f64::NAN)?;
             d.set_item("confidence", 0.0)?;
             d.set_item("pixels", 0)?;
             d.set_item("residual_deg", f64::NAN)?;
+            d.set_item("sky_fraction", 0.0)?;
         }
     }
     d.set_item("saturated_pixels", saturated)?;

@@ -77,7 +77,11 @@ def test_heading_matches_cli(psns_bin, tmp_path):
     assert f"{py['confidence']:.4f}" == want["confidence"]
     assert str(py["pixels"]) == want["pixels"]
     assert f"{py['residual_deg']:.4f}" == want["residual_deg"]
+    assert f"{py['sky_fraction']:.4f}" == want["sky_fraction"]
     assert abs(py["yaw_deg"] - 33) < 0.5
+    # the sky mask: none uses at least what the found one keeps
+    none = psns.heading(raw, **tilt, mask="none")
+    assert none["sky_fraction"] >= py["sky_fraction"] > 0.8, (none, py)
 
 
 def test_heading_residual_flags_wrong_inputs():

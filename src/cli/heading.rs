@@ -13,7 +13,7 @@ use psns::heading::{
 };
 use psns::image::Image;
 use psns::io::{load_raw, open_input};
-use psns::options::{first_given, HeadingArgs};
+use psns::options::{first_given, HeadingArgs, SkyMaskArg};
 use psns::sensor::mosaic::MosaicLayout;
 use psns::sensor::optics::RelativeIllumination;
 use psns::sensor::{Preset, SensorConfig};
@@ -81,7 +81,8 @@ fn is_stream(input: &Path) -> Result<bool> {
 }
 
 /// Columns of the CSV row of an image.
-pub const IMAGE_HEADER: &str = "yaw_deg,confidence,pixels,saturated_pixels,residual_deg";
+pub const IMAGE_HEADER: &str =
+    "yaw_deg,confidence,pixels,saturated_pixels,residual_deg,sky_fraction";
 
 fn heading_row(a: &HeadingArgs) -> Result<String> {
     let (setup, beside) = a.image_setup(Some(&a.input))?; // option problems before reading the file
@@ -102,19 +103,20 @@ fn heading_row(a: &HeadingArgs) -> Result<String> {
     let saturated = r.saturated;
     Ok(match r.estimate {
         Some(e) => format!(
-            "{:.4},{:.4},{},{saturated},{:.4}",
+            "{:.4},{:.4},{},{saturated},{:.4},{:.4}",
             a.reported_yaw(e.yaw_deg, setup.sun.azimuth_deg),
             e.confidence,
             e.pixels,
-            e.residual_deg
+            e.residual_deg,
+            e.sky_fraction
         ),
-        None => format!("nan,0,0,{saturated},nan"),
+        None => format!("nan,0,0,{saturated},nan,0"),
     })
 }
 
 /// Columns of the per-frame CSV of a stream.
-pub const STREAM_HEADER: &str =
-    "frame_index,yaw_deg,confidence,pixels,true_yaw_deg,error_deg,saturated_pixels,ms,residual_deg";
+pub const STREAM_HEADER: &str = "frame_index,yaw_deg,confidence,pixels,true_yaw_deg,error_deg,\
+                                 saturated_pixels,ms,residual_deg,sky_fraction";
 
 /// Intrinsics of a stream, its header's, each overridden by an option given; and the relative
 /// illumination of its frames: `--vignetting-cos-power`, else the header's `optics` record, else
@@ -215,6 +217,7 @@ fn run_stream(a: &HeadingArgs) -> Result<Option<VerifyReport>> {
         ));
     }
     let (pitch, roll) = a.given_tilt()?;
+    let mask = a.given_mask()?;
     keep_heap();
     let reader = StreamReader::new(open_input(&a.input)?)?;
     let (mut intr, mut ri) = stream_optics(a, reader.header())?;
@@ -264,6 +267,7 @@ fn run_stream(a: &HeadingArgs) -> Result<Option<VerifyReport>> {
         setup.roll_deg = r;
         setup.fit_elevation = a.fit_sun_elevation;
         setup.relative_illumination = ri;
+        setup.find_mask = a.mask == SkyMaskArg::Auto;
         if a.warm_start {
             setup.warm_start = warm;
         }
@@ -282,6 +286,7 @@ fn run_stream(a: &HeadingArgs) -> Result<Option<VerifyReport>> {
                 a.demosaic,
                 a.method,
                 &setup,
+                mask.as_ref(),
             )?;
             if let Some(m) = &r.reason {
                 eprintln!("psns: {m}");
@@ -306,13 +311,13 @@ fn run_stream(a: &HeadingArgs) -> Result<Option<VerifyReport>> {
                 let err = wrap180(yaw - truth);
                 errors.push(err);
                 format!(
-                    "{},{yaw:.4},{:.4},{},{truth:.4},{err:.4},{sat},{ms:.1},{:.4}",
-                    m.index, e.confidence, e.pixels, e.residual_deg
+                    "{},{yaw:.4},{:.4},{},{truth:.4},{err:.4},{sat},{ms:.1},{:.4},{:.4}",
+                    m.index, e.confidence, e.pixels, e.residual_deg, e.sky_fraction
                 )
             }
             (None, sat) => {
                 none += 1;
-                format!("{},nan,0,0,{truth:.4},nan,{sat},{ms:.1},nan", m.index)
+                format!("{},nan,0,0,{truth:.4},nan,{sat},{ms:.1},nan,0", m.index)
             }
         };
         w(&mut out, &line)?;

@@ -221,8 +221,11 @@ pub fn polar_for_estimate(
 }
 
 /// The estimate from one mosaic: demosaic (see [`polar_for_estimate`]), mask clipped pixels,
-/// estimate. Without enough usable pixels, or with the sun at the zenith, there is no estimate
-/// and [`CodesEstimate::reason`] says why.
+/// estimate. `mask`, if given, is a sky mask of the frame (the mosaic's size, nonzero = sky;
+/// [`sampled_mask`] when the frame is read as sampled superpixels). Without enough usable
+/// pixels, or with the sun at the zenith, there is no estimate and [`CodesEstimate::reason`]
+/// says why.
+#[allow(clippy::too_many_arguments)] // the mosaic's own description, the method, the setup
 pub fn estimate_codes(
     codes: &Image<u16>,
     black_level: f64,
@@ -231,13 +234,31 @@ pub fn estimate_codes(
     demosaic: Option<Method>,
     method: HeadingMethod,
     setup: &HeadingSetup,
+    mask: Option<&Image<u8>>,
 ) -> Result<CodesEstimate> {
+    if let Some(m) = mask {
+        if (m.width, m.height) != (codes.width, codes.height) {
+            return Err(Error::Invalid(format!(
+                "the mask is {} x {} pixels but the frame {} x {}: a mask has the frame's size",
+                m.width, m.height, codes.width, codes.height
+            )));
+        }
+    }
     let (p, saturated, setup) =
         polar_for_estimate(codes, black_level, layout, bits, demosaic, setup)?;
+    let sampled;
+    let mask = match (mask, superpixel_step(codes.width, codes.height)) {
+        (Some(m), Some(k)) if p.dolp.width != codes.width => {
+            sampled = sampled_mask(m, k);
+            Some(&sampled)
+        }
+        (m, _) => m,
+    };
     let view = PolarView {
         aolp_deg: &p.aolp_deg,
         dolp: &p.dolp,
         s0: Some(&p.stokes.s0),
+        mask,
     };
     match estimate_heading_info(method, &view, &setup) {
         Ok((e, info)) => Ok(CodesEstimate {

@@ -67,7 +67,8 @@ pub(super) fn yaw_from(u: DVec3, sun_enu: DVec3) -> (f64, f64) {
 /// The sun-vector estimator on AoLP (degrees, sensor frame) and DoLP images of one frame.
 ///
 /// Errors when the images and intrinsics disagree in size, a setting is out of range, or fewer
-/// than 10 pixels are polarized enough to use.
+/// than 10 pixels are polarized enough to use. Every pixel with a usable DoLP is read: a mask is
+/// applied by NaN in `dolp` ([`masked_dolp`], [`estimate_heading`]).
 pub fn eigenvector_heading(
     aolp_deg: &Image<f32>,
     dolp: &Image<f32>,
@@ -160,18 +161,16 @@ pub fn eigenvector_heading(
     // The residual of the Rayleigh sky of the given sun and tilt at this yaw: reported, and its
     // RMS lowers the confidence of a picture of no sky. Its systematic part is not used: the
     // Berry sky's own misfit to Rayleigh's (≈ 10° RMS) is larger than a wrong tilt adds.
-    let view = PolarView {
-        aolp_deg,
-        dolp,
-        s0: None,
-    };
+    let view = PolarView::new(aolp_deg, dolp, None);
     let res = rayleigh_residual(&view, setup, yaw_deg);
     let residual_deg = res.rms_deg;
+    let sky = sky_fraction(aolp_deg, dolp, setup);
     let confidence = (separation
         * (horiz / EIGEN_FULL_HORIZ).min(1.0)
         * spread_factor(spread_deg)
         * (samples.len() as f64 / 500.0).min(1.0)
-        * rms_factor(res.rms_deg))
+        * rms_factor(res.rms_deg)
+        * sky_factor(sky))
     .clamp(0.0, 1.0);
     Ok(HeadingEstimate {
         yaw_deg,
@@ -179,5 +178,6 @@ pub fn eigenvector_heading(
         pixels: samples.len(),
         sun_camera: s_c,
         residual_deg,
+        sky_fraction: sky,
     })
 }

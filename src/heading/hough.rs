@@ -15,8 +15,12 @@ use super::*;
 ///
 /// Confidence: the share of the votes near the peak, times the horizontal-sun factor, times the
 /// clarity of the side decision (|vote| / 0.2, at most 1), times the line's support (votes within
-/// ±1.5° of it / [`HOUGH_FULL_VOTES`], at most 1). Needs S0 near the horizon.
+/// ±1.5° of it / [`HOUGH_FULL_VOTES`], at most 1), times [`sky_factor`]. Needs S0 near the
+/// horizon. A given mask ([`PolarView::mask`]) is applied; none is found here
+/// ([`estimate_heading`] finds one).
 pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEstimate> {
+    let mut buf = None;
+    let view = &apply_view_mask(view, &mut buf)?;
     let i = &setup.intrinsics;
     if (view.aolp_deg.width, view.aolp_deg.height) != (i.width, i.height)
         || (view.dolp.width, view.dolp.height) != (i.width, i.height)
@@ -158,11 +162,13 @@ pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEs
     // the Rayleigh residual at this yaw, as in the eigenvector method (RMS factor only)
     let res = rayleigh_residual(view, setup, yaw_deg);
     let residual_deg = res.rms_deg;
+    let sky = sky_fraction(view.aolp_deg, view.dolp, setup);
     let confidence = (share
         * (horiz / 0.17).min(1.0)
         * (side.abs() / 0.2).min(1.0)
         * (nline as f64 / HOUGH_FULL_VOTES).min(1.0)
-        * rms_factor(res.rms_deg))
+        * rms_factor(res.rms_deg)
+        * sky_factor(sky))
     .clamp(0.0, 1.0);
     Ok(HeadingEstimate {
         yaw_deg,
@@ -170,5 +176,6 @@ pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEs
         pixels: votes.len(),
         sun_camera: s_c,
         residual_deg,
+        sky_fraction: sky,
     })
 }

@@ -32,6 +32,7 @@ use rayon::prelude::*;
 mod codes;
 mod eigen;
 mod hough;
+mod mask;
 mod model_fit;
 mod stats;
 #[cfg(test)]
@@ -39,6 +40,7 @@ mod tests;
 pub use codes::*;
 pub use eigen::*;
 pub use hough::*;
+pub use mask::*;
 pub use model_fit::*;
 pub use stats::*;
 
@@ -70,10 +72,15 @@ pub struct HeadingSetup {
     /// at 25°, e.g. from the previous frame of a stream ([`ModelFitInfo`]); the robust weights
     /// are then set from the first residuals. The yaw still starts from the eigenvector answer.
     pub warm_start: Option<(f64, f64)>,
+    /// Find which pixels are sky from the frame ([`find_sky_mask`]: too dark or bright,
+    /// disagreeing with the sky model at the estimated yaw, in a region that does) before
+    /// [`estimate_heading`] estimates, within [`PolarView::mask`] if one is given. Default on
+    /// (`psns heading --mask auto`); off, only the given mask and the DoLP threshold decide.
+    pub find_mask: bool,
 }
 
 impl HeadingSetup {
-    /// Defaults: level camera, DoLP ≥ 0.05, every 4th pixel.
+    /// Defaults: level camera, DoLP ≥ 0.05, every 4th pixel, the sky mask found from the frame.
     pub fn new(intrinsics: Intrinsics, sun: SunPosition) -> Self {
         HeadingSetup {
             intrinsics,
@@ -85,6 +92,7 @@ impl HeadingSetup {
             relative_illumination: RelativeIllumination::CosPower { n: 1.5 },
             fit_elevation: false,
             warm_start: None,
+            find_mask: true,
         }
     }
 }
@@ -109,6 +117,10 @@ pub struct HeadingEstimate {
     pub pixels: usize,
     /// Estimated sun direction in the camera frame.
     pub sun_camera: DVec3,
+    /// The fraction of the image (inside the image circle of a fisheye) used as sky: usable
+    /// pixels of the (masked) images over the pixels inside ([`sky_fraction`]). The confidence
+    /// includes [`sky_factor`] of it.
+    pub sky_fraction: f64,
 }
 
 /// How the heading is estimated (`psns heading --method`).
@@ -148,7 +160,7 @@ impl std::str::FromStr for HeadingMethod {
 }
 
 /// The images an estimator reads: AoLP (degrees, sensor frame), DoLP and, for the 180° decision
-/// near the horizon, the intensity S0.
+/// near the horizon, the intensity S0; and which of their pixels are sky, if that is known.
 #[derive(Clone, Copy)]
 pub struct PolarView<'a> {
     /// AoLP, degrees, from +x toward +y.
@@ -157,6 +169,23 @@ pub struct PolarView<'a> {
     pub dolp: &'a Image<f32>,
     /// Intensity S0 (optional).
     pub s0: Option<&'a Image<f32>>,
+    /// A given sky mask of the same size: nonzero = sky. [`estimate_heading`] (and
+    /// [`hough_heading`], [`eigen_resolved`], [`intensity_side`], [`find_sky_mask`]) use only
+    /// its sky pixels, by setting the DoLP of the others to NaN ([`masked_dolp`]); with
+    /// [`HeadingSetup::find_mask`] the mask found from the frame is found within it.
+    pub mask: Option<&'a Image<u8>>,
+}
+
+impl<'a> PolarView<'a> {
+    /// A view of AoLP, DoLP and S0 images without a given mask.
+    pub fn new(aolp_deg: &'a Image<f32>, dolp: &'a Image<f32>, s0: Option<&'a Image<f32>>) -> Self {
+        PolarView {
+            aolp_deg,
+            dolp,
+            s0,
+            mask: None,
+        }
+    }
 }
 
 /// Runs one estimator. The model fit starts from the eigenvector answer (sun elevation given).
@@ -169,28 +198,53 @@ pub fn estimate_heading(
 }
 
 /// [`estimate_heading`], with the model fit's [`ModelFitInfo`] (`None` for the other methods):
-/// what a stream passes on as the next frame's [`HeadingSetup::warm_start`].
+/// what a stream passes on as the next frame's [`HeadingSetup::warm_start`]. The view's given
+/// mask is applied first; with [`HeadingSetup::find_mask`] the estimator then reads only the
+/// pixels of the mask found from the frame ([`find_sky_mask`]).
 pub fn estimate_heading_info(
     method: HeadingMethod,
     view: &PolarView,
     setup: &HeadingSetup,
 ) -> Result<(HeadingEstimate, Option<ModelFitInfo>)> {
-    if method == HeadingMethod::Hough {
-        return hough_heading(view, setup).map(|e| (e, None));
+    let mut buf = None;
+    let view = apply_view_mask(view, &mut buf)?;
+    if !setup.find_mask {
+        return estimate_unmasked(method, &view, setup);
     }
+    let found = find_sky_mask(&view, setup)?;
+    let dolp = masked_dolp(view.dolp, &found.mask)?;
+    let v = PolarView {
+        dolp: &dolp,
+        mask: None,
+        ..view
+    };
+    estimate_unmasked(method, &v, setup)
+}
+
+/// One estimator on every pixel of `view` with a usable DoLP (its mask, if any, is not read).
+fn estimate_unmasked(
+    method: HeadingMethod,
+    view: &PolarView,
+    setup: &HeadingSetup,
+) -> Result<(HeadingEstimate, Option<ModelFitInfo>)> {
     match method {
+        HeadingMethod::Hough => hough_heading(view, setup).map(|e| (e, None)),
         HeadingMethod::Eigen => Ok((eigen_resolved(view, setup)?, None)),
-        HeadingMethod::ModelFit => {
-            // the start only has to be near the answer: the eigenvector method on the fit's
-            // own (sparser) pixels
-            let mut s = *setup;
-            s.step = model_fit_step(setup);
-            let eigen = eigen_resolved(view, &s)?;
-            model_fit_heading(view.aolp_deg, view.dolp, setup, &eigen, setup.fit_elevation)
-                .map(|(e, i)| (e, Some(i)))
-        }
-        HeadingMethod::Hough => unreachable!("handled above"),
+        HeadingMethod::ModelFit => model_fit_view(view, setup).map(|(e, i)| (e, Some(i))),
     }
+}
+
+/// The model fit of `view` started from the eigenvector answer on the fit's own pixels.
+pub(super) fn model_fit_view(
+    view: &PolarView,
+    setup: &HeadingSetup,
+) -> Result<(HeadingEstimate, ModelFitInfo)> {
+    // the start only has to be near the answer: the eigenvector method on the fit's own
+    // (sparser) pixels
+    let mut s = *setup;
+    s.step = model_fit_step(setup);
+    let eigen = eigen_resolved(view, &s)?;
+    model_fit_heading(view.aolp_deg, view.dolp, setup, &eigen, setup.fit_elevation)
 }
 
 /// Sun zenith angle (degrees) below which the sun's azimuth defines no yaw: the solar disc's
@@ -303,6 +357,8 @@ pub const HORIZON_ELEVATION_DEG: f64 = 8.0;
 /// of the sky is brighter. Returned normalised to [−1, 1] (Σ ΔL x / Σ |ΔL| x); `None` without S0, with a
 /// sun at the zenith, or with fewer than 10 pairs inside the image.
 pub fn intensity_side(view: &PolarView, setup: &HeadingSetup, s_c: DVec3) -> Option<f64> {
+    let mut buf = None;
+    let view = &apply_view_mask(view, &mut buf).ok()?;
     let s0 = view.s0?;
     let i = &setup.intrinsics;
     let tilt = rot_y(setup.roll_deg.to_radians()) * rot_x(setup.pitch_deg.to_radians());
@@ -360,6 +416,8 @@ pub fn intensity_side(view: &PolarView, setup: &HeadingSetup, s_c: DVec3) -> Opt
 /// no longer fixes the eigenvector's sign, so the brighter half of the sky does; the confidence is
 /// scaled by how clearly it does (|vote| / 0.3, at most 1).
 pub fn eigen_resolved(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEstimate> {
+    let mut buf = None;
+    let view = &apply_view_mask(view, &mut buf)?;
     let mut e = eigenvector_heading(view.aolp_deg, view.dolp, setup)?;
     if 90.0 - setup.sun.zenith_deg >= HORIZON_ELEVATION_DEG {
         return Ok(e);

@@ -522,6 +522,15 @@ pub fn model_fit_heading(
     let sun = SunPosition::new(p[3], az);
     let s_c = c * sun.vector();
     let horiz = sun.vector().truncate().length();
+    // how much of the image is sky, here; the start's confidence without it (it would count
+    // twice)
+    let sky = sky_fraction(aolp_deg, dolp, setup);
+    let start_sky = sky_factor(start.sky_fraction);
+    let start_conf = if start_sky > 0.0 {
+        start.confidence / start_sky
+    } else {
+        start.confidence
+    };
     // how well the yaw is fixed (sun height), how much of the sky agrees with the model, how
     // tight the residuals are, how many pixels there are, and (halved at worst) the starting
     // answer's own confidence, which carries the 180° decision near the horizon
@@ -529,8 +538,9 @@ pub fn model_fit_heading(
         * inlier
         * spread_factor(rms)
         * (samples.len() as f64 / 300.0).min(1.0)
-        * (0.5 + 0.5 * start.confidence.clamp(0.0, 1.0))
-        * residual_factor(&res))
+        * (0.5 + 0.5 * start_conf.clamp(0.0, 1.0))
+        * residual_factor(&res)
+        * sky_factor(sky))
     .clamp(0.0, 1.0);
     Ok((
         HeadingEstimate {
@@ -539,6 +549,7 @@ pub fn model_fit_heading(
             pixels: samples.len(),
             sun_camera: s_c,
             residual_deg,
+            sky_fraction: sky,
         },
         ModelFitInfo {
             babinet_deg: p[1],

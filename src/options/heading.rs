@@ -8,6 +8,7 @@ use crate::demosaic::Method;
 use crate::heading::{
     attitude_tilt_deg, estimate_codes, CodesEstimate, HeadingMethod, HeadingSetup,
 };
+use crate::image::Image;
 use crate::io::LoadedRaw;
 use crate::sensor::optics::RelativeIllumination;
 use crate::sensor::{Preset, SensorConfig};
@@ -74,6 +75,13 @@ pub struct HeadingArgs {
     /// stream's recorded optics (or its preset).
     #[arg(long, value_name = "N")]
     pub vignetting_cos_power: Option<f64>,
+    /// Which pixels are sky. auto (default): found from each frame: pixels 8x darker or
+    /// brighter than the frame's sky, unpolarized, or whose AoLP disagrees with the sky model
+    /// at the estimated yaw (estimate, drop them, estimate again), and the regions where most
+    /// do (a wall, foliage). none: every pixel polarized enough. FILE: a PNG/TIFF of the
+    /// frame's size (the raw mosaic's), nonzero = sky, used as it is (nothing else found).
+    #[arg(long, default_value = "auto", value_name = "auto|none|FILE", value_parser = parsed::<SkyMaskArg>)]
+    pub mask: SkyMaskArg,
 }
 
 impl HeadingArgs {
@@ -237,6 +245,7 @@ impl HeadingArgs {
         setup.pitch_deg = pitch;
         setup.roll_deg = roll;
         setup.fit_elevation = self.fit_sun_elevation;
+        setup.find_mask = self.mask == SkyMaskArg::Auto;
         // the falloff of the preset's (or the configured) sensor, as psns render makes it
         let sensor = cfg
             .raw
@@ -255,6 +264,8 @@ impl HeadingArgs {
         raw: &LoadedRaw,
         name: &str,
     ) -> Result<CodesEstimate> {
+        let mask = self.given_mask()?;
+        let mask = mask.as_ref();
         let i = setup.intrinsics;
         if (raw.codes.width, raw.codes.height) != (i.width, i.height) {
             return Err(Error::Invalid(format!(
@@ -279,6 +290,57 @@ impl HeadingArgs {
             self.demosaic,
             self.method,
             setup,
+            mask,
         )
     }
+
+    /// The sky mask of `--mask FILE` (nonzero = sky), `None` for `auto` and `none`.
+    pub fn given_mask(&self) -> Result<Option<Image<u8>>> {
+        match &self.mask {
+            SkyMaskArg::File(p) => load_mask(p).map(Some),
+            _ => Ok(None),
+        }
+    }
+}
+
+/// What `--mask` says: find the sky mask from each frame, use none, or read one from a file.
+#[derive(Clone, Debug, Default, PartialEq)]
+pub enum SkyMaskArg {
+    /// Found from each frame ([`crate::heading::find_sky_mask`]).
+    #[default]
+    Auto,
+    /// No mask: every pixel with a usable DoLP.
+    None,
+    /// A PNG/TIFF of the frame's size, nonzero = sky.
+    File(PathBuf),
+}
+
+impl std::str::FromStr for SkyMaskArg {
+    type Err = Error;
+    fn from_str(s: &str) -> Result<Self> {
+        Ok(match s {
+            "auto" => SkyMaskArg::Auto,
+            "none" => SkyMaskArg::None,
+            "" => return Err(Error::Invalid("--mask: give auto, none or a file".into())),
+            f => SkyMaskArg::File(PathBuf::from(f)),
+        })
+    }
+}
+
+/// A sky mask from a PNG or TIFF (any bit depth or colour): 1 where a pixel is nonzero, else 0.
+pub fn load_mask(path: &Path) -> Result<Image<u8>> {
+    let img = image::ImageReader::open(path)
+        .and_then(|r| r.with_guessed_format())
+        .map_err(|e| Error::input(path, e))?
+        .decode()
+        .map_err(|e| {
+            Error::Format(format!(
+                "{}: not a readable PNG or TIFF mask ({e})",
+                path.display()
+            ))
+        })?
+        .into_luma16();
+    let (w, h) = img.dimensions();
+    let data = img.into_raw().into_iter().map(|v| (v != 0) as u8).collect();
+    Ok(Image::from_vec(w as usize, h as usize, data))
 }

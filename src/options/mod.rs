@@ -17,7 +17,7 @@ pub mod world;
 
 pub use dataset::{BuildArgs, DatasetCmd, DirArgs, PreviewArgs};
 pub use demosaic::DemosaicArgs;
-pub use heading::HeadingArgs;
+pub use heading::{load_mask, HeadingArgs, SkyMaskArg};
 pub use raw::RawArgs;
 pub use render::RenderArgs;
 pub use scene::{SceneArgs, SpaArgs};

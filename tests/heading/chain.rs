@@ -52,6 +52,7 @@ fn chain_error(
         aolp_deg: &p.aolp_deg,
         dolp: &p.dolp,
         s0: Some(&p.stokes.s0),
+        mask: None,
     };
     let e = estimate_heading(method, &view, &setup).unwrap();
     let d = (e.yaw_deg - yaw).rem_euclid(360.0);
@@ -129,7 +130,7 @@ fn heading_command_recovers_the_rendered_yaw_and_refuses_a_clipped_frame() {
     let mut lines = text.lines();
     assert_eq!(
         lines.next(),
-        Some("yaw_deg,confidence,pixels,saturated_pixels,residual_deg")
+        Some("yaw_deg,confidence,pixels,saturated_pixels,residual_deg,sky_fraction")
     );
     let v: Vec<f64> = lines
         .next()
@@ -221,7 +222,8 @@ fn stream_estimates_never_read_the_true_yaw() {
     let (head, rows) = run(&stream);
     assert_eq!(
         head,
-        "frame_index,yaw_deg,confidence,pixels,true_yaw_deg,error_deg,saturated_pixels,ms,residual_deg"
+        "frame_index,yaw_deg,confidence,pixels,true_yaw_deg,error_deg,saturated_pixels,ms,\
+         residual_deg,sky_fraction"
     );
     assert_eq!(rows.len(), 3);
     for (r, truth) in rows.iter().zip([20.0, 137.0, 290.0]) {
@@ -582,6 +584,7 @@ fn failure_case(
             aolp_deg: &p.aolp_deg,
             dolp: &p.dolp,
             s0: Some(&p.stokes.s0),
+            mask: None,
         };
         let mut setup = HeadingSetup::new(cfg.intrinsics(), sun);
         setup.pitch_deg = tilt.0;
@@ -807,6 +810,7 @@ fn psns_horizon_errors(
             aolp_deg: &p.aolp_deg,
             dolp: &p.dolp,
             s0: Some(&p.stokes.s0),
+            mask: None,
         };
         let mut setup = HeadingSetup::new(pipe.config().camera.intrinsics, sun);
         setup.pitch_deg = tilt.0;

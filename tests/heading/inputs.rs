@@ -294,3 +294,89 @@ fn right_answers_are_confident_on_every_projection() {
         }
     }
 }
+
+/// `--mask`: the sky fraction used is the last column; a given mask (the frame's size, nonzero =
+/// sky) that hides the left half of the frame takes that half out of it and leaves the yaw; `--mask none` uses
+/// every polarized pixel (at least what the found mask keeps); a mask of another size is refused
+/// (exit 2).
+#[test]
+fn heading_takes_a_sky_mask_and_reports_the_sky_fraction() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("o");
+    render_small(&out, &["--yaw", "75"]);
+    let raw = out.join("raw.png");
+    let heading = |extra: &[&str]| {
+        let mut a = vec!["heading", s(&raw)];
+        a.extend_from_slice(extra);
+        let o = common::psns(&a);
+        assert!(o.status.success(), "{extra:?}: {}", common::stderr(&o));
+        let (head, row) = rows(&o);
+        assert_eq!(
+            head.join(","),
+            "yaw_deg,confidence,pixels,saturated_pixels,residual_deg,sky_fraction"
+        );
+        let v = |n: &str| col(&head, &row[0], n);
+        (v("yaw_deg"), v("confidence"), v("sky_fraction"))
+    };
+    let auto = heading(&[]);
+    assert_eq!(auto, heading(&["--mask", "auto"]));
+    let none = heading(&["--mask", "none"]);
+    let mut half = psns::image::Image::<u8>::new(612, 512);
+    for r in 0..512 {
+        for c in 306..612 {
+            half.data[r * 612 + c] = 255;
+        }
+    }
+    let mask = dir.path().join("half.png");
+    psns::io::write_png_gray8(&mask, &half).unwrap();
+    let given = heading(&["--mask", s(&mask)]);
+    eprintln!("auto {auto:?}, none {none:?}, right half given {given:?}");
+    for (yaw, conf, _) in [auto, none, given] {
+        assert!(gap(yaw, 75.0) < 0.1 && conf > 0.7, "{yaw} {conf}");
+    }
+    assert!(auto.2 > 0.85 && none.2 >= auto.2, "{auto:?} {none:?}");
+    // the right half: at most half of the image, and at least what the left half's (77 of the
+    // 153 sampled columns) leaves of the whole
+    assert!(
+        given.2 <= 0.5 && given.2 >= none.2 - 77.0 / 153.0 - 1e-3,
+        "{given:?} {none:?}"
+    );
+    let small = dir.path().join("small.png");
+    psns::io::write_png_gray8(&small, &psns::image::Image::new(100, 100)).unwrap();
+    let o = common::psns(&["heading", s(&raw), "--mask", s(&small)]);
+    assert_eq!(o.status.code(), Some(2), "{}", common::stderr(&o));
+    assert!(
+        common::stderr(&o).contains("100 x 100"),
+        "{}",
+        common::stderr(&o)
+    );
+    // a stream: the same mask for every frame, the sky fraction the last column of each row
+    let stream = dir.path().join("s.psns");
+    let o = common::psns(&[
+        "stream",
+        "--frames",
+        "2",
+        "--width",
+        "612",
+        "--height",
+        "512",
+        "--pixel-pitch",
+        "13.8",
+        "--auto-exposure",
+        "--out",
+        s(&stream),
+    ]);
+    assert!(o.status.success(), "{}", common::stderr(&o));
+    for (mask, range) in [("auto", 0.85..=1.0), (s(&mask), 0.3..=0.5)] {
+        let o = common::psns(&["heading", s(&stream), "--mask", mask]);
+        assert!(o.status.success(), "{}", common::stderr(&o));
+        let (head, rows) = rows(&o);
+        assert_eq!(head.last().map(String::as_str), Some("sky_fraction"));
+        assert_eq!(rows.len(), 2);
+        for r in &rows {
+            let f = col(&head, r, "sky_fraction");
+            assert!(range.contains(&f), "--mask {mask}: {f}");
+            assert!(col(&head, r, "error_deg").abs() < 0.1, "{r:?}");
+        }
+    }
+}

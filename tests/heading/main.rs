@@ -11,3 +11,4 @@ mod chain;
 mod defaults;
 mod inputs;
 mod live;
+mod masks;

@@ -518,6 +518,7 @@ pub fn run_budget(
                 aolp_deg: &p.aolp_deg,
                 dolp: &p.dolp,
                 s0: Some(&p.stokes.s0),
+                mask: None,
             };
             let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(0x696d_7500 + fi as u64);
             let st = setup(sc.told, intr, sun, &mut rng);

@@ -344,6 +344,7 @@ pub fn run_sweep(
                     aolp_deg: &p.aolp_deg,
                     dolp: &p.dolp,
                     s0: Some(&p.stokes.s0),
+                    mask: None,
                 };
                 let mut setup = HeadingSetup::new(pipe.config().camera.intrinsics, sun);
                 setup.pitch_deg = case.tilt.0;

@@ -202,6 +202,7 @@ fn scan_projection(
             aolp_deg: &p.aolp_deg,
             dolp: &p.dolp,
             s0: Some(&p.stokes.s0),
+            mask: None,
         };
         let mut row = |input: &str, offset: f64, m: HeadingMethod, e: Result<_>| -> Result<f64> {
             let (error, confidence, residual) = match e {
@@ -287,6 +288,7 @@ fn scan_projection(
                     },
                     m,
                     &right,
+                    None,
                 )
                 .and_then(|c| {
                     c.estimate
