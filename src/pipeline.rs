@@ -229,6 +229,7 @@ impl RawPipeline {
     /// cache (the other paths return `None`: the writer computes it, beside the next render);
     /// else `bytes` holds the packed codes and their CRC, taken chunk by chunk
     /// ([`sensor::packing::pack_crc32`]).
+    #[allow(clippy::too_many_arguments)]
     pub fn frame_payload_at(
         &self,
         sun: SunPosition,

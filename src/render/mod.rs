@@ -348,6 +348,7 @@ fn plain_lanes(sky: &Sky, l: &mut ChunkLanes, n: usize) -> (usize, bool) {
 /// glass), and the lanes that see anything but the ground packed with their light. Pixels the
 /// camera mask blocks are black.
 #[inline(always)]
+#[allow(clippy::needless_range_loop)] // the lanes of several arrays side by side
 fn world_lanes(sky: &Sky, w: &Surroundings, row: f64, l: &mut ChunkLanes, n: usize) -> usize {
     let mut looks: [Option<crate::sky::surroundings::Look>; LANES] = [None; LANES];
     let mut m = 0;
