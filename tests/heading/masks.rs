@@ -311,3 +311,41 @@ fn a_frame_mask_is_sampled_by_whole_superpixels() {
     assert!(md.data[22].is_nan() && md.data[21] == 0.3);
     assert!(masked_dolp(&d, &m).is_err());
 }
+
+/// `psns bench heading --world --quick`: in a 20 m canyon with 6 m walls (about 40 % of the
+/// zenith fisheye's image circle hidden), the model fit with the mask found from the frame and
+/// only the sun given stays within 0.5° RMS over the yaws; without the mask its confidence says
+/// the frame is not to be trusted; every world and estimator gets its rows.
+#[test]
+fn the_world_bench_finds_the_canyon_goal_met() {
+    let dir = tempfile::tempdir().unwrap();
+    let o = crate::common::psns(&[
+        "bench",
+        "heading",
+        "--world",
+        "--quick",
+        "--out",
+        dir.path().to_str().unwrap(),
+    ]);
+    assert!(o.status.success(), "{}", crate::common::stderr(&o));
+    let text = std::fs::read_to_string(dir.path().join("world_summary.csv")).unwrap();
+    let rows: Vec<Vec<String>> = csv::Reader::from_reader(text.as_bytes())
+        .records()
+        .map(|r| r.unwrap().iter().map(str::to_string).collect())
+        .collect();
+    // world, method, mask: 5 worlds x 3 methods x 2
+    assert_eq!(rows.len(), 5 * 3 * 2, "{text}");
+    let get = |world: &str, method: &str, mask: &str| {
+        rows.iter()
+            .find(|r| r[1] == world && r[4] == method && r[5] == mask)
+            .unwrap_or_else(|| panic!("no row {world} {method} {mask}: {text}"))
+    };
+    let found = get("canyon 20,6,0", "model-fit", "found");
+    let hidden: f64 = found[2].parse().unwrap();
+    assert!((0.35..0.45).contains(&hidden), "hidden {hidden}");
+    let rms: f64 = found[6].parse().unwrap();
+    assert!(rms < 0.5, "model fit with the found mask: {rms} deg RMS");
+    let none = get("canyon 20,6,0", "model-fit", "none");
+    let (c_found, c_none): (f64, f64) = (found[9].parse().unwrap(), none[9].parse().unwrap());
+    assert!(c_found > 2.0 * c_none, "confidence {c_found} vs {c_none}");
+}

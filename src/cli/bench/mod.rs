@@ -13,6 +13,7 @@ pub mod stream_cpu;
 #[cfg(test)]
 mod tests;
 pub mod tolerance;
+pub mod world;
 
 use clap::Subcommand;
 use psns::options::SceneArgs;
@@ -56,6 +57,12 @@ pub enum BenchCmd {
         /// tolerance_scan.csv.
         #[arg(long, conflicts_with = "budget")]
         tolerance: bool,
+        /// Each estimator's yaw error where the sky is cut, with the mask found from the frame
+        /// and without: street canyons, skylines, trees and cloud cover seen by a zenith
+        /// equidistant fisheye, over twelve yaws; writes world.csv, world_summary.csv and
+        /// world.svg.
+        #[arg(long, conflicts_with_all = ["budget", "tolerance"])]
+        world: bool,
     },
     /// Frames/s an Aravis receiver (arv-camera-test-0.8 -f 200 -i 8192) gets from psns gige on
     /// this machine, Mono8, Mono16 and under DeviceLinkThroughputLimit, against Aravis's fake
@@ -188,8 +195,11 @@ pub fn run(what: BenchCmd) -> anyhow::Result<()> {
             quick,
             budget,
             tolerance,
+            world,
         } => {
-            let written = if budget {
+            let written = if world {
+                world::bench_world(&world::WorldOptions { out, quick })?
+            } else if budget {
                 budget::bench_budget(&budget::BudgetOptions { out, quick })?
             } else if tolerance {
                 tolerance::bench_tolerance(&tolerance::ToleranceOptions { out, quick })?
