@@ -7,7 +7,9 @@
 //! `grow_pipe`), so once [`RETAIN`] further frames of at least that size have gone in after it,
 //! the reader has read every page of a payload; `psns stream` reuses a payload buffer only then,
 //! and never frees one handed to the pipe (the last ones live until the process ends). Only
-//! payloads are spliced: the record header and padding are small and written as usual.
+//! payloads at least the pipe's capacity (asked of the pipe at each one) are spliced: a stream's
+//! frames are all one size, so the frames after a spliced one fill the pipe; smaller payloads,
+//! the record header and padding are written as usual.
 
 use std::fs::File;
 use std::io::{IoSlice, Write};
@@ -67,6 +69,23 @@ impl PipeOut {
         }
     }
 
+    /// The pipe's capacity now (a reader may have grown it); unknown: too large to splice.
+    #[cfg(target_os = "linux")]
+    fn capacity(&self) -> usize {
+        // SAFETY: fcntl on a descriptor this value owns
+        let n = unsafe { libc::fcntl(self.file.as_raw_fd(), libc::F_GETPIPE_SZ) };
+        if n > 0 {
+            n as usize
+        } else {
+            usize::MAX
+        }
+    }
+
+    #[cfg(not(target_os = "linux"))]
+    fn capacity(&self) -> usize {
+        usize::MAX
+    }
+
     #[cfg(not(target_os = "linux"))]
     fn vmsplice(&self, _: &[u8]) -> std::io::Result<usize> {
         Err(std::io::Error::from(std::io::ErrorKind::Unsupported))
@@ -86,16 +105,17 @@ impl Write for PipeOut {
             return Ok(0);
         };
         let bufs = &bufs[first..];
-        if self.splice && bufs[0].len() >= SPLICE_FROM {
+        let from = match self.splice {
+            true => SPLICE_FROM.max(self.capacity()),
+            false => usize::MAX,
+        };
+        if bufs[0].len() >= from {
             return self.vmsplice(&bufs[0]);
         }
-        let small = match self.splice {
-            true => bufs
-                .iter()
-                .position(|b| b.len() >= SPLICE_FROM)
-                .unwrap_or(bufs.len()),
-            false => bufs.len(),
-        };
+        let small = bufs
+            .iter()
+            .position(|b| b.len() >= from)
+            .unwrap_or(bufs.len());
         self.file.write_vectored(&bufs[..small])
     }
 
@@ -147,6 +167,34 @@ mod tests {
         let got = reader.join().unwrap();
         assert_eq!(got.len(), expect.len());
         assert!(got == expect, "spliced bytes differ from those written");
+    }
+
+    /// A payload smaller than the pipe's capacity is copied: the pipe could still hold it when
+    /// the frames after it are in, so its buffer may change at once without the reader seeing it.
+    #[test]
+    fn payloads_smaller_than_the_pipe_are_copied() {
+        use std::os::fd::AsRawFd;
+        let (mut rx, tx) = std::io::pipe().unwrap();
+        crate::cli::stream::grow_pipe(tx.as_raw_fd());
+        let mut out = PipeOut::new(File::from(std::os::fd::OwnedFd::from(tx)));
+        assert!(out.splice_payloads());
+        assert!(out.capacity() >= 1 << 20, "{}", out.capacity());
+        let mut payload: Vec<u8> = (0..300_000u32).map(|i| (i % 251) as u8).collect();
+        let want = payload.clone();
+        let mut written = 0;
+        while written < payload.len() {
+            written += out
+                .write_vectored(&[IoSlice::new(&payload[written..])])
+                .unwrap();
+        }
+        payload.iter_mut().for_each(|b| *b = 0xff);
+        drop(out);
+        let mut got = Vec::new();
+        rx.read_to_end(&mut got).unwrap();
+        assert!(
+            got == want,
+            "the reader saw the buffer change after the write"
+        );
     }
 
     /// A regular file is never spliced.
