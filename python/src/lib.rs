@@ -274,7 +274,8 @@ fn codes_in(raw: &Bound<'_, PyAny>) -> PyResult<(Image<u16>, u8)> {
 // ---------------------------------------------------------------------------------------------
 // functions
 
-/// Ideal images of a scene, like `psns render`: float32 arrays `li`, `dop`, `aop` (degrees).
+/// Ideal images of a scene, like `psns render`: float32 arrays `li`, `dop`, `aop` (degrees)
+/// and the uint8 class image `class` (`docs/world.md`).
 #[pyfunction]
 #[pyo3(signature = (**scene))]
 fn render<'py>(
@@ -282,16 +283,18 @@ fn render<'py>(
     scene: Option<&Bound<'py, PyDict>>,
 ) -> PyResult<Bound<'py, PyDict>> {
     let a = render_args(scene, false)?;
-    let ideal = py.detach(|| -> psns::Result<_> {
+    let r = py.detach(|| -> psns::Result<_> {
         let (cfg, _) = a.config()?;
         let (sky, cam) = cfg.build()?;
-        Ok(psns::render::render_ideal(&sky, &cam))
+        let class = psns::render::class_image(&sky, &cam, cfg.raw.sun_disc_on());
+        Ok((psns::render::render_ideal(&sky, &cam), class))
     });
-    let ideal = ideal.map_err(lib_err)?;
+    let (ideal, class) = r.map_err(lib_err)?;
     let d = PyDict::new(py);
     d.set_item("li", array2(py, ideal.li))?;
     d.set_item("dop", array2(py, ideal.dop))?;
     d.set_item("aop", array2(py, ideal.aop_deg))?;
+    d.set_item("class", array2(py, class))?;
     Ok(d)
 }
 

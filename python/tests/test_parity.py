@@ -26,6 +26,18 @@ def test_render_matches_cli(psns_bin, tmp_path):
         want = np.load(tmp_path / "o" / f"{k}.npy")
         assert py[k].dtype == np.float32 and py[k].shape == (96, 128)
         assert np.array_equal(py[k], want, equal_nan=True), k
+    assert np.array_equal(py["class"], np.load(tmp_path / "o" / "class.npy"))
+
+
+def test_render_in_a_world_matches_cli(psns_bin, tmp_path):
+    opts = dict(SMALL, projection="equidistant", focal_length=1.8, pixel_pitch=55.2,
+                canyon="20,6,30", cloud_cover=0.3, seed=5)
+    run(psns_bin, "render", *cli_args(opts), "--out", tmp_path / "o")
+    py = psns.render(**opts)
+    for k in ("li", "dop", "aop", "class"):
+        assert np.array_equal(py[k], np.load(tmp_path / "o" / f"{k}.npy"), equal_nan=True), k
+    # walls and clouds are in the picture
+    assert (py["class"] == 3).mean() > 0.1 and (py["class"] == 2).mean() > 0.01
 
 
 @pytest.mark.parametrize("bits", [12, 8])
