@@ -105,10 +105,22 @@ fn render_writes_the_class_image_and_its_fractions() {
     assert_ne!(bytes, other);
 }
 
-/// A stream with a world renders the frame `psns render --raw` renders with the same options.
+/// A stream with a world renders the frame `psns render --raw` renders with the same options,
+/// and the world is in it (the frame differs from the open sky's).
 #[test]
 fn stream_frame_0_is_render_raw_with_a_world() {
     let dir = tempfile::tempdir().unwrap();
+    // 16 times the pixel area with the shortest exposure: no pixel saturated; looking toward
+    // the horizon, where the walls are
+    const SMALL: [&str; 6] = ["--width", "320", "--height", "256", "--pixel-pitch", "13.8"];
+    let camera = ["--pitch", "60", "--exposure-us", "20"];
+    let open_sky = dir.path().join("open");
+    let mut a = vec!["render", "--raw", "--out", s(&open_sky)];
+    a.extend_from_slice(&SMALL);
+    a.extend_from_slice(&camera);
+    let o = psns(&a);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert!(!stderr(&o).contains("saturated"), "{}", stderr(&o));
     let world = [
         "--canyon",
         "20,6,30",
@@ -117,7 +129,9 @@ fn stream_frame_0_is_render_raw_with_a_world() {
         "--cloud-cover",
         "0.2",
         "--pitch",
-        "30",
+        "60",
+        "--exposure-us",
+        "20",
     ];
     let out = dir.path().join("r");
     let mut a = vec!["render", "--raw", "--out", s(&out)];
@@ -137,4 +151,6 @@ fn stream_frame_0_is_render_raw_with_a_world() {
     let raw = std::fs::read(out.join("raw.tiff")).unwrap();
     let got = std::fs::read(frame.join("frame_0.tiff")).unwrap();
     assert_eq!(raw, got, "render --raw and stream frame 0 differ");
+    let open = std::fs::read(open_sky.join("raw.tiff")).unwrap();
+    assert_ne!(raw, open, "the world is not in the frame");
 }
