@@ -151,6 +151,21 @@ pub(super) fn clear_of_edges(
         && world.is_none_or(|w| w.world().clear(d, margin, true))
 }
 
+/// Whether every pixel of the cell with corners (c0, r0), (c1, r1) lies outside a fisheye's
+/// image circle, with a pixel to spare: no light arrives there, and its nodes (all dark, zero)
+/// interpolate to the zero each pixel would give.
+pub(super) fn beyond_rim(cam: &Camera, c0: usize, c1: usize, r0: usize, r1: usize) -> bool {
+    let i = &cam.intrinsics;
+    let Some(rim) = i.projection.rim_radius() else {
+        return false;
+    };
+    let (pc, pr) = i.principal();
+    // the cell's nearest point to the circle's centre
+    let dx = pc.clamp(c0 as f64, c1 as f64) - pc;
+    let dy = pr.clamp(r0 as f64, r1 as f64) - pr;
+    dx.hypot(dy) > rim * i.focal_px() + 1.0
+}
+
 /// Whether the cloud opacity differs between the corners of cell (i, j) (no clouds: never).
 fn alpha_varies(alpha: &[f32], gw: usize, i: usize, j: usize) -> bool {
     if alpha.is_empty() {
@@ -249,7 +264,14 @@ impl<'a> SkyGrid<'a> {
                             .enumerate()
                             .for_each(|(j, row)| {
                                 for (i, m) in row.iter_mut().enumerate() {
-                                    *m = cell_needs_more(&nodes, &valid, &curv, gw, i, j, tol);
+                                    *m = cell_needs_more(&nodes, &valid, &curv, gw, i, j, tol)
+                                        && !beyond_rim(
+                                            cam,
+                                            cols[i],
+                                            cols[i + 1],
+                                            rows[j],
+                                            rows[j + 1],
+                                        );
                                 }
                             });
                         for (k, _) in more.iter().enumerate().filter(|(_, &m)| m) {

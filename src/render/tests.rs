@@ -634,3 +634,39 @@ fn sun_disc_flux_is_the_same_on_and_off_axis() {
     let area = std::f64::consts::PI * SUN_RADIUS_RAD * SUN_RADIUS_RAD;
     assert!(on < hw.sun_radiance(0.0) * area && on > 0.5 * hw.sun_radiance(0.0) * area);
 }
+
+/// A cell `beyond_rim` calls dark has no pixel inside the image circle, for every fisheye; and
+/// the test does skip cells (the frame's corners).
+#[test]
+fn cells_beyond_the_rim_receive_no_light() {
+    use crate::camera::Projection;
+    for p in [
+        Projection::Equidistant,
+        Projection::Equisolid,
+        Projection::Stereographic,
+        Projection::Orthographic,
+    ] {
+        let intr = Intrinsics {
+            projection: p,
+            focal_length_mm: 1.2,
+            pixel_pitch_um: 3.45 * 8.0,
+            ..Intrinsics::with_size(306, 256)
+        };
+        let cam = Camera::new(intr, &Attitude::enu(0.0, 0.0, 0.0), 200.0).unwrap();
+        let mut dark = 0;
+        for r0 in (0..240).step_by(16) {
+            for c0 in (0..290).step_by(16) {
+                if !grid::beyond_rim(&cam, c0, c0 + 16, r0, r0 + 16) {
+                    continue;
+                }
+                dark += 1;
+                for r in r0..=r0 + 16 {
+                    for c in c0..=c0 + 16 {
+                        assert!(intr.ray(c as f64, r as f64).is_none(), "{p:?} ({c},{r})");
+                    }
+                }
+            }
+        }
+        assert!(dark > 4, "{p:?}: {dark}");
+    }
+}
