@@ -81,6 +81,35 @@ struct Placed {
     cos_inner: f64,
 }
 
+impl Placed {
+    /// `c` at scene time 0.
+    fn new(c: &Cloud) -> Self {
+        let r = c.radius_deg.to_radians();
+        Placed {
+            c: unit(c.azimuth_deg, c.elevation_deg),
+            opacity: c.opacity,
+            outer: r,
+            cos_outer: r.cos(),
+            cos_inner: (r * (1.0 - c.softness)).cos(),
+        }
+    }
+
+    /// The opacity where the cosine of the angle from the centre is `c` (0 at and beyond the
+    /// rim).
+    #[inline]
+    fn opacity_at(&self, c: f64) -> f64 {
+        if c <= self.cos_outer {
+            0.0
+        } else if c >= self.cos_inner {
+            self.opacity
+        } else {
+            // a smooth step in cos(angle): no arccosine per ray
+            let x = ((c - self.cos_outer) / (self.cos_inner - self.cos_outer)).clamp(0.0, 1.0);
+            self.opacity * x * x * (3.0 - 2.0 * x)
+        }
+    }
+}
+
 /// The clouds at one scene time, indexed by direction: cells of the sphere, equal in
 /// z = sin(elevation) and in azimuth, each listing the clouds whose rim (grown by
 /// [`INDEX_MARGIN_RAD`]) reaches into it.
@@ -109,18 +138,11 @@ impl CloudField {
         let clouds: Vec<Placed> = clouds
             .iter()
             .map(|c| {
-                let mut v = unit(c.azimuth_deg, c.elevation_deg);
+                let mut p = Placed::new(c);
                 if let Some(q) = turn {
-                    v = (q * v).normalize();
+                    p.c = (q * p.c).normalize();
                 }
-                let r = c.radius_deg.to_radians();
-                Placed {
-                    c: v,
-                    opacity: c.opacity,
-                    outer: r,
-                    cos_outer: r.cos(),
-                    cos_inner: (r * (1.0 - c.softness)).cos(),
-                }
+                p
             })
             .collect();
         let caps: Vec<(DVec3, f64)> = clouds.iter().map(|p: &Placed| (p.c, p.outer)).collect();
@@ -159,17 +181,9 @@ impl CloudField {
         let mut clear = 1.0;
         for p in self.near(d) {
             let c = d.dot(p.c);
-            if c <= p.cos_outer {
-                continue;
+            if c > p.cos_outer {
+                clear *= 1.0 - p.opacity_at(c);
             }
-            let a = if c >= p.cos_inner {
-                p.opacity
-            } else {
-                // a smooth step in cos(angle): no arccosine per ray
-                let x = ((c - p.cos_outer) / (p.cos_inner - p.cos_outer)).clamp(0.0, 1.0);
-                p.opacity * x * x * (3.0 - 2.0 * x)
-            };
-            clear *= 1.0 - a;
         }
         1.0 - clear
     }
@@ -216,10 +230,11 @@ pub fn draw_cover(cover: f64, seed: u64) -> Vec<Cloud> {
             opacity: rng.random_range(0.5..1.0),
             softness: 0.1,
         };
-        let f = CloudField::new(&[c], None, 0.0);
+        // the one cloud alone: no index to build per draw
+        let p = Placed::new(&c);
         covered = 0;
         for (k, d) in dirs.iter().enumerate() {
-            clear[k] *= 1.0 - f.opacity(*d);
+            clear[k] *= 1.0 - p.opacity_at(d.dot(p.c));
             covered += (clear[k] <= 0.5) as usize;
         }
         out.push(c);
