@@ -316,9 +316,14 @@ impl SceneConfig {
     /// Resolves the sun, validates everything and builds the sky (with the world, at scene time
     /// 0) and the posed camera (lens resolved, [`Self::intrinsics`]).
     pub fn build(&self) -> Result<(Sky, Camera)> {
+        self.build_at(0.0)
+    }
+
+    /// [`Self::build`] with the world's clouds `t_s` seconds into the scene.
+    pub fn build_at(&self, t_s: f64) -> Result<(Sky, Camera)> {
         let sun = self.sun.resolve()?;
         self.sun.check_up(sun)?;
-        let world = self.world_at(0.0)?;
+        let world = self.world_at(t_s)?;
         let sky = Sky::new(sun, &self.sky)?.with_world(world);
         let cam = Camera::new(self.intrinsics(), &self.camera.attitude, sun.azimuth_deg)?;
         Ok((sky, cam))

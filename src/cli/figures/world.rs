@@ -40,9 +40,7 @@ fn fisheye_scene() -> SceneConfig {
 
 /// One row of panels: LI, DoLP, AoLP, class.
 fn panels(cfg: &SceneConfig, t_s: f64) -> Result<Image<[u8; 3]>> {
-    let sun = cfg.sun.resolve()?;
-    let sky = psns::sky::Sky::new(sun, &cfg.sky)?.with_world(cfg.world_at(t_s)?);
-    let cam = psns::camera::Camera::new(cfg.intrinsics(), &cfg.camera.attitude, sun.azimuth_deg)?;
+    let (sky, cam) = cfg.build_at(t_s)?;
     let ideal = render::render_ideal(&sky, &cam);
     let white = vis::quantile(&ideal.li, 0.999);
     let li = vis::gray_rgb(&vis::gray8(&ideal.li, white));
