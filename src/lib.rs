@@ -28,6 +28,7 @@ pub mod names;
 pub mod options;
 pub mod pipeline;
 pub mod progress;
+pub mod record;
 pub mod render;
 pub mod rng;
 pub mod ros2;

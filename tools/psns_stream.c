@@ -687,9 +687,11 @@ int main(int argc, char **argv) {
                            (long long)rd64(fh + 40));
                     for (int k = 0; k < 16; k++)
                         printf("%s%016llx", k ? "," : "", (unsigned long long)rd64(fh + 48 + 8 * k));
-                    printf(" %u,%u,%u,%u %08x,%08x %llu %08x\n", rd32(fh + 176), rd32(fh + 180),
-                           rd32(fh + 184), rd32(fh + 188), rd32(fh + 192), rd32(fh + 196),
-                           (unsigned long long)sum, vc);
+                    printf(" %u,%u,%u,%u ", rd32(fh + 176), rd32(fh + 180), rd32(fh + 184),
+                           rd32(fh + 188));
+                    for (int k = 0; k < 8; k++) /* turbidity, albedo, class fractions */
+                        printf("%s%08x", k ? "," : "", rd32(fh + 192 + 4 * k));
+                    printf(" %llu %08x\n", (unsigned long long)sum, vc);
                 } else if (check && ok) {
                     /* the values a consumer gets: the payload itself for raw16, else unpacked */
                     const uint8_t *vb = raw16 ? pay : (const uint8_t *)v; /* LE host */

@@ -45,7 +45,7 @@ FRAME_FIELDS = [
     ("sun_camera", ("<f8", (3,)), 96), ("attitude_wxyz", ("<f8", (4,)), 120),
     ("lat_deg", "<f8", 152), ("lon_deg", "<f8", 160), ("height_m", "<f8", 168),
     ("saturated", ("<u4", (4,)), 176), ("turbidity", "<f4", 192), ("albedo", "<f4", 196),
-    ("header_crc", "<u4", 252),
+    ("class_fractions", ("<f4", (6,)), 200), ("header_crc", "<u4", 252),
 ]
 F64_ORDER = ["exposure_us", "gain_db", "black_level", "temperature_c", "sun_azimuth_deg",
              "sun_elevation_deg", "sun_camera", "attitude_wxyz", "lat_deg", "lon_deg", "height_m"]
@@ -735,7 +735,8 @@ def canonical(meta, values, ok):
     for k in F64_ORDER:
         v = meta[k]
         f64 += v if isinstance(v, list) else [v]
-    f32 = ["%08x" % struct.unpack("<I", struct.pack("<f", meta[k]))[0] for k in ("turbidity", "albedo")]
+    f32 = [meta["turbidity"], meta["albedo"]] + list(meta["class_fractions"])
+    f32 = ["%08x" % struct.unpack("<I", struct.pack("<f", x))[0] for x in f32]
     v = np.ascontiguousarray(values, dtype="<u2")
     return "frame %d %d %d %d %d %d %s %s %s %d %08x" % (
         meta["index"], meta["flags"], int(ok), meta["exposure_start_ns"], meta["exposure_end_ns"],

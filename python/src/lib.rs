@@ -309,21 +309,13 @@ fn render_raw<'py>(
     let frame = py.detach(|| -> psns::Result<_> {
         let (cfg, _) = a.config()?;
         let pipe = psns::pipeline::RawPipeline::new(&cfg)?;
-        let (frame, info) = pipe.render_configured()?;
-        let dolp_aolp = frame.truth_dolp_aolp();
-        Ok((frame, info, dolp_aolp))
+        let r = pipe.render(pipe.configured_request()?)?;
+        let dolp_aolp = r.frame.truth_dolp_aolp();
+        Ok((r.frame, r.record, dolp_aolp))
     });
-    let (frame, info, (dolp, aolp)) = frame.map_err(lib_err)?;
+    let (frame, record, (dolp, aolp)) = frame.map_err(lib_err)?;
     let d = PyDict::new(py);
-    let meta = PyDict::new(py);
-    meta.set_item("exposure_us", frame.exposure_us)?;
-    meta.set_item("gain_db", frame.gain_db)?;
-    meta.set_item("bit_depth", frame.bit_depth)?;
-    meta.set_item("black_level_dn", frame.black_level_dn)?;
-    meta.set_item("dn_per_electron", frame.dn_per_electron)?;
-    meta.set_item("auto_exposed", frame.auto_exposed)?;
-    meta.set_item("saturated", frame.saturated.to_vec())?;
-    meta.set_item("sun_disc_pixels", info.sun_pixels)?;
+    let meta = record_dict(py, &record)?;
     let psns::sensor::RawFrame {
         codes,
         bit_depth,
@@ -338,6 +330,25 @@ fn render_raw<'py>(
     d.set_item("truth_aolp", array2(py, aolp))?;
     d.set_item("meta", meta)?;
     Ok(d)
+}
+
+/// A frame's record as a dict: its fields by name (`None` where a value is absent).
+fn record_dict<'py>(
+    py: Python<'py>,
+    rec: &psns::record::FrameRecord,
+) -> PyResult<Bound<'py, PyDict>> {
+    json_dict(
+        py,
+        &serde_json::to_value(rec).expect("a frame record serializes"),
+    )
+}
+
+/// A JSON object as a dict.
+fn json_dict<'py>(py: Python<'py>, v: &serde_json::Value) -> PyResult<Bound<'py, PyDict>> {
+    let json = PyModule::import(py, "json")?;
+    Ok(json
+        .call_method1("loads", (v.to_string(),))?
+        .cast_into::<PyDict>()?)
 }
 
 /// S0, S1, S2, DoLP, AoLP of a raw mosaic, like `psns demosaic`.
@@ -695,26 +706,16 @@ impl Camera {
         let r = py.detach(|| -> psns::Result<_> {
             let sun = sun_cfg.resolve()?;
             sun_cfg.check_up(sun)?;
-            pipe.frame_at(sun, &attitude, 0.0, index, Vec::new())
+            let req = psns::pipeline::FrameRequest::sky(index, sun, attitude);
+            pipe.render(req)
         });
-        let (f, info) = r.map_err(lib_err)?;
+        let r = r.map_err(lib_err)?;
         self.next_index = index + 1;
-        let bits = f.bit_depth;
-        let exposure_us = f.exposure_us;
-        let saturated = f.saturated;
-        let arr = codes_array(py, f.codes, bits);
+        let arr = codes_array(py, r.frame.codes, r.frame.bit_depth);
         if !meta {
             return Ok(arr);
         }
-        let d = PyDict::new(py);
-        d.set_item("frame_index", index)?;
-        d.set_item("exposure_us", exposure_us)?;
-        d.set_item("saturated", saturated.to_vec())?;
-        d.set_item("sun_disc_pixels", info.sun_pixels)?;
-        if let Some(s) = info.sun {
-            d.set_item("sun_zenith", s.zenith_deg)?;
-            d.set_item("sun_azimuth", s.azimuth_deg)?;
-        }
+        let d = record_dict(py, &r.record)?;
         Ok(PyTuple::new(py, [arr, d.into_any()])?.into_any())
     }
 }
@@ -764,11 +765,10 @@ fn meta_dict<'py>(
     m: &psns::stream::FrameMeta,
     h: &psns::stream::FileHeader,
 ) -> PyResult<Bound<'py, PyDict>> {
-    let v = serde_json::to_value(m).expect("frame metadata serializes");
-    let json = PyModule::import(py, "json")?;
-    let d = json
-        .call_method1("loads", (v.to_string(),))?
-        .cast_into::<PyDict>()?;
+    let d = json_dict(
+        py,
+        &serde_json::to_value(m).expect("frame metadata serializes"),
+    )?;
     d.set_item("last", m.flags & psns::stream::FLAG_LAST != 0)?;
     d.set_item("bits", h.bits_valid)?;
     d.set_item("msb_aligned", h.msb_aligned)?;

@@ -43,7 +43,7 @@ def test_camera_frames_are_the_stream_frames(psns_bin, tmp_path):
 def test_camera_defaults_and_meta():
     cam = psns.Camera(width=64, height=48, seed=1, frame_index=7)
     a, m = cam.frame(meta=True)
-    assert m["frame_index"] == 7 and (m["sun_zenith"], m["sun_azimuth"]) == (50.0, 200.0)
+    assert m["frame_index"] == 7 and (m["sun_zenith_deg"], m["sun_azimuth_deg"]) == (50.0, 200.0)
     b, m2 = cam.frame(meta=True)
     assert m2["frame_index"] == 8
     assert np.array_equal(cam.frame(frame_index=7), a)

@@ -241,7 +241,7 @@ pub struct RawSummary {
 
 /// `psns render --raw`: the raw frame, its ground truth and (for a sky scene) the ideal images.
 pub fn render_raw_to_dir(cfg: &SceneConfig, target: &Path) -> Result<RawSummary> {
-    use psns::pipeline::RawPipeline;
+    use psns::pipeline::{FrameResult, RawPipeline};
     check_size(cfg, RAW_BYTES_PER_PIXEL)?;
     let t0 = Instant::now();
     let pipe = RawPipeline::new(cfg)?; // validates everything before anything is written
@@ -263,7 +263,7 @@ pub fn render_raw_to_dir(cfg: &SceneConfig, target: &Path) -> Result<RawSummary>
     // the raw frame and the ideal images side by side (each alone leaves a core idle at times)
     let (raw, ideal) = rayon::join(
         || {
-            let r = pipe.render_configured_timed();
+            let r = pipe.configured_request().and_then(|req| pipe.render(req));
             (r, t1.elapsed().as_secs_f64())
         },
         || {
@@ -272,7 +272,15 @@ pub fn render_raw_to_dir(cfg: &SceneConfig, target: &Path) -> Result<RawSummary>
                 .map(|(sky, cam)| render_ideal(sky, cam, cfg.raw.sun_disc_on()))
         },
     );
-    let ((frame, info, scene_s), raw_s) = (raw.0?, raw.1);
+    let (
+        FrameResult {
+            frame,
+            record,
+            scene_seconds: scene_s,
+            ..
+        },
+        raw_s,
+    ) = (raw.0?, raw.1);
     progress.inc(if ideal.is_some() { 2 } else { 1 });
     let sensor_s = raw_s - scene_s;
     let outdir = OutDir::begin(target, RENDER_FILES)?;
@@ -348,21 +356,21 @@ pub fn render_raw_to_dir(cfg: &SceneConfig, target: &Path) -> Result<RawSummary>
         "saturated_fraction".into(),
         psns::sensor::saturated_fraction(saturated, pixels).into(),
     );
-    x.insert("exposure_us".into(), frame.exposure_us.into());
-    x.insert("auto_exposed".into(), frame.auto_exposed.into());
-    x.insert("exposure_clipped".into(), frame.exposure_clipped.into());
-    x.insert("gain_db".into(), frame.gain_db.into());
-    x.insert("bit_depth".into(), frame.bit_depth.into());
-    x.insert("black_level_dn".into(), frame.black_level_dn.into());
-    x.insert("dn_per_electron".into(), frame.dn_per_electron.into());
-    x.insert("sun_disc_pixels".into(), info.sun_pixels.into());
-    // the ideal render counts ground exactly per pixel; keep its count when there is one
-    x.entry("ground_pixels")
-        .or_insert(info.ground_pixels.into());
+    // the frame's record; the ideal render counts ground and classes exactly per pixel, and
+    // its counts are kept where there are some
+    let rec = serde_json::to_value(record).map_err(|e| Error::Invalid(e.to_string()))?;
+    if let serde_json::Value::Object(rec) = rec {
+        for (k, v) in rec {
+            x.entry(k).or_insert(v);
+        }
+    }
     x.insert("scene_seconds".into(), scene_s.into());
     x.insert("sensor_seconds".into(), sensor_s.into());
     out.derived = Some(Derived {
-        sun: info.sun,
+        sun: (cfg.raw.scene == SceneKind::Sky).then_some(psns::sun::SunPosition {
+            zenith_deg: record.sun_zenith_deg,
+            azimuth_deg: record.sun_azimuth_deg,
+        }),
         extra,
     });
     write_scene_json(dir, &out)?;

@@ -24,7 +24,7 @@ use crate::config::SceneConfig;
 use crate::image::Image;
 use crate::io::create_dir;
 use crate::memory::{check_memory, memory_available, memory_need};
-use crate::pipeline::RawPipeline;
+use crate::pipeline::{FrameRequest, RawPipeline};
 use crate::progress::{Reporter, Unit};
 use crate::{io, Error, Result};
 use rayon::prelude::*;
@@ -196,10 +196,8 @@ fn pipeline_key(scene: &SceneConfig) -> SceneConfig {
 /// For the PSNS presets the sensor's costly part (the relative-illumination map of gniipi and
 /// gniicpi) depends on the frame size, optics, preset and seed but not on the sky, which changes
 /// from sample to sample: that pipeline is kept in the cache keyed also without the sky and
-/// renders the sample's sky ([`RawPipeline::frame_at_in`]: read row by row from the sky grid,
-/// the codes of `psns render`'s planes; with `truth`, [`RawPipeline::stokes_in`]'s planes, which
-/// the truth needs). The test that renders every sample again through `psns render` holds both
-/// to the same bytes.
+/// renders the sample's sky ([`FrameRequest::under`]). The test that renders every sample again
+/// through `psns render` holds both to the same bytes.
 fn render(
     cache: &PipelineCache,
     scene: &SceneConfig,
@@ -208,27 +206,14 @@ fn render(
     use crate::sensor::Preset;
     let sun = scene.sun.resolve()?;
     scene.sun.check_up(sun)?;
-    let attitude = &scene.camera.attitude;
-    let index = scene.raw.frame_index;
-    let (pipe, f) = if scene.raw.preset == Preset::Camera {
-        let pipe = cache.get(scene)?;
-        let (st, _) = pipe.stokes(sun, attitude)?;
-        // the path psns render --raw takes, so the images re-render byte for byte
-        let f = pipe.frame_of(&st, index, truth)?;
-        (pipe, f)
-    } else {
-        let mut key = scene.clone();
+    let mut key = scene.clone();
+    if scene.raw.preset != Preset::Camera {
         key.sky = Default::default();
-        let pipe = cache.get(&key)?;
-        let f = if truth {
-            let (st, _) = pipe.stokes_in(&scene.sky, sun, attitude, 0.0)?;
-            pipe.frame_of(&st, index, true)?
-        } else {
-            pipe.frame_at_in(&scene.sky, sun, attitude, 0.0, index, Vec::new())?
-                .0
-        };
-        (pipe, f)
-    };
+    }
+    let pipe = cache.get(&key)?;
+    let mut req = FrameRequest::sky(scene.raw.frame_index, sun, scene.camera.attitude);
+    req.truth = truth;
+    let f = pipe.render(req.under(&scene.sky))?.frame;
     Ok((f, pipe.sensor_config().layout))
 }
 

@@ -210,6 +210,29 @@ pub fn chunks(block: &[u8]) -> Option<Vec<(u32, &[u8])>> {
     Some(out)
 }
 
+impl ChunkValues {
+    /// The chunk values of the frame `rec`, sent at device time `timestamp` from the region
+    /// `region` (offset x, offset y, width, height) in the pixel format `pixel_format` (its code).
+    pub fn of_record(
+        rec: &crate::record::FrameRecord,
+        timestamp: u64,
+        region: [u32; 4],
+        pixel_format: u32,
+    ) -> Self {
+        ChunkValues {
+            exposure_us: rec.exposure_us,
+            gain_db: rec.gain_db,
+            timestamp,
+            frame_index: rec.frame_index,
+            attitude_wxyz: rec.attitude_wxyz,
+            sun_azimuth_deg: rec.sun_azimuth_deg,
+            sun_elevation_deg: rec.sun_elevation_deg(),
+            region,
+            pixel_format,
+        }
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

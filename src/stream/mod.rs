@@ -22,6 +22,7 @@ pub use salvage::Salvage;
 pub use writer::{FileStreamWriter, StreamWriter};
 
 use crate::error::{Error, Result};
+use crate::record::FrameRecord;
 use crate::sensor::mosaic::MosaicLayout;
 use crate::sensor::packing::{payload_size_checked, PixelFormat};
 use serde::{Deserialize, Serialize};
@@ -69,6 +70,9 @@ pub const FLAG_GROUND_IN_VIEW: u32 = 1 << 5;
 pub const FLAG_AUTO_EXPOSURE: u32 = 1 << 6;
 /// Frame flag: last frame of the stream.
 pub const FLAG_LAST: u32 = 1 << 7;
+/// Frame flag: bytes 200..224 hold the fraction of the image in each class (a world around the
+/// camera; [`FrameMeta::class_fractions`]).
+pub const FLAG_CLASSES: u32 = 1 << 8;
 
 /// CRC-32 (IEEE, zlib's) of `data`.
 pub fn crc32(data: &[u8]) -> u32 {
@@ -510,9 +514,49 @@ pub struct FrameMeta {
     pub turbidity: f32,
     /// Ground albedo.
     pub albedo: f32,
+    /// With [`FLAG_CLASSES`]: the fraction of the image in each class (outside, sky, cloud,
+    /// obstruction, ground, sun); else 0.
+    pub class_fractions: [f32; 6],
 }
 
 impl FrameMeta {
+    /// The frame header of `rec` in a payload of `bits_valid` bits (the black level in its DN),
+    /// without [`FLAG_DROPPED`] and [`FLAG_LAST`], which the writer knows.
+    pub fn of_record(rec: &FrameRecord, bits_valid: u8) -> FrameMeta {
+        let flag = |on: bool, f: u32| if on { f } else { 0 };
+        let flags = flag(rec.saturated.iter().any(|&n| n > 0), FLAG_SATURATION)
+            | flag(!rec.sky_valid, FLAG_SKY_INVALID)
+            | flag(rec.sun_in_view, FLAG_SUN_IN_VIEW)
+            | flag(rec.ground_in_view, FLAG_GROUND_IN_VIEW)
+            | flag(rec.auto_exposed, FLAG_AUTO_EXPOSURE)
+            | flag(rec.exposure_clipped, FLAG_EXPOSURE_CLIPPED)
+            | flag(rec.class_fractions.is_some(), FLAG_CLASSES);
+        FrameMeta {
+            index: rec.frame_index,
+            flags,
+            exposure_start_ns: rec.exposure_start_ns,
+            exposure_end_ns: rec.exposure_end_ns,
+            host_time_ns: 0,
+            exposure_us: rec.exposure_us,
+            gain_db: rec.gain_db,
+            black_level: rec.black_level_in(bits_valid),
+            temperature_c: rec.temperature_c,
+            sun_azimuth_deg: rec.sun_azimuth_deg,
+            sun_elevation_deg: rec.sun_elevation_deg(),
+            sun_camera: rec.sun_camera,
+            attitude_wxyz: rec.attitude_wxyz,
+            lat_deg: rec.lat_deg,
+            lon_deg: rec.lon_deg,
+            height_m: rec.height_m,
+            saturated: rec.saturated,
+            turbidity: rec.turbidity,
+            albedo: rec.albedo,
+            class_fractions: rec
+                .class_fractions
+                .map_or([0.0; 6], |f| f.map(|v| v as f32)),
+        }
+    }
+
     /// Encodes the 256-byte frame header with the payload CRC and the header CRC.
     pub fn encode(&self, payload_crc: u32) -> [u8; FRAME_HEADER_SIZE] {
         let mut b = [0u8; FRAME_HEADER_SIZE];
@@ -532,6 +576,9 @@ impl FrameMeta {
         }
         put(&mut b, 192, self.turbidity.to_le_bytes());
         put(&mut b, 196, self.albedo.to_le_bytes());
+        for (k, v) in self.class_fractions.iter().enumerate() {
+            put(&mut b, 200 + 4 * k, v.to_le_bytes());
+        }
         let c = crc32(&b[..FRAME_HEADER_SIZE - 4]);
         put(&mut b, FRAME_HEADER_SIZE - 4, c.to_le_bytes());
         b
@@ -599,6 +646,7 @@ impl FrameMeta {
             ],
             turbidity: f32_at(b, 192),
             albedo: f32_at(b, 196),
+            class_fractions: std::array::from_fn(|k| f32_at(b, 200 + 4 * k)),
         };
         Ok((m, u32_at(b, 20)))
     }

@@ -14,6 +14,7 @@ const LAYERS: &[(&str, u32)] = &[
     ("memory", 0),
     ("names", 0),
     ("progress", 0),
+    ("record", 0),
     ("sun", 1),
     ("world", 1),
     ("sky", 2),

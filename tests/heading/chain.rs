@@ -9,7 +9,7 @@ use psns::heading::{
     eigenvector_heading, estimate_heading, HeadingMethod, HeadingSetup, PolarView,
 };
 use psns::image::Image;
-use psns::pipeline::RawPipeline;
+use psns::pipeline::{FrameRequest, RawPipeline};
 use psns::sky::PolarizationModel;
 use psns::sun::SunPosition;
 
@@ -33,7 +33,10 @@ fn chain_error(
     sensor.exposure = psns::sensor::Exposure::auto();
     cfg.raw.sensor = Some(sensor);
     let pipe = RawPipeline::new(&cfg).unwrap();
-    let (frame, _) = pipe.render_configured().unwrap();
+    let frame = pipe
+        .render(pipe.configured_request().unwrap())
+        .unwrap()
+        .frame;
     let b = frame.black_level_dn as f32;
     let codes = Image::from_vec(
         frame.codes.width,
@@ -557,7 +560,11 @@ fn failure_case(
     edit(&mut cfg);
     if light < 1.0 {
         // a fraction of the auto-exposure light: the shortest exposure, then the lens transmission
-        let (f, _) = RawPipeline::new(&cfg).unwrap().render_configured().unwrap();
+        let pipe = RawPipeline::new(&cfg).unwrap();
+        let f = pipe
+            .render(pipe.configured_request().unwrap())
+            .unwrap()
+            .frame;
         let want = f.exposure_us * light;
         let s = cfg.raw.sensor.as_mut().unwrap();
         s.exposure = Exposure::Fixed { us: want.max(20.0) };
@@ -570,7 +577,10 @@ fn failure_case(
         let (st, _) = pipe
             .stokes(sun, &Attitude::enu(yaw, tilt.0, tilt.1))
             .unwrap();
-        let frame = pipe.frame_codes(&st, k as u64).unwrap();
+        let frame = pipe
+            .render(FrameRequest::planes(k as u64, &st).exact())
+            .unwrap()
+            .frame;
         let b = frame.black_level_dn as f32;
         let codes = Image::from_vec(
             frame.codes.width,
@@ -798,7 +808,10 @@ fn psns_horizon_errors(
         let (st, _) = pipe
             .stokes(sun, &Attitude::enu(yaw, tilt.0, tilt.1))
             .unwrap();
-        let frame = pipe.frame_codes(&st, k as u64).unwrap();
+        let frame = pipe
+            .render(FrameRequest::planes(k as u64, &st).exact())
+            .unwrap()
+            .frame;
         let b = frame.black_level_dn as f32;
         let codes = Image::from_vec(
             frame.codes.width,

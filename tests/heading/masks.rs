@@ -11,7 +11,7 @@ use psns::heading::{
     HeadingMethod, HeadingSetup,
 };
 use psns::image::{Image, StokesImage};
-use psns::pipeline::RawPipeline;
+use psns::pipeline::{FrameRequest, RawPipeline};
 use psns::sensor::mosaic::MosaicLayout;
 
 /// What hides the sky: a street canyon's walls (height in m; the street 20 m wide along azimuth
@@ -92,7 +92,7 @@ fn obstructed(cut: Cut, yaw: f64) -> Obstructed {
     let i = cfg.intrinsics();
     let cam = Camera::new(i, &cfg.camera.attitude, sun.azimuth_deg).unwrap();
     let truth = draw(&mut st, &cam, cut);
-    let frame = pipe.frame_of(&st, 0, false).unwrap();
+    let frame = pipe.render(FrameRequest::planes(0, &st)).unwrap().frame;
     let mut setup = HeadingSetup::new(i, sun);
     setup.relative_illumination = ri;
     Obstructed {

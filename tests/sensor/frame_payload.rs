@@ -1,11 +1,11 @@
-//! `RawPipeline::frame_payload_at`: the stream payload and its CRC-32 that come with a frame
+//! `RawPipeline::render` with a payload asked for: the stream payload and its CRC-32 that come with a frame
 //! (the fast path's Mono16 CRC taken band by band, packed formats' CRC chunk by chunk) are the
 //! frame's codes packed as `packing::pack` packs them and the CRC of those bytes, on the fast
 //! path, the exact path and a PSNS preset (whose Mono16 CRC is left to the writer).
 
 use psns::camera::{Attitude, Intrinsics};
 use psns::config::SceneConfig;
-use psns::pipeline::RawPipeline;
+use psns::pipeline::{FrameRequest, RawPipeline};
 use psns::sensor::packing::{self, PixelFormat};
 use psns::sensor::Preset;
 use psns::sun::SunPosition;
@@ -36,17 +36,16 @@ fn payload_and_crc_match_the_codes() {
         let pipe = small_pipeline(exact, preset);
         let sun = SunPosition::new(40.0, 120.0);
         let att = Attitude::enu(30.0, 50.0, 0.0);
-        let (want, _) = pipe.frame_at(sun, &att, 0.0, 3, Vec::new()).unwrap();
+        let want = pipe.render(FrameRequest::sky(3, sun, att)).unwrap().frame;
         for fmt in [
             PixelFormat::Mono8,
             PixelFormat::Mono12p,
             PixelFormat::Mono12Packed,
             PixelFormat::Mono16,
         ] {
-            let mut bytes = Vec::new();
-            let (f, _, crc) = pipe
-                .frame_payload_at(sun, &att, 0.0, 3, Vec::new(), fmt, &mut bytes)
-                .unwrap();
+            let req = FrameRequest::sky(3, sun, att).with_payload(fmt, Vec::new());
+            let r = pipe.render(req).unwrap();
+            let (f, crc, bytes) = (r.frame, r.payload_crc, r.bytes);
             assert_eq!(
                 f.codes.data, want.codes.data,
                 "exact {exact} {preset:?} {fmt}"
@@ -85,14 +84,21 @@ fn frame_after_a_lead_keeps_the_lead_and_makes_the_same_codes() {
         let pipe = small_pipeline(exact, preset);
         let sun = SunPosition::new(40.0, 120.0);
         let att = Attitude::enu(30.0, 50.0, 0.0);
-        let (want, _) = pipe.frame_at(sun, &att, 0.0, 3, Vec::new()).unwrap();
+        let want = pipe.render(FrameRequest::sky(3, sun, att)).unwrap().frame;
         let n = want.codes.data.len();
         // a fresh buffer shorter than the lead, then a reused one holding stale codes
         let mut buf = vec![7u16, 8];
         for lead in [32usize, 32, 0, 5] {
-            let (f, _) = pipe.frame_at_after(sun, &att, 0.0, 3, buf, lead).unwrap();
-            assert_eq!((f.codes.width, f.codes.height), (0, 0));
-            let b = f.lead_buffer.expect("the buffer comes back");
+            let req = FrameRequest::sky(3, sun, att).into_codes(buf, lead);
+            let f = pipe.render(req).unwrap().frame;
+            let b = if lead == 0 {
+                // no lead: the codes are the frame's, in the buffer given
+                assert!(f.lead_buffer.is_none());
+                f.codes.data.clone()
+            } else {
+                assert_eq!((f.codes.width, f.codes.height), (0, 0));
+                f.lead_buffer.expect("the buffer comes back")
+            };
             assert_eq!(b.len(), lead + n, "exact {exact} {preset:?} lead {lead}");
             assert_eq!(&b[lead..], &want.codes.data[..], "exact {exact} {preset:?}");
             if lead >= 2 {

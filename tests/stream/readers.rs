@@ -58,7 +58,6 @@ fn stream_with(
     for &i in ix {
         let m = FrameMeta {
             index: i,
-            flags: 0,
             exposure_start_ns: 1_718_000_000_000_000_000 + i as i64 * 100_000_000,
             exposure_end_ns: 1_718_000_000_001_000_000 + i as i64 * 100_000_000,
             exposure_us: 1000.0,
@@ -74,6 +73,12 @@ fn stream_with(
             saturated: [i as u32, 0, 1, 2],
             turbidity: 3.0,
             albedo: 0.1,
+            // every other frame with a world's class fractions
+            flags: if i % 2 == 1 { FLAG_CLASSES } else { 0 },
+            class_fractions: match i % 2 {
+                1 => [0.2, 0.3, 0.1, 0.25, 0.14, 0.01],
+                _ => [0.0; 6],
+            },
             ..Default::default()
         };
         let c: Vec<u16> = (0..(w * h) as u64).map(|k| code(k, i)).collect();
@@ -142,8 +147,13 @@ fn frame_line(f: &Frame, h: &FileHeader) -> String {
         .iter()
         .map(|x| format!("{:016x}", x.to_bits()))
         .collect();
+    let classes: Vec<String> = m
+        .class_fractions
+        .iter()
+        .map(|x| format!("{:08x}", x.to_bits()))
+        .collect();
     format!(
-        "frame {} {} {} {} {} {} {} {},{},{},{} {:08x},{:08x} {} {:08x}\n",
+        "frame {} {} {} {} {} {} {} {},{},{},{} {:08x},{:08x},{} {} {:08x}\n",
         m.index,
         m.flags,
         f.payload_crc_ok as u8,
@@ -157,6 +167,7 @@ fn frame_line(f: &Frame, h: &FileHeader) -> String {
         m.saturated[3],
         m.turbidity.to_bits(),
         m.albedo.to_bits(),
+        classes.join(","),
         v.iter().map(|&x| x as u64).sum::<u64>(),
         crc32(&bytes)
     )

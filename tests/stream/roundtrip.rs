@@ -423,7 +423,7 @@ proptest! {
         index in any::<u64>(), flags in any::<u32>(), t0 in any::<i64>(), t1 in any::<i64>(),
         f in proptest::collection::vec(any::<f64>(), 16), sat in any::<[u32; 4]>(),
         turb in any::<f32>(), alb in any::<f32>(), w in 1u32..40, h in 1u32..12,
-        fmt in 0usize..4, seed in any::<u64>(), bits in 1u8..=12,
+        fmt in 0usize..4, seed in any::<u64>(), bits in 1u8..=12, cls in any::<[f32; 6]>(),
     ) {
         let fmt = PixelFormat::ALL[fmt];
         let m = FrameMeta {
@@ -431,7 +431,7 @@ proptest! {
             exposure_us: f[0], gain_db: f[1], black_level: f[2], temperature_c: f[3],
             sun_azimuth_deg: f[4], sun_elevation_deg: f[5], sun_camera: [f[6], f[7], f[8]],
             attitude_wxyz: [f[9], f[10], f[11], f[12]], lat_deg: f[13], lon_deg: f[14],
-            height_m: f[15], saturated: sat, turbidity: turb, albedo: alb,
+            height_m: f[15], saturated: sat, turbidity: turb, albedo: alb, class_fractions: cls,
         };
         let b = m.encode(0x1234_5678);
         let (m2, c) = FrameMeta::decode(&b).unwrap();

@@ -36,6 +36,7 @@ use psns::heading::{
     error_stats, estimate_heading_info, wrap180, HeadingMethod, HeadingSetup, PolarView,
 };
 use psns::image::Image;
+use psns::pipeline::{FrameRequest, RawPipeline};
 use psns::sensor::{Exposure, SensorConfig, Stages};
 use psns::sky::cie::Radiance;
 use psns::sky::clouds::SoftClouds;
@@ -406,7 +407,7 @@ fn images(
         Chain::Sensor(s, _) => s,
     };
     let cfg = scene(sc, intr, stages, Exposure::auto())?;
-    let pipe = psns::pipeline::RawPipeline::new(&cfg)?;
+    let pipe = RawPipeline::new(&cfg)?;
     let (st, _) = pipe.stokes(sun, att)?;
     match sc.chain {
         Chain::Ideal => {
@@ -418,7 +419,9 @@ fn images(
             })
         }
         Chain::Sensor(s, method) => {
-            let frame = pipe.frame_codes(&st, frame_index)?;
+            let frame = pipe
+                .render(FrameRequest::planes(frame_index, &st).exact())?
+                .frame;
             let layout = pipe.sensor_config().layout;
             if s.quantize {
                 let (p, _) = polar_from_codes(

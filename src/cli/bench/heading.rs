@@ -12,6 +12,7 @@ use psns::heading::{
     PolarView,
 };
 use psns::image::StokesImage;
+use psns::pipeline::{FrameRequest, RawPipeline};
 use psns::sensor::{Exposure, SensorConfig};
 use psns::sky::clouds::SoftClouds;
 use psns::sky::PolarizationModel;
@@ -309,9 +310,8 @@ pub fn run_sweep(
                 Expo::Fraction(f) => {
                     // the auto-exposure time of this scene, scaled; below the shortest exposure
                     // (20 µs) the lens transmission takes the rest, so the light is f × auto
-                    let pipe =
-                        psns::pipeline::RawPipeline::new(&scene(&case, intr, Exposure::auto()))?;
-                    let (frame, _) = pipe.render_configured()?;
+                    let pipe = RawPipeline::new(&scene(&case, intr, Exposure::auto()))?;
+                    let frame = pipe.render(pipe.configured_request()?)?.frame;
                     let want = frame.exposure_us * f;
                     (
                         Exposure::Fixed { us: want.max(20.0) },
@@ -324,13 +324,15 @@ pub fn run_sweep(
                 s.lens_transmission *= light;
             }
             let cover = cloud_cover(&cfg)?;
-            let pipe = psns::pipeline::RawPipeline::new(&cfg)?;
+            let pipe = RawPipeline::new(&cfg)?;
             let sun = SunPosition::new(90.0 - case.sun_elevation, SUN_AZIMUTH);
             let mut cell: Vec<FrameRow> = Vec::new();
             for (j, &yaw) in yaws.iter().enumerate() {
                 let att = Attitude::enu(yaw, case.tilt.0, case.tilt.1);
                 let (st, _) = pipe.stokes(sun, &att)?;
-                let frame = pipe.frame_codes(&st, j as u64)?;
+                let frame = pipe
+                    .render(FrameRequest::planes(j as u64, &st).exact())?
+                    .frame;
                 let t0 = Instant::now();
                 let (p, _) = polar_from_codes(
                     &frame.codes,

@@ -21,7 +21,7 @@ use psns::camera::{Attitude, Intrinsics};
 use psns::config::SceneConfig;
 use psns::error::{Error, Result};
 use psns::image::StokesImage;
-use psns::pipeline::{RawPipeline, SceneInfo};
+use psns::pipeline::{FrameRequest, RawPipeline, SceneInfo};
 use psns::sensor::{Exposure, RawFrame, SensorConfig};
 use psns::sky::clouds::SoftClouds;
 use std::fmt;
@@ -183,7 +183,13 @@ pub fn render(scene: Scene, width: usize, height: usize, bit_depth: u8) -> Resul
         cfg.raw.sensor = Some(s);
         pipe = RawPipeline::new(&cfg)?;
     }
-    let frame = pipe.frame(&st, cfg.raw.frame_index)?;
+    let frame = pipe
+        .render(
+            FrameRequest::planes(cfg.raw.frame_index, &st)
+                .exact()
+                .with_truth(),
+        )?
+        .frame;
     cfg.raw.sensor = Some(pipe.sensor_config().clone());
     Ok(SceneFrame {
         scene,

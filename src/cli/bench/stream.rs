@@ -4,7 +4,7 @@
 use psns::camera::{Attitude, Camera};
 use psns::config::SceneConfig;
 use psns::io::create_dir;
-use psns::pipeline::RawPipeline;
+use psns::pipeline::{FrameRequest, RawPipeline};
 use psns::render::{self, SkyGrid, StokesOptions};
 use psns::sensor::{packing, FastSink, FrameOptions, Radiance};
 use psns::sky::Sky;
@@ -145,7 +145,9 @@ pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Res
             None => {
                 let (st, _) = render::render_stokes(&sky, &cam, opts);
                 let (t1, c1) = (Instant::now(), cpu_now());
-                let f = pipe.frame_codes(&st, k as u64)?;
+                let f = pipe
+                    .render(FrameRequest::planes(k as u64, &st).exact())?
+                    .frame;
                 let (t2, c2) = (Instant::now(), cpu_now());
                 sky_t.push((t1 - t0).as_secs_f64());
                 sen_t.push((t2 - t1).as_secs_f64());
@@ -158,7 +160,7 @@ pub fn stage_times(cfg: &SceneConfig, step: Option<usize>, frames: usize) -> Res
         let packed_crc = packing::pack_crc32(&frame.codes.data, bits, fmt, false, &mut payload)?;
         pack_t.push(t3.elapsed().as_secs_f64());
         cpu[2].push(cpu_now() - c3);
-        // the stream's payload and CRC, as `RawPipeline::frame_payload_at` gives them: the codes
+        // the stream's payload and CRC, as `RawPipeline::render` gives them: the codes
         // themselves where they are its bytes (no packing), with the CRC the frame carries
         // (`None` on the exact path: the writer takes it), else the packed bytes and theirs
         let (bytes, crc): (&[u8], _) = if packing::codes_are_payload(fmt) {

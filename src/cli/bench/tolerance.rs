@@ -10,6 +10,7 @@ use psns::heading::{
     estimate_codes, estimate_heading, polar_for_estimate, sampled_intrinsics, superpixel_step,
     wrap180, HeadingMethod, HeadingSetup, PolarView,
 };
+use psns::pipeline::{FrameRequest, RawPipeline};
 use psns::sensor::optics::RelativeIllumination;
 use psns::sensor::{Exposure, SensorConfig};
 use psns::sun::SunPosition;
@@ -156,7 +157,7 @@ fn scan_projection(
     progress: &mut dyn FnMut(&str),
 ) -> Result<()> {
     let cfg = tolerance_scene(opts.quick, projection);
-    let pipe = psns::pipeline::RawPipeline::new(&cfg)?;
+    let pipe = RawPipeline::new(&cfg)?;
     let sun = cfg.sun.resolve()?;
     let yaws: Vec<f64> = if opts.quick {
         vec![17.0]
@@ -187,7 +188,9 @@ fn scan_projection(
     };
     for (j, &yaw) in yaws.iter().enumerate() {
         let (st, _) = pipe.stokes(sun, &Attitude::enu(yaw, 0.0, 0.0))?;
-        let frame = pipe.frame_codes(&st, j as u64)?;
+        let frame = pipe
+            .render(FrameRequest::planes(j as u64, &st).exact())?
+            .frame;
         let layout = pipe.sensor_config().layout;
         // the images psns heading reads: bilinear, or the flat-fielded sampled superpixels
         let (p, _, _) = polar_for_estimate(

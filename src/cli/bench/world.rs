@@ -8,7 +8,7 @@ use crate::cli::progress::{Progress, Unit};
 use psns::camera::{Attitude, Projection};
 use psns::config::SceneConfig;
 use psns::heading::{estimate_codes, wrap180, HeadingMethod, HeadingSetup};
-use psns::pipeline::RawPipeline;
+use psns::pipeline::{FrameRequest, RawPipeline};
 use psns::world::{Canyon, Class, Tree};
 use psns::{render, Error, Result};
 use std::path::PathBuf;
@@ -154,7 +154,7 @@ pub fn bench_world(opts: &WorldOptions) -> Result<Vec<String>> {
                 class.data.iter().filter(|&&v| v == c as u8).count() as f64 / circle as f64
             };
             let (hidden, cloud) = (share(Class::Obstruction), share(Class::Cloud));
-            let (frame, _) = pipe.frame_at(sun, &att, 0.0, k as u64, Vec::new())?;
+            let frame = pipe.render(FrameRequest::sky(k as u64, sun, att))?.frame;
             let layout = pipe.sensor_config().layout;
             for method in HeadingMethod::ALL {
                 for masked in [false, true] {

@@ -14,7 +14,7 @@ use psns::config::SceneConfig;
 use psns::error::{Error, Result};
 use psns::image::Image;
 use psns::io;
-use psns::pipeline::RawPipeline;
+use psns::pipeline::{FrameRequest, RawPipeline};
 use psns::sensor::emva::{pair_stats, photon_transfer, PairStats, PhotonTransfer};
 use psns::sensor::mosaic::MosaicLayout;
 use psns::sensor::{
@@ -580,7 +580,7 @@ pub fn sensor_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>
 /// Figure 1: the default camera frame (`raw_frame.png`) and the brightest channel's electron
 /// rate.
 fn default_frame(cfg: &SceneConfig, pipe: &RawPipeline, out: &mut Figures) -> Result<RawFrame> {
-    let (frame, _) = pipe.render_configured()?;
+    let frame = pipe.render(pipe.configured_request()?)?.frame;
     let bits = frame.bit_depth;
     let gray = codes_gray(&frame.codes, bits);
     let small = vis::downsample(&gray, 4);
@@ -660,14 +660,18 @@ fn mosaic_zoom_and_sun(
     let (att, pitch, sx, sy) =
         sun_view.ok_or_else(|| Error::Invalid("sun figure: the sun is not in view".into()))?;
     let (st, info) = pipe.stokes(sun, &att)?;
-    let sun_frame = pipe.frame(&st, 0)?; // default exposure 1 ms
-                                         // the same camera (seed) at a short exposure: only the disc and its rim saturate
+    let sun_frame = pipe
+        .render(FrameRequest::planes(0, &st).exact().with_truth())?
+        .frame; // default exposure 1 ms
+                // the same camera (seed) at a short exposure: only the disc and its rim saturate
     let short_us = 50.0;
     let mut short_cfg = cfg.clone();
     let mut s = SensorConfig::preset(Preset::Camera);
     s.exposure = Exposure::Fixed { us: short_us };
     short_cfg.raw.sensor = Some(s);
-    let short = RawPipeline::new(&short_cfg)?.frame(&st, 0)?;
+    let short = RawPipeline::new(&short_cfg)?
+        .render(FrameRequest::planes(0, &st).exact().with_truth())?
+        .frame;
     let n = 32;
     let (r0, c0) = (
         ((sy.round() as usize).saturating_sub(n / 2)) & !1,
@@ -790,7 +794,10 @@ fn presets(cfg: &SceneConfig, frame: &RawFrame, out: &mut Figures) -> Result<()>
         } else {
             let mut c = cfg.clone();
             c.raw.preset = p;
-            RawPipeline::new(&c)?.render_configured()?.0
+            {
+                let pipe = RawPipeline::new(&c)?;
+                pipe.render(pipe.configured_request()?)?.frame
+            }
         };
         let fmax = psns::sensor::adc::max_code(f.bit_depth);
         preset_numbers.insert(

@@ -16,7 +16,6 @@
 
 use super::poses::{Poses, TrajectoryArgs};
 use super::progress::{Progress, Unit};
-use psns::camera::camera_to_enu_quaternion;
 use psns::config::SceneConfig;
 use psns::error::{Error, Result};
 use psns::gige::chunk::{self, ChunkValues};
@@ -24,7 +23,8 @@ use psns::gige::gvcp::{self, Command};
 use psns::gige::gvsp::{self, Block, BlockRing, Leader};
 use psns::gige::registers::{Action, Device, DeviceInfo, FrameOrder, Poll, Settings};
 use psns::options::{finite, RawArgs, SceneArgs, WorldArgs};
-use psns::pipeline::{seconds_to_ns, RawPipeline, SceneClock};
+use psns::pipeline::{seconds_to_ns, FrameResult, RawPipeline, SceneClock};
+use psns::record::FrameRecord;
 use psns::sensor::{packing, Exposure};
 use psns::trajectory::Pose;
 use std::io::Write;
@@ -37,7 +37,7 @@ use std::time::{Duration, Instant};
 
 mod render;
 mod send;
-pub use render::*;
+use render::*;
 use send::*;
 
 /// Options of `psns gige`.
@@ -244,7 +244,7 @@ pub fn run(a: GigeArgs) -> anyhow::Result<()> {
             let f = std::fs::File::create(p)
                 .map_err(|e| Error::io(format!("creating {}", p.display()), e))?;
             let mut w = std::io::BufWriter::new(f);
-            writeln!(w, "{TRUTH_HEADER}")
+            writeln!(w, "{}", truth_header())
                 .and_then(|()| w.flush())
                 .map_err(|e| Error::io(format!("writing {}", p.display()), e))?;
             Some(w)

@@ -43,12 +43,11 @@ pub(super) struct Renderer {
     pub(super) sensor_size: (usize, usize),
 }
 
-/// One frame rendered: the block and its truth.
+/// One frame rendered: the block, its chunk values and its record.
 pub(super) struct RenderedFrame {
     pub(super) block: GigeBlock,
     pub(super) truth: ChunkValues,
-    pub(super) t_s: f64,
-    pub(super) black_level_dn: f64,
+    pub(super) record: FrameRecord,
 }
 
 impl Renderer {
@@ -85,8 +84,6 @@ impl Renderer {
             Exposure::Fixed { us } => seconds_to_ns(us * 0.5e-6)?,
             Exposure::Auto { .. } => 0,
         };
-        let t_ns = self.clock.exposure_start_ns(pose)?;
-        let sun = self.clock.sun_at(pose, t_ns.saturating_add(half_ns))?;
         let mut codes = std::mem::take(&mut self.codes);
         let mut bytes = Vec::new();
         if let Ok(img) = self.spare.try_recv() {
@@ -96,7 +93,8 @@ impl Renderer {
                 Image::Codes(_) => {}
             }
         }
-        let (frame, _) = pipe.frame_at(sun, &pose.attitude, pose.t_s, order.frame_index, codes)?;
+        let req = self.clock.request(order.frame_index, pose, half_ns)?;
+        let FrameResult { frame, record, .. } = pipe.render(req.into_codes(codes, 0))?;
         let fmt = s.pixel_format.packing();
         let (sw, sh) = self.sensor_size;
         let full = s.width as usize == sw && s.height as usize == sh;
@@ -114,18 +112,8 @@ impl Renderer {
             self.codes = frame.codes.data;
             Image::Bytes(bytes)
         };
-        let m = pose.attitude.enu_to_camera(sun.azimuth_deg);
-        let truth = ChunkValues {
-            exposure_us: frame.exposure_us,
-            gain_db: frame.gain_db,
-            timestamp: order.timestamp,
-            frame_index: order.frame_index,
-            attitude_wxyz: camera_to_enu_quaternion(&m),
-            sun_azimuth_deg: sun.azimuth_deg,
-            sun_elevation_deg: sun.elevation_deg(),
-            region: [s.offset_x, s.offset_y, s.width, s.height],
-            pixel_format: s.pixel_format.code(),
-        };
+        let region = [s.offset_x, s.offset_y, s.width, s.height];
+        let truth = ChunkValues::of_record(&record, order.timestamp, region, s.pixel_format.code());
         let mut tail = Vec::new();
         if s.chunk_mode {
             chunk::append(&mut tail, image.as_ref().len(), s.chunks(), &truth);
@@ -148,8 +136,7 @@ impl Renderer {
                 order.channel.packet_size,
             ),
             truth,
-            t_s: pose.t_s,
-            black_level_dn: frame.black_level_dn,
+            record,
         })
     }
 }
@@ -169,10 +156,52 @@ pub(super) fn crop(codes: &[u16], sensor_w: usize, s: &Settings) -> Vec<u16> {
     out
 }
 
-/// Columns of `--truth-csv`.
-pub const TRUTH_HEADER: &str = "block_id,frame_index,timestamp_ns,t_s,exposure_us,gain_db,\
-black_level_dn,qw,qx,qy,qz,sun_azimuth_deg,sun_elevation_deg,pixel_format,width,height,\
-offset_x,offset_y";
+/// One row of `--truth-csv`: a frame sent as block `block_id`.
+pub(super) struct TruthRow<'a> {
+    block_id: u16,
+    f: &'a RenderedFrame,
+    format: &'static str,
+}
+
+/// The columns of `--truth-csv`, each its name and its value in a row.
+type TruthColumn = (&'static str, fn(&TruthRow) -> String);
+const TRUTH_COLUMNS: &[TruthColumn] = &[
+    ("block_id", |r| r.block_id.to_string()),
+    ("frame_index", |r| r.f.record.frame_index.to_string()),
+    ("timestamp_ns", |r| r.f.truth.timestamp.to_string()),
+    ("t_s", |r| r.f.record.t_s.to_string()),
+    ("exposure_us", |r| r.f.record.exposure_us.to_string()),
+    ("gain_db", |r| r.f.record.gain_db.to_string()),
+    ("black_level_dn", |r| r.f.record.black_level_dn.to_string()),
+    ("qw", |r| r.f.record.attitude_wxyz[0].to_string()),
+    ("qx", |r| r.f.record.attitude_wxyz[1].to_string()),
+    ("qy", |r| r.f.record.attitude_wxyz[2].to_string()),
+    ("qz", |r| r.f.record.attitude_wxyz[3].to_string()),
+    ("sun_azimuth_deg", |r| {
+        r.f.record.sun_azimuth_deg.to_string()
+    }),
+    ("sun_elevation_deg", |r| {
+        r.f.record.sun_elevation_deg().to_string()
+    }),
+    ("pixel_format", |r| r.format.to_string()),
+    ("width", |r| r.f.truth.region[2].to_string()),
+    ("height", |r| r.f.truth.region[3].to_string()),
+    ("offset_x", |r| r.f.truth.region[0].to_string()),
+    ("offset_y", |r| r.f.truth.region[1].to_string()),
+];
+
+/// The header line of `--truth-csv`.
+pub(super) fn truth_header() -> String {
+    let names: Vec<&str> = TRUTH_COLUMNS.iter().map(|c| c.0).collect();
+    names.join(",")
+}
+
+impl TruthRow<'_> {
+    fn line(&self) -> String {
+        let values: Vec<String> = TRUTH_COLUMNS.iter().map(|c| (c.1)(self)).collect();
+        values.join(",")
+    }
+}
 
 pub(super) fn render_loop(
     sh: &Shared,
@@ -231,33 +260,13 @@ pub(super) fn render_loop(
         };
         sh.device().frame_rendered(f.truth.exposure_us);
         if let Some(w) = truth.as_mut() {
-            let t = &f.truth;
-            let q = t.attitude_wxyz;
-            let s = &order.settings;
-            let row = writeln!(
-                w,
-                "{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{},{}",
-                order.block_id,
-                order.frame_index,
-                order.timestamp,
-                f.t_s,
-                t.exposure_us,
-                t.gain_db,
-                f.black_level_dn,
-                q[0],
-                q[1],
-                q[2],
-                q[3],
-                t.sun_azimuth_deg,
-                t.sun_elevation_deg,
-                s.pixel_format.name(),
-                s.width,
-                s.height,
-                s.offset_x,
-                s.offset_y
-            )
-            .and_then(|()| w.flush());
-            if let Err(e) = row {
+            let row = TruthRow {
+                block_id: order.block_id,
+                f: &f,
+                format: order.settings.pixel_format.name(),
+            };
+            let written = writeln!(w, "{}", row.line()).and_then(|()| w.flush());
+            if let Err(e) = written {
                 return Err(Error::io("writing --truth-csv", e));
             }
         }

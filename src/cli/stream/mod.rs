@@ -23,18 +23,13 @@
 use super::poses::{open_trajectory, Trajectory, TrajectoryArgs};
 use super::progress::{Progress, Unit};
 use super::signals::{self, die_by, signal_name};
-use glam::DMat3;
-use psns::camera::camera_to_enu_quaternion;
 use psns::config::SceneConfig;
 use psns::error::{Error, Result};
 use psns::options::{finite, whole, RawArgs, SceneArgs, WorldArgs};
-use psns::pipeline::{seconds_to_ns, RawPipeline, SceneClock};
+use psns::pipeline::{seconds_to_ns, FrameResult, RawPipeline, SceneClock};
 use psns::sensor::packing;
 use psns::sensor::Exposure;
-use psns::stream::{
-    CameraConstants, FileHeader, FrameMeta, FLAG_AUTO_EXPOSURE, FLAG_EXPOSURE_CLIPPED,
-    FLAG_GROUND_IN_VIEW, FLAG_LAST, FLAG_SATURATION, FLAG_SKY_INVALID, FLAG_SUN_IN_VIEW, JSON_MAX,
-};
+use psns::stream::{CameraConstants, FileHeader, FrameMeta, FLAG_LAST, JSON_MAX};
 
 mod frames;
 pub(crate) mod output;
@@ -43,8 +38,6 @@ mod splice;
 use frames::{write_loop, End, Frames, Next};
 pub(crate) use output::grow_pipe;
 use output::{FrameKind, OutputSpec, Pixels};
-#[cfg(test)]
-use psns::sun::SunPosition;
 use psns::trajectory::Pose;
 use std::path::{Path, PathBuf};
 use std::sync::mpsc::Receiver;
@@ -252,8 +245,6 @@ struct FrameMaker {
     /// What the output takes.
     kind: FrameKind,
     bits_valid: u8,
-    turbidity: f32,
-    albedo: f32,
     /// The last frame's code buffer, reused.
     codes: Vec<u16>,
     /// Payload buffers handed back by the writer, reused (no page faults on fresh memory).
@@ -285,10 +276,6 @@ impl FrameMaker {
     }
 
     fn render(&mut self, index: u64, pose: &Pose, last: bool) -> Result<Rendered> {
-        let t_ns = self.clock.exposure_start_ns(pose)?;
-        let sun = self
-            .clock
-            .sun_at(pose, t_ns.saturating_add(self.half_exposure_ns))?;
         // buffers the writer has finished with come back: codes (Mono16) or packed bytes
         let mut bytes = Vec::new();
         if let Some(p) = self.spare_payload() {
@@ -299,25 +286,22 @@ impl FrameMaker {
         }
         let codes = std::mem::take(&mut self.codes);
         // the payload and its CRC come with the frame (the fast path takes the Mono16 CRC band
-        // by band, packing takes it chunk by chunk)
+        // by band, packing takes it chunk by chunk); a bag's image has the codes behind room
+        // for the message's CDR prefix
         let (lead, fmt) = (self.kind.lead, self.kind.format);
-        let (mut frame, info, crc) = if lead > 0 {
-            // a bag's mono16 image: the codes behind room for the message's CDR prefix, no CRC
-            let (f, i) =
-                self.pipe
-                    .frame_at_after(sun, &pose.attitude, pose.t_s, index, codes, lead)?;
-            (f, i, None)
-        } else {
-            self.pipe.frame_payload_at(
-                sun,
-                &pose.attitude,
-                pose.t_s,
-                index,
-                codes,
-                fmt,
-                &mut bytes,
-            )?
-        };
+        let mut req = self
+            .clock
+            .request(index, pose, self.half_exposure_ns)?
+            .into_codes(codes, lead)
+            .with_payload(fmt, bytes);
+        req.truth = self.kind.truth;
+        let FrameResult {
+            mut frame,
+            record,
+            payload_crc: crc,
+            bytes,
+            ..
+        } = self.pipe.render(req)?;
         // little-endian Mono16 is the code buffer itself: no packing pass
         let payload = match frame.lead_buffer.take() {
             Some(m) => Payload::Message(m, lead),
@@ -326,65 +310,14 @@ impl FrameMaker {
             }
             None => Payload::Bytes(bytes),
         };
-        let m = pose.attitude.enu_to_camera(sun.azimuth_deg);
-        let sun_c = m * sun.vector();
-        let intr = self.pipe.config().camera.intrinsics;
-        let mut flags = 0;
-        if frame.saturated.iter().any(|&n| n > 0) {
-            flags |= FLAG_SATURATION;
-        }
-        if !info.sky_valid {
-            flags |= FLAG_SKY_INVALID;
-        }
-        if sun_in_view(&intr, sun_c, sun.elevation_deg()) || info.sun_pixels > 0 {
-            flags |= FLAG_SUN_IN_VIEW;
-        }
-        if ground_in_view(&intr, &m) {
-            flags |= FLAG_GROUND_IN_VIEW;
-        }
-        if frame.auto_exposed {
-            flags |= FLAG_AUTO_EXPOSURE;
-        }
-        if frame.exposure_clipped {
-            flags |= FLAG_EXPOSURE_CLIPPED;
-        }
+        let mut meta = FrameMeta::of_record(&record, self.bits_valid);
         if last {
-            flags |= FLAG_LAST;
+            meta.flags |= FLAG_LAST;
         }
-        let place = self.clock.place(pose);
-        let exposure_ns = seconds_to_ns(frame.exposure_us * 1e-6)?;
-        // payload DN: Mono8 keeps the top 8 of `bit_depth` bits
-        let black_scale = 2f64.powi(self.bits_valid as i32 - frame.bit_depth as i32);
-        let meta = FrameMeta {
-            index,
-            flags,
-            exposure_start_ns: t_ns,
-            exposure_end_ns: t_ns.saturating_add(exposure_ns),
-            host_time_ns: 0,
-            exposure_us: frame.exposure_us,
-            gain_db: frame.gain_db,
-            black_level: frame.black_level_dn * black_scale,
-            temperature_c: self.pipe.sensor_config().temperature_c,
-            sun_azimuth_deg: sun.azimuth_deg,
-            sun_elevation_deg: sun.elevation_deg(),
-            sun_camera: sun_c.to_array(),
-            attitude_wxyz: camera_to_enu_quaternion(&m),
-            lat_deg: place.map_or(0.0, |p| p.lat_deg),
-            lon_deg: place.map_or(0.0, |p| p.lon_deg),
-            height_m: place.map_or(0.0, |p| p.height_m),
-            saturated: frame.saturated,
-            turbidity: self.turbidity,
-            albedo: self.albedo,
-        };
-        let truth = if self.kind.truth {
-            let sky = &self.pipe.config().sky;
-            let (st, _) = self.pipe.stokes_in(sky, sun, &pose.attitude, pose.t_s)?;
-            frame.truth = self.pipe.sensor().truth_for(&st, frame.exposure_us);
+        let truth = self.kind.truth.then(|| {
             let (dolp, aolp) = frame.truth_dolp_aolp();
-            Some((dolp.data, aolp.data))
-        } else {
-            None
-        };
+            (dolp.data, aolp.data)
+        });
         self.codes = frame.codes.data;
         Ok(Rendered {
             meta,
@@ -393,38 +326,6 @@ impl FrameMaker {
             truth,
         })
     }
-}
-
-/// The sun's centre projects inside the image (and the sun is above the horizon).
-fn sun_in_view(intr: &psns::camera::Intrinsics, sun_c: glam::DVec3, elevation_deg: f64) -> bool {
-    if elevation_deg < 0.0 {
-        return false;
-    }
-    match intr.project(sun_c) {
-        Some((c, r)) => {
-            (-0.5..=intr.width as f64 - 0.5).contains(&c)
-                && (-0.5..=intr.height as f64 - 0.5).contains(&r)
-        }
-        None => false,
-    }
-}
-
-/// Some pixel looks below the horizon. The up component of a ray is linear over the image plane,
-/// so its minimum over the image is at a corner.
-/// A fisheye's horizon is curved: its pixels are checked every 4 pixels and along the border.
-fn ground_in_view(intr: &psns::camera::Intrinsics, enu_to_camera: &DMat3) -> bool {
-    let cam_to_enu = enu_to_camera.transpose();
-    let below = |c: f64, r: f64| intr.ray(c, r).is_some_and(|d| (cam_to_enu * d).z < 0.0);
-    let (w, h) = (intr.width as f64 - 0.5, intr.height as f64 - 0.5);
-    if intr.projection == psns::camera::Projection::Rectilinear {
-        return [(-0.5, -0.5), (w, -0.5), (-0.5, h), (w, h)]
-            .iter()
-            .any(|&(c, r)| below(c, r));
-    }
-    let (wu, hu) = (intr.width, intr.height);
-    let cols = (0..wu).step_by(4).chain([wu - 1]);
-    cols.flat_map(|c| (0..hu).step_by(4).chain([hu - 1]).map(move |r| (c, r)))
-        .any(|(c, r)| below(c as f64, r as f64))
 }
 
 /// The file header for a scene: sensor description, camera constants, seed and the scene as JSON.
@@ -641,8 +542,6 @@ pub fn run_stream(
         },
         kind,
         bits_valid: packing::bits_valid(kind.format, sc.bit_depth),
-        turbidity: cfg.sky.turbidity as f32,
-        albedo: cfg.sky.albedo as f32,
         codes: Vec::new(),
         spare: None,
         made: 0,
@@ -738,7 +637,6 @@ pub fn run_stream(
 #[cfg(test)]
 mod tests {
     use super::*;
-    use psns::camera::{Attitude, Intrinsics};
 
     #[test]
     fn terminal_stdout_is_refused_files_and_pipes_are_not() {
@@ -751,35 +649,6 @@ mod tests {
         );
         assert!(refuse_terminal(Path::new("-"), false).is_none());
         assert!(refuse_terminal(Path::new("run.psns"), true).is_none());
-    }
-
-    #[test]
-    fn ground_in_view_by_corners() {
-        let i = Intrinsics {
-            width: 64,
-            height: 48,
-            pixel_pitch_um: 130.0,
-            ..Default::default()
-        };
-        let up = Attitude::enu(0.0, 0.0, 0.0).enu_to_camera(0.0);
-        assert!(!ground_in_view(&i, &up));
-        let tilted = Attitude::enu(0.0, 80.0, 0.0).enu_to_camera(0.0);
-        assert!(ground_in_view(&i, &tilted));
-    }
-
-    #[test]
-    fn sun_at_zenith_is_in_view() {
-        let i = Intrinsics {
-            width: 64,
-            height: 48,
-            pixel_pitch_um: 130.0,
-            ..Default::default()
-        };
-        let m = Attitude::enu(0.0, 0.0, 0.0).enu_to_camera(0.0);
-        let s = SunPosition::new(1.0, 100.0);
-        assert!(sun_in_view(&i, m * s.vector(), s.elevation_deg()));
-        let s = SunPosition::new(85.0, 100.0);
-        assert!(!sun_in_view(&i, m * s.vector(), s.elevation_deg()));
     }
 
     #[test]
