@@ -40,6 +40,28 @@ def test_camera_frames_are_the_stream_frames(psns_bin, tmp_path):
     assert not np.array_equal(cam.frame(yaw=10, pitch=1, roll=-2, frame_index=5), got[0][2])
 
 
+def test_camera_meta_is_the_stream_frame_header(psns_bin, tmp_path):
+    """meta is the frame record the stream's header derives from, class fractions included."""
+    world = ("--canyon", "20,6,30", "--projection", "equidistant", "--focal-length", "0.4")
+    path = tmp_path / "w.psns"
+    stream_file(psns_bin, path, world)
+    cam = psns.Camera(width=W, height=H, seed=9, frame="enu", canyon="20,6,30",
+                      projection="equidistant", focal_length=0.4, **SUN)
+    for (i, head, frame), (_, y, p, r) in zip(psns.open_stream(path), POSES):
+        mine, m = cam.frame(yaw=y, pitch=p, roll=r, frame_index=i, meta=True)
+        assert np.array_equal(mine, frame), i
+        assert m["frame_index"] == head["index"] == i
+        for k in ("exposure_us", "gain_db", "sun_azimuth_deg", "sun_camera", "attitude_wxyz",
+                  "saturated"):
+            assert m[k] == head[k], (k, m[k], head[k])
+        assert head["flags"] & (1 << 8)
+        got = np.array(head["class_fractions"], dtype=np.float32)
+        assert np.array_equal(np.array(m["class_fractions"], dtype=np.float32), got)
+        assert abs(sum(m["class_fractions"]) - 1) < 1e-9 and m["class_fractions"][3] > 0.05
+    _, m = psns.Camera(width=W, height=H).frame(meta=True)
+    assert m["class_fractions"] is None
+
+
 def test_camera_defaults_and_meta():
     cam = psns.Camera(width=64, height=48, seed=1, frame_index=7)
     a, m = cam.frame(meta=True)

@@ -15,7 +15,9 @@ use clap::ValueEnum;
 use psns::camera::Intrinsics;
 use psns::error::{Error, Result};
 use psns::ros2::metadata::{BagInfo, Topic, OFFERED_QOS_V8};
-use psns::ros2::msg::{CameraInfo, Header, Image, Message, PoseStamped, TfMessage, Vector3Stamped};
+use psns::ros2::msg::{
+    CameraInfo, Float64MultiArray, Header, Image, Message, PoseStamped, TfMessage, Vector3Stamped,
+};
 use psns::ros2::{self as ros, FrameId, ImageEncoding, Time};
 use psns::stream::{FileHeader, FrameMeta};
 use std::collections::BTreeMap;
@@ -483,6 +485,8 @@ struct Channels {
     sun: u16,
     tf: u16,
     truth: Option<(u16, u16)>,
+    /// Added with the first frame that has class fractions (a world around the camera).
+    classes: Option<u16>,
 }
 
 /// Writes psns frames into a bag: per frame the raw image, camera info, pose, sun and the
@@ -531,6 +535,7 @@ impl BagWriter {
                 sun,
                 tf,
                 truth,
+                classes: None,
             },
             buf: Vec::new(),
         })
@@ -626,6 +631,19 @@ impl BagWriter {
         self.put(self.channels.pose, seq, stamp, &pose)?;
         self.put(self.channels.sun, seq, stamp, &sun)?;
         self.put(self.channels.tf, seq, stamp, &tf)?;
+        if let Some(a) = ros::classes(meta) {
+            let ch = match self.channels.classes {
+                Some(ch) => ch,
+                None => {
+                    let (name, t) = (ros::TOPIC_TRUTH_CLASSES, Float64MultiArray::TYPE);
+                    let ch = self
+                        .bag
+                        .add_psns_topic(name, t, Float64MultiArray::SCHEMA)?;
+                    *self.channels.classes.insert(ch)
+                }
+            };
+            self.put(ch, seq, stamp, &a.to_cdr()?)?;
+        }
         if let (Some((cd, ca)), Some((dolp, aolp))) = (self.channels.truth, truth) {
             for (ch, px) in [(cd, dolp), (ca, aolp)] {
                 let bytes: &[u8] = bytemuck::cast_slice(px);

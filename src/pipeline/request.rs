@@ -14,9 +14,21 @@ use crate::sky::SkyParams;
 use crate::sun::{Place, SunPosition};
 use glam::{DMat3, DVec3};
 
-/// Every `CLASS_STRIDE`-th pixel in each direction is classified for a frame's
-/// [`FrameRecord::class_fractions`] (1/256 of the pixels: a fraction to about 2e-4 on a full frame).
-pub const CLASS_STRIDE: usize = 16;
+/// Pixels classified at most (about) for a frame's [`FrameRecord::class_fractions`]: every
+/// [`class_stride`]-th pixel in each direction.
+pub const CLASS_SAMPLES: usize = 1 << 16;
+
+/// The stride of the class count in a `width` x `height` frame: every pixel up to
+/// [`CLASS_SAMPLES`] pixels, then every k-th in each direction (8 on the full sensor).
+///
+/// ```
+/// use psns::pipeline::class_stride;
+/// assert_eq!(class_stride(320, 256), 1);
+/// assert_eq!(class_stride(2448, 2048), 8);
+/// ```
+pub fn class_stride(width: usize, height: usize) -> usize {
+    (((width * height) as f64 / CLASS_SAMPLES as f64).sqrt() as usize).max(1)
+}
 
 /// What a frame shows.
 #[derive(Clone, Copy, Debug)]
@@ -376,10 +388,12 @@ impl RawPipeline {
         }
         let cam = Camera::new(self.cfg.camera.intrinsics, attitude, sun.azimuth_deg)?;
         let sky = self.sky_for(sun, params, t_s)?;
+        let i = &self.cfg.camera.intrinsics;
+        let stride = class_stride(i.width, i.height);
         Ok(Some(render::class_fractions(
             &sky,
             &cam,
-            CLASS_STRIDE,
+            stride,
             info.sun_pixels,
         )))
     }

@@ -19,8 +19,8 @@ use crate::error::{Error, Result};
 use crate::sensor::packing::PixelFormat;
 use crate::stream::FrameMeta;
 use msg::{
-    CameraInfo, DistortionModel, Header, PoseStamped, RegionOfInterest, TfMessage,
-    TransformStamped, Vector3Stamped,
+    CameraInfo, DistortionModel, Float64MultiArray, Header, PoseStamped, RegionOfInterest,
+    TfMessage, TransformStamped, Vector3Stamped,
 };
 
 /// The raw mosaic, `sensor_msgs/msg/Image`.
@@ -38,6 +38,8 @@ pub const TOPIC_TF: &str = "/tf";
 pub const TOPIC_TRUTH_DOLP: &str = "/psns/truth/dolp";
 /// The ground-truth angle of linear polarization (degrees, sensor convention), `32FC1` images.
 pub const TOPIC_TRUTH_AOLP: &str = "/psns/truth/aolp";
+/// The fraction of the image in each class, for frames with a world around the camera.
+pub const TOPIC_TRUTH_CLASSES: &str = "/psns/truth/classes";
 
 /// The coordinate frames psns messages are in (`header.frame_id`).
 ///
@@ -240,6 +242,29 @@ pub fn sun(meta: &FrameMeta) -> Result<Vector3Stamped> {
             frame_id: FrameId::Enu,
         },
         vector: v.to_array(),
+    })
+}
+
+/// The `std_msgs/msg/Float64MultiArray` of a frame's class fractions when it has them
+/// ([`crate::stream::FLAG_CLASSES`]): one dimension labelled with the class names in order.
+///
+/// ```
+/// use psns::stream::{FrameMeta, FLAG_CLASSES};
+/// let mut m = FrameMeta { class_fractions: [0.0, 0.5, 0.0, 0.5, 0.0, 0.0], ..Default::default() };
+/// assert!(psns::ros2::classes(&m).is_none());
+/// m.flags |= FLAG_CLASSES;
+/// let a = psns::ros2::classes(&m).unwrap();
+/// assert_eq!(a.label, "outside,sky,cloud,obstruction,ground,sun");
+/// assert_eq!(a.data, [0.0, 0.5, 0.0, 0.5, 0.0, 0.0]);
+/// ```
+pub fn classes(meta: &FrameMeta) -> Option<Float64MultiArray> {
+    if meta.flags & crate::stream::FLAG_CLASSES == 0 {
+        return None;
+    }
+    let names: Vec<&str> = crate::world::Class::ALL.iter().map(|c| c.name()).collect();
+    Some(Float64MultiArray {
+        label: names.join(","),
+        data: meta.class_fractions.iter().map(|&f| f as f64).collect(),
     })
 }
 

@@ -472,6 +472,40 @@ impl Message for TfMessage {
     }
 }
 
+/// `std_msgs/msg/Float64MultiArray` of one dimension: `data` with the dimension's `label`.
+#[derive(Clone, Debug, PartialEq)]
+pub struct Float64MultiArray {
+    /// What the elements are.
+    pub label: String,
+    /// The values.
+    pub data: Vec<f64>,
+}
+
+impl Message for Float64MultiArray {
+    const TYPE: &'static str = "std_msgs/msg/Float64MultiArray";
+    const SCHEMA: &'static str = concat!(
+        "std_msgs/MultiArrayLayout layout\nfloat64[] data\n",
+        dep!(
+            "std_msgs/MultiArrayLayout",
+            "std_msgs/MultiArrayDimension[] dim\nuint32 data_offset\n"
+        ),
+        dep!(
+            "std_msgs/MultiArrayDimension",
+            "string label\nuint32 size\nuint32 stride\n"
+        ),
+    );
+    fn encode(&self, w: &mut CdrWriter) -> Result<()> {
+        let n = u32::try_from(self.data.len())
+            .map_err(|_| Error::Invalid(format!("{} values in one array", self.data.len())))?;
+        w.seq_len(1)?;
+        w.string(&self.label)?;
+        w.u32(n); // size
+        w.u32(n); // stride
+        w.u32(0); // data_offset
+        w.f64_seq(&self.data)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -153,4 +153,37 @@ fn stream_frame_0_is_render_raw_with_a_world() {
     assert_eq!(raw, got, "render --raw and stream frame 0 differ");
     let open = std::fs::read(open_sky.join("raw.tiff")).unwrap();
     assert_ne!(raw, open, "the world is not in the frame");
+    // the frame header carries the class fractions of the render's class image (every pixel
+    // counted at this size)
+    let text = std::fs::read_to_string(out.join("scene.json")).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let meta = first_frame(&stream);
+    assert!(meta.flags & psns::stream::FLAG_CLASSES != 0);
+    for (k, c) in psns::world::Class::ALL.iter().enumerate() {
+        let want = v["derived"]["class_fractions"][c.name()].as_f64().unwrap();
+        let got = meta.class_fractions[k] as f64;
+        assert!((got - want).abs() < 1e-3, "{}: {got} vs {want}", c.name());
+    }
+    assert!(meta.class_fractions[psns::world::Class::Obstruction as usize] > 0.05);
+    // the open sky's frames have none
+    let open_stream = dir.path().join("open.psns");
+    let mut a = vec!["stream", "--frames", "1", "--out", s(&open_stream)];
+    a.extend_from_slice(&SMALL);
+    a.extend_from_slice(&camera);
+    assert!(psns(&a).status.success());
+    let meta = first_frame(&open_stream);
+    assert_eq!(meta.flags & psns::stream::FLAG_CLASSES, 0);
+    assert_eq!(meta.class_fractions, [0.0; 6]);
+}
+
+/// The frame header of a stream file's first frame.
+fn first_frame(p: &Path) -> psns::stream::FrameMeta {
+    let f = std::fs::File::open(p).unwrap();
+    let mut rd = psns::stream::StreamReader::new(std::io::BufReader::new(f)).unwrap();
+    loop {
+        match rd.next_event().unwrap().expect("a frame") {
+            psns::stream::Event::Frame(f) => return f.meta,
+            _ => continue,
+        }
+    }
 }

@@ -8,7 +8,8 @@ use crate::common;
 use common::{psns, psns_stdin, python_cmd, stderr};
 use psns::camera::{Intrinsics, Projection};
 use psns::ros2::msg::{
-    Header, Image, Message, PoseStamped, TfMessage, TransformStamped, Vector3Stamped,
+    Float64MultiArray, Header, Image, Message, PoseStamped, TfMessage, TransformStamped,
+    Vector3Stamped,
 };
 use psns::ros2::{self, FrameId, ImageEncoding, Time};
 use serde_json::json;
@@ -209,6 +210,20 @@ fn cdr_of_every_message_equals_rosbags_serialize_cdr() {
         };
         cases.push((tf_of(tfs), m.to_cdr().unwrap(), TfMessage::SCHEMA));
     }
+    // arrays of class fractions: none, and six (the doubles start 8-aligned after the label)
+    for data in [vec![], vec![0.0, 0.25, 0.5, 0.125, 0.125, 1e-300]] {
+        for label in ["outside,sky,cloud,obstruction,ground,sun", "x"] {
+            let a = Float64MultiArray {
+                label: label.into(),
+                data: data.clone(),
+            };
+            cases.push((
+                json!({"kind": "float64_array", "value": {"label": label, "data": data}}),
+                a.to_cdr().unwrap(),
+                Float64MultiArray::SCHEMA,
+            ));
+        }
+    }
     let file = d.path().join("cases.json");
     let values: Vec<_> = cases.iter().map(|c| c.0.clone()).collect();
     std::fs::write(&file, serde_json::to_string(&values).unwrap()).unwrap();
@@ -380,6 +395,50 @@ fn convert_of_a_stream_equals_the_direct_bag() {
         assert_eq!(bag_bytes(&direct), bag_bytes(&conv2), "stdin {fmt} {pix}");
         check(&["bag", s(&conv), s(&psns_file)]);
     }
+}
+
+#[test]
+fn a_world_adds_the_class_fractions_topic() {
+    let d = tempfile::tempdir().unwrap();
+    // a zenith fisheye in a street canyon: every class but cloud and sun in view
+    let opts = [
+        &SMALL[..],
+        &[
+            "--frames",
+            "3",
+            "--projection",
+            "equidistant",
+            "--focal-length",
+            "0.2",
+            "--canyon",
+            "20,6,30",
+        ],
+    ]
+    .concat();
+    let psns_file = d.path().join("run.psns");
+    stream(&[&opts[..], &["--out", s(&psns_file)]].concat());
+    for x in ["direct", "conv"] {
+        std::fs::create_dir_all(d.path().join(x)).unwrap();
+    }
+    let bag = d.path().join("direct/run");
+    stream(&[&opts[..], &["--format", "rosbag2", "--out", s(&bag)]].concat());
+    // the checker holds each frame's message to the stream header's fractions
+    let out = check(&["bag", s(&bag), s(&psns_file)]);
+    assert!(out.contains("ok: 3 frames, 6 topics"), "{out}");
+    let y = std::fs::read_to_string(bag.join("metadata.yaml")).unwrap();
+    assert!(y.contains("name: \"/psns/truth/classes\""), "{y}");
+    // converted from the stream: the same bag
+    let conv = d.path().join("conv/run");
+    let o = psns(&[
+        "convert",
+        s(&psns_file),
+        "--format",
+        "rosbag2",
+        "--out",
+        s(&conv),
+    ]);
+    assert!(o.status.success(), "{}", stderr(&o));
+    assert_eq!(bag_bytes(&bag), bag_bytes(&conv));
 }
 
 #[test]

@@ -35,6 +35,9 @@ TOPICS = {
     "/tf": "tf2_msgs/msg/TFMessage",
 }
 TRUTH = {"/psns/truth/dolp": "sensor_msgs/msg/Image", "/psns/truth/aolp": "sensor_msgs/msg/Image"}
+CLASSES = {"/psns/truth/classes": "std_msgs/msg/Float64MultiArray"}
+CLASS_NAMES = "outside,sky,cloud,obstruction,ground,sun"
+FLAG_CLASSES = 1 << 8
 
 
 def T(name):
@@ -82,6 +85,12 @@ def make(kind, v):
             tfs.append(T(G + "TransformStamped")(header=header(t["header"]),
                                                  child_frame_id=t["child_frame_id"], transform=tr))
         return T("tf2_msgs/msg/TFMessage")(transforms=tfs)
+    if kind == "float64_array":
+        S = "std_msgs/msg/"
+        dim = T(S + "MultiArrayDimension")(label=v["label"], size=len(v["data"]),
+                                            stride=len(v["data"]))
+        return T(S + "Float64MultiArray")(layout=T(S + "MultiArrayLayout")(dim=[dim], data_offset=0),
+                                          data=np.array(v["data"], dtype=np.float64))
     if kind == "vector3":
         x, y, z = v["vector"]
         return T("geometry_msgs/msg/Vector3Stamped")(
@@ -153,6 +162,16 @@ def check_frames(reader, conns, msgs, hdr, frames, want_topics):
         t0 = meta["exposure_start_ns"]
         for topic in want_topics:
             t, m = msgs[topic][k]
+            if topic in CLASSES:
+                # no header: the log time is the stamp; the values are the stream header's
+                assert t == t0, (reader, topic, k, t, t0)
+                dims = m.layout.dim
+                assert len(dims) == 1 and dims[0].label == CLASS_NAMES, dims
+                assert dims[0].size == dims[0].stride == 6 and m.layout.data_offset == 0
+                want = np.array(meta["class_fractions"], dtype=np.float32).astype(np.float64)
+                assert np.array_equal(np.asarray(m.data), want), (reader, k, m.data, want)
+                assert abs(float(np.sum(want)) - 1.0) < 1e-5, want
+                continue
             h = m.transforms[0].header if topic == "/tf" else m.header
             assert t == t0 == stamp_ns(h), (reader, topic, k, t, t0)
         _, im = msgs["/psns/image_raw"][k]
@@ -213,6 +232,10 @@ def quat_matrix(q):
 def cmd_bag(bag, stream, truth=False):
     hdr, frames = stream_frames(stream)
     want = dict(TOPICS, **(TRUTH if truth else {}))
+    if all(meta["flags"] & FLAG_CLASSES for meta, _, _ in frames):
+        want.update(CLASSES)
+    else:
+        assert not any(meta["flags"] & FLAG_CLASSES for meta, _, _ in frames)
     bag = Path(bag)
     mcap_file = bag if bag.suffix == ".mcap" else next(bag.glob("*.mcap"))
     if bag.is_dir():
