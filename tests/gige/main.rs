@@ -1,6 +1,7 @@
 //! `psns gige`: the GigE Vision protocol module without sockets, and the device against Aravis,
 //! a GenICam client nobody here wrote.
 
+mod chunks;
 mod codecs;
 mod device;
 mod harness;
