@@ -3,5 +3,6 @@
 
 mod chunks;
 mod codecs;
+mod completeness;
 mod device;
 mod harness;
