@@ -9,6 +9,11 @@
 //! | Mono12Packed | 0x010C0006 | 1.5 | GigE Vision legacy: b0 = P0\[11:4\]; b1 = P0\[3:0\] \| P1\[3:0\]<<4; b2 = P1\[11:4\] |
 //! | Mono16 | 0x01100007 | 2 | u16 LE, LSB-aligned; MSB-aligned (<< (16 − bits)) on request |
 //!
+//! Each format's properties (PFNC name and code, bits per pixel, packing, Mono8's shift of
+//! deeper codes, Mono16's MSB alignment, the unpacked word) are one row of
+//! [`PixelFormat::info`]; payload sizes, the valid-bits checks, stream recovery, the ROS 2
+//! encoding and the GigE ADC depth derive from it.
+//!
 //! Codes of a 10- or 8-bit sensor sit LSB-aligned in the 12-bit containers. The number of valid
 //! bits in a payload ([`bits_valid`]) is 8 for Mono8 and the sensor bit depth otherwise.
 //! An odd pixel count in a 12-bit format ends with a half group of two bytes (the first two bytes
