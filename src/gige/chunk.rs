@@ -6,8 +6,9 @@
 //! chunk ([`IMAGE_CHUNK_ID`]); the enabled chunks follow in [`ChunkKind::ALL`]'s order. Values are
 //! big-endian: IEEE doubles and unsigned integers of 8 or 4 bytes.
 //!
-//! Every chunk is one row of the table in [`ChunkKind::chunk`]: its ChunkSelector name and its
-//! GenICam features, each a field of the data with its type, unit and description. The encoding
+//! Every chunk is its ChunkSelector name in the name table of [`ChunkKind`] and one row of the
+//! table in [`ChunkKind::chunk`]: its GenICam features, each a field of the data with its type,
+//! unit and description. The encoding
 //! ([`append`]), the data lengths, the GenICam XML's chunk features and the table in
 //! `docs/gige.md` all come from it.
 //!
@@ -121,11 +122,9 @@ impl ChunkFeature {
     }
 }
 
-/// The descriptor of a chunk: its ChunkSelector name and its features.
+/// The descriptor of a chunk: its features (its ChunkSelector name is [`ChunkKind::name`]).
 #[derive(Clone, Copy, Debug)]
 pub struct Chunk {
-    /// The ChunkSelector entry's name.
-    pub selector: &'static str,
     /// Whether the features are SFNC's (GenICam namespace Standard) or psns's own (Custom).
     pub sfnc: bool,
     /// The features, one per field of the data, in the data's order.
@@ -165,28 +164,27 @@ macro_rules! feature {
 const ATTITUDE: &str = "Attitude quaternion of the camera, camera to ENU (w, x, y, z)";
 const REGION: &str = "Region of the frame";
 
-impl ChunkKind {
-    /// Every chunk, in selector (and block) order.
-    pub const ALL: [ChunkKind; 11] = [
-        ChunkKind::ExposureTime,
-        ChunkKind::Gain,
-        ChunkKind::Timestamp,
-        ChunkKind::FrameIndex,
-        ChunkKind::Attitude,
-        ChunkKind::SunPosition,
-        ChunkKind::OffsetX,
-        ChunkKind::OffsetY,
-        ChunkKind::Width,
-        ChunkKind::Height,
-        ChunkKind::PixelFormat,
-    ];
+// the ChunkSelector entries, in selector (and block) order: `ALL` and `name()`
+crate::names::name_table!(ChunkKind {
+    ExposureTime => "ExposureTime",
+    Gain => "Gain",
+    Timestamp => "Timestamp",
+    FrameIndex => "FrameIndex",
+    Attitude => "Attitude",
+    SunPosition => "SunPosition",
+    OffsetX => "OffsetX",
+    OffsetY => "OffsetY",
+    Width => "Width",
+    Height => "Height",
+    PixelFormat => "PixelFormat",
+});
 
+impl ChunkKind {
     /// The chunk's descriptor: the one table of the chunks.
     pub const fn chunk(self) -> &'static Chunk {
         use ChunkField as F;
         match self {
             ChunkKind::ExposureTime => &Chunk {
-                selector: "ExposureTime",
                 sfnc: true,
                 features: &[feature!(
                     "ChunkExposureTime",
@@ -196,7 +194,6 @@ impl ChunkKind {
                 )],
             },
             ChunkKind::Gain => &Chunk {
-                selector: "Gain",
                 sfnc: true,
                 features: &[feature!(
                     "ChunkGain",
@@ -206,7 +203,6 @@ impl ChunkKind {
                 )],
             },
             ChunkKind::Timestamp => &Chunk {
-                selector: "Timestamp",
                 sfnc: true,
                 features: &[feature!(
                     "ChunkTimestamp",
@@ -216,7 +212,6 @@ impl ChunkKind {
                 )],
             },
             ChunkKind::FrameIndex => &Chunk {
-                selector: "FrameIndex",
                 sfnc: false,
                 features: &[feature!(
                     "ChunkFrameIndex",
@@ -226,7 +221,6 @@ impl ChunkKind {
                 )],
             },
             ChunkKind::Attitude => &Chunk {
-                selector: "Attitude",
                 sfnc: false,
                 features: &[
                     feature!(
@@ -256,7 +250,6 @@ impl ChunkKind {
                 ],
             },
             ChunkKind::SunPosition => &Chunk {
-                selector: "SunPosition",
                 sfnc: false,
                 features: &[
                     feature!(
@@ -274,7 +267,6 @@ impl ChunkKind {
                 ],
             },
             ChunkKind::OffsetX => &Chunk {
-                selector: "OffsetX",
                 sfnc: true,
                 features: &[feature!(
                     "ChunkOffsetX",
@@ -284,7 +276,6 @@ impl ChunkKind {
                 )],
             },
             ChunkKind::OffsetY => &Chunk {
-                selector: "OffsetY",
                 sfnc: true,
                 features: &[feature!(
                     "ChunkOffsetY",
@@ -294,7 +285,6 @@ impl ChunkKind {
                 )],
             },
             ChunkKind::Width => &Chunk {
-                selector: "Width",
                 sfnc: true,
                 features: &[feature!(
                     "ChunkWidth",
@@ -304,7 +294,6 @@ impl ChunkKind {
                 )],
             },
             ChunkKind::Height => &Chunk {
-                selector: "Height",
                 sfnc: true,
                 features: &[feature!(
                     "ChunkHeight",
@@ -314,7 +303,6 @@ impl ChunkKind {
                 )],
             },
             ChunkKind::PixelFormat => &Chunk {
-                selector: "PixelFormat",
                 sfnc: true,
                 features: &[feature!(
                     "ChunkPixelFormat",
@@ -324,11 +312,6 @@ impl ChunkKind {
                 )],
             },
         }
-    }
-
-    /// The ChunkSelector entry's name.
-    pub fn name(self) -> &'static str {
-        self.chunk().selector
     }
 
     /// The chunk id.

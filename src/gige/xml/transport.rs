@@ -52,7 +52,7 @@ pub(super) fn chunks(x: &mut X) {
     }
     for k in ChunkKind::ALL {
         let c = k.chunk();
-        let port = format!("Chunk{}Port", c.selector);
+        let port = format!("Chunk{}Port", k.name());
         for (offset, f) in c.layout() {
             chunk_feature(x, c.sfnc, &port, offset, f);
         }
