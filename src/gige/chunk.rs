@@ -8,9 +8,8 @@
 //!
 //! Every chunk is its ChunkSelector name in the name table of [`ChunkKind`] and one row of the
 //! table in [`ChunkKind::chunk`]: its GenICam features, each a field of the data with its type,
-//! unit and description. The encoding
-//! ([`append`]), the data lengths, the GenICam XML's chunk features and the table in
-//! `docs/gige.md` all come from it.
+//! unit and description. The encoding ([`append`]), the data lengths, the GenICam XML's chunk
+//! features and the table in `docs/gige.md` all come from them.
 //!
 //! ```
 //! use psns::gige::chunk::{append, chunks, ChunkKind, ChunkValues, IMAGE_CHUNK_ID};
