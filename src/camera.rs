@@ -627,17 +627,6 @@ impl Camera {
     pub fn pixel_direction(&self, col: f64, row: f64) -> Option<DVec3> {
         Some((self.enu_to_camera.transpose() * self.intrinsics.ray(col, row)?).normalize())
     }
-
-    /// Sensor AOP (degrees, [0, 180), from +x toward +y) of an ENU E-vector seen along the ENU
-    /// view direction `d_enu`, through the camera's lens.
-    #[inline]
-    pub fn sensor_aop_deg(&self, d_enu: DVec3, e_enu: DVec3) -> f64 {
-        let a = self
-            .intrinsics
-            .lens()
-            .sensor_angle(self.enu_to_camera * d_enu, self.enu_to_camera * e_enu);
-        crate::angle::SensorAngle::from_deg(a.to_degrees()).deg()
-    }
 }
 
 #[cfg(test)]

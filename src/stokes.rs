@@ -115,26 +115,6 @@ pub fn debiased_dolp_image(st: &StokesImage, sigma: f32) -> Image<f32> {
     d
 }
 
-/// AoLP (degrees, [0, 180)) of the mean Stokes vector of a region: the doubled-angle circular
-/// mean, which has no seam at 0°/180°. `None` for an empty or unpolarized region.
-pub fn region_aolp_deg(
-    st: &StokesImage,
-    rows: std::ops::Range<usize>,
-    cols: std::ops::Range<usize>,
-) -> Option<f64> {
-    let (mut s1, mut s2) = (0f64, 0f64);
-    for r in rows.start..rows.end.min(st.height()) {
-        for c in cols.start..cols.end.min(st.width()) {
-            s1 += st.s1.get(r, c).to_owned() as f64;
-            s2 += st.s2.get(r, c).to_owned() as f64;
-        }
-    }
-    if s1 == 0.0 && s2 == 0.0 {
-        return None;
-    }
-    Some(crate::angle::SensorAngle::from_stokes(s1, s2).deg())
-}
-
 /// Doubled-angle circular mean of AoLP values in degrees (period 180°), in [0, 180).
 pub fn circular_mean_aolp_deg(values: impl IntoIterator<Item = f64>) -> Option<f64> {
     let (mut c, mut s) = (0f64, 0f64);

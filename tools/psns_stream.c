@@ -293,7 +293,8 @@ static void unpack(const stream_header *h, const uint8_t *restrict p, uint16_t *
             for (i = 0; i < n; i++) v[i] = (uint16_t)(v[i] >> shift);
         break;
     }
-    default: { /* two pixels in three bytes; an odd count ends with a half group */
+    case 0x010C0047:
+    case 0x010C0006: { /* two pixels in three bytes; an odd count ends with a half group */
         int p12 = h->pfnc == 0x010C0047;
         i = 0;
 #ifdef SIMD_SSSE3
@@ -317,7 +318,10 @@ static void unpack(const stream_header *h, const uint8_t *restrict p, uint16_t *
         if (i < n)
             v[i] = p12 ? (uint16_t)(p[0] | ((p[1] & 0x0F) << 8))
                        : (uint16_t)((p[0] << 4) | (p[1] & 0x0F));
+        break;
     }
+    default: /* the header check accepts no other format */
+        abort();
     }
 }
 

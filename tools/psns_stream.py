@@ -32,7 +32,11 @@ FRAME_MAGIC = b"\x89PSNSFRM"
 END_MAGIC = b"\x89PSNSEND"
 END_REASON_MAX = 228
 REASON_NOT_RECORDED = "reason not recorded (the header is marked aborted, the end record is missing)"
-PFNC = {0x01080001: "Mono8", 0x010C0047: "Mono12p", 0x010C0006: "Mono12Packed", 0x01100007: "Mono16"}
+# the pixel formats, one row each: PFNC code -> (name, bits per pixel); a payload of n pixels
+# is ceil(n * bits / 8) bytes
+FORMATS = {0x01080001: ("Mono8", 8), 0x010C0047: ("Mono12p", 12), 0x010C0006: ("Mono12Packed", 12),
+           0x01100007: ("Mono16", 16)}
+PFNC = {code: name for code, (name, _) in FORMATS.items()}
 CAMERA = ["pixel_pitch_um", "focal_length_mm", "f_number", "wavelength_nm", "bandwidth_nm",
           "full_well_e", "k0_dn_per_e", "read_noise_e", "principal_col", "principal_row"]
 
@@ -56,13 +60,19 @@ class StreamError(Exception):
 
 
 MAX_PAYLOAD = 1 << 30
-CONTAINER_BITS = {"Mono8": 8, "Mono12p": 12, "Mono12Packed": 12, "Mono16": 16}
+CONTAINER_BITS = {name: bits for name, bits in FORMATS.values()}
 
 
 def payload_size(fmt, w, h):
     """Payload bytes of one w x h frame (Python ints: no overflow)."""
-    n = w * h
-    return {"Mono8": n, "Mono16": 2 * n}.get(fmt, (3 * n + 1) // 2)
+    return -(-w * h * CONTAINER_BITS[fmt] // 8)
+
+
+def pixel_counts(fmt, p):
+    """The pixel counts whose payload in format fmt is p bytes."""
+    bits = CONTAINER_BITS[fmt]
+    n = 8 * p // bits
+    return [k for k in (n, n + 1) if -(-k * bits // 8) == p]
 
 
 def stride_for(p):
@@ -216,7 +226,7 @@ def unpack(payload, hdr):
         v = b.view("<u2").astype(np.uint16)
         if hdr["msb_aligned"]:
             v = v >> (16 - hdr["bits_valid"])
-    else:
+    elif fmt in ("Mono12p", "Mono12Packed"):
         pad = np.zeros(-len(b) % 3, np.uint8)
         g = np.concatenate([b, pad]).reshape(-1, 3).astype(np.uint16)
         if fmt == "Mono12p":
@@ -225,6 +235,8 @@ def unpack(payload, hdr):
             p0 = (g[:, 0] << 4) | (g[:, 1] & 0x0F)
         p1 = (g[:, 1] >> 4) | (g[:, 2] << 4)
         v = np.stack([p0, p1], axis=1).reshape(-1)[:n]
+    else:
+        raise StreamError("no unpacking for %s" % fmt)
     return v.reshape(h, w)
 
 
@@ -326,13 +338,7 @@ def recover_header(buf, eof, damage, width=None, height=None, pixel_format=None)
             ws = width if width else w_s
             hs = height if height else h_s
             pairs = [(ws, hs)]
-            if fmt == "Mono8":
-                ns = [target]
-            elif fmt == "Mono16":
-                ns = [target // 2] if target % 2 == 0 else []
-            else:
-                ns = [n for n in (2 * target // 3, 2 * target // 3 + 1) if (3 * n + 1) // 2 == target]
-            for n in ns:
+            for n in pixel_counts(fmt, target):
                 if not width and hs and n % hs == 0:
                     pairs.append((n // hs, hs))
                 if not height and ws and n % ws == 0:

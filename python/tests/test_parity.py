@@ -1,6 +1,7 @@
 """The Python functions give what the CLI gives for the same options, bit for bit."""
 
 import io
+import re
 import numpy as np
 import pytest
 
@@ -38,6 +39,30 @@ def test_render_in_a_world_matches_cli(psns_bin, tmp_path):
         assert np.array_equal(py[k], np.load(tmp_path / "o" / f"{k}.npy"), equal_nan=True), k
     # walls and clouds are in the picture
     assert (py["class"] == 3).mean() > 0.1 and (py["class"] == 2).mean() > 0.01
+
+
+def model_names(psns_bin):
+    """The polarization models, in the library's table's order: the values the CLI allows."""
+    r = run(psns_bin, "render", "--model", "nope", ok=False)
+    m = re.search(r"\[possible values: ([^\]]+)\]", r.stderr)
+    assert m, r.stderr
+    return [n.strip() for n in m.group(1).split(",")]
+
+
+def test_every_sky_model_matches_cli(psns_bin, tmp_path):
+    names = model_names(psns_bin)
+    assert "wang" in names and "rayleigh" in names, names
+    seen = {}
+    for m in names:
+        opts = dict(SMALL, **SCENE, model=m)
+        run(psns_bin, "render", *cli_args(opts), "--out", tmp_path / m)
+        py = psns.render(**opts)
+        for k in ("li", "dop", "aop"):
+            want = np.load(tmp_path / m / f"{k}.npy")
+            assert np.array_equal(py[k], want, equal_nan=True), (m, k)
+        key = py["dop"].tobytes() + py["aop"].tobytes()
+        assert key not in seen, f"{m} gives the sky of {seen.get(key)}"
+        seen[key] = m
 
 
 @pytest.mark.parametrize("bits", [12, 8])

@@ -211,22 +211,6 @@ pub(crate) fn bilinear_sparse(
     out
 }
 
-/// Stokes planes from four full-resolution channel images (I0, I45, I90, I135).
-pub fn stokes_from_channel_images(ch: &[Image<f32>; 4]) -> Result<StokesImage> {
-    let (w, h) = (ch[0].width, ch[0].height);
-    if ch
-        .iter()
-        .any(|c| c.width != w || c.height != h || c.data.len() != w * h)
-    {
-        return Err(Error::Invalid("channel images differ in size".into()));
-    }
-    Ok(stokes_from_channel_vecs(
-        [&ch[0].data, &ch[1].data, &ch[2].data, &ch[3].data],
-        w,
-        h,
-    ))
-}
-
 pub(crate) fn stokes_from_channel_vecs(ch: [&Vec<f32>; 4], w: usize, h: usize) -> StokesImage {
     let mut st = StokesImage::zeros(w, h);
     st.s0

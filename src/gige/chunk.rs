@@ -4,21 +4,12 @@
 //! The block is a sequence of chunks, each its data followed by an 8-byte trailer: chunk id and
 //! data length (both u32 big-endian), so a client walks it from the end. The image is the first
 //! chunk ([`IMAGE_CHUNK_ID`]); the enabled chunks follow in [`ChunkKind::ALL`]'s order. Values are
-//! big-endian: IEEE doubles, and u64 for the timestamp and the frame index.
+//! big-endian: IEEE doubles and unsigned integers of 8 or 4 bytes.
 //!
-//! | ChunkSelector | id | data | features (GenICam) |
-//! |---|---|---|---|
-//! | ExposureTime | 0x50534E01 | f64, µs | ChunkExposureTime |
-//! | Gain | 0x50534E02 | f64, dB | ChunkGain |
-//! | Timestamp | 0x50534E03 | u64, ticks (ns) | ChunkTimestamp |
-//! | FrameIndex | 0x50534E04 | u64 | ChunkFrameIndex (psns's frame index) |
-//! | Attitude | 0x50534E05 | 4 × f64: w, x, y, z | ChunkAttitudeW/X/Y/Z (camera → ENU) |
-//! | SunPosition | 0x50534E06 | 2 × f64: azimuth, elevation, ° | ChunkSunAzimuth, ChunkSunElevation |
-//! | OffsetX | 0x50534E07 | u32 | ChunkOffsetX |
-//! | OffsetY | 0x50534E08 | u32 | ChunkOffsetY |
-//! | Width | 0x50534E09 | u32 | ChunkWidth |
-//! | Height | 0x50534E0A | u32 | ChunkHeight |
-//! | PixelFormat | 0x50534E0B | u32, the format's code | ChunkPixelFormat |
+//! Every chunk is its ChunkSelector name in the name table of [`ChunkKind`] and one row of the
+//! table in [`ChunkKind::chunk`]: its GenICam features, each a field of the data with its type,
+//! unit and description. The encoding ([`append`]), the data lengths, the GenICam XML's chunk
+//! features and the table in `docs/gige.md` all come from them.
 //!
 //! ```
 //! use psns::gige::chunk::{append, chunks, ChunkKind, ChunkValues, IMAGE_CHUNK_ID};
@@ -65,36 +56,260 @@ pub enum ChunkKind {
     PixelFormat = 10,
 }
 
-impl ChunkKind {
-    /// Every chunk, in selector (and block) order.
-    pub const ALL: [ChunkKind; 11] = [
-        ChunkKind::ExposureTime,
-        ChunkKind::Gain,
-        ChunkKind::Timestamp,
-        ChunkKind::FrameIndex,
-        ChunkKind::Attitude,
-        ChunkKind::SunPosition,
-        ChunkKind::OffsetX,
-        ChunkKind::OffsetY,
-        ChunkKind::Width,
-        ChunkKind::Height,
-        ChunkKind::PixelFormat,
-    ];
+/// A field of a chunk's data: its type, and where [`ChunkValues`] keeps its value. Every field
+/// is big-endian.
+#[derive(Clone, Copy, Debug)]
+pub enum ChunkField {
+    /// An IEEE double (a GenICam FloatReg).
+    F64(fn(&ChunkValues) -> f64),
+    /// An 8-byte unsigned integer (an IntReg).
+    U64(fn(&ChunkValues) -> u64),
+    /// A 4-byte unsigned integer (an IntReg).
+    U32(fn(&ChunkValues) -> u32),
+    /// A pixel format code, 4 bytes (an Enumeration of the device's pixel formats).
+    PixelFormat(fn(&ChunkValues) -> u32),
+}
 
-    /// The ChunkSelector entry's name.
-    pub fn name(self) -> &'static str {
+impl ChunkField {
+    /// Bytes of the field.
+    pub const fn bytes(self) -> usize {
         match self {
-            ChunkKind::ExposureTime => "ExposureTime",
-            ChunkKind::Gain => "Gain",
-            ChunkKind::Timestamp => "Timestamp",
-            ChunkKind::FrameIndex => "FrameIndex",
-            ChunkKind::Attitude => "Attitude",
-            ChunkKind::SunPosition => "SunPosition",
-            ChunkKind::OffsetX => "OffsetX",
-            ChunkKind::OffsetY => "OffsetY",
-            ChunkKind::Width => "Width",
-            ChunkKind::Height => "Height",
-            ChunkKind::PixelFormat => "PixelFormat",
+            ChunkField::F64(_) | ChunkField::U64(_) => 8,
+            ChunkField::U32(_) | ChunkField::PixelFormat(_) => 4,
+        }
+    }
+
+    /// The type as `docs/gige.md` names it: `f64`, `u64` or `u32`.
+    pub const fn type_name(self) -> &'static str {
+        match self {
+            ChunkField::F64(_) => "f64",
+            ChunkField::U64(_) => "u64",
+            ChunkField::U32(_) | ChunkField::PixelFormat(_) => "u32",
+        }
+    }
+
+    /// Appends the field's value in `v`, big-endian.
+    fn write(self, v: &ChunkValues, out: &mut Vec<u8>) {
+        match self {
+            ChunkField::F64(f) => out.extend(f(v).to_be_bytes()),
+            ChunkField::U64(f) => out.extend(f(v).to_be_bytes()),
+            ChunkField::U32(f) | ChunkField::PixelFormat(f) => out.extend(f(v).to_be_bytes()),
+        }
+    }
+}
+
+/// A GenICam feature of a chunk: one field of its data, in the data's order.
+#[derive(Clone, Copy, Debug)]
+pub struct ChunkFeature {
+    /// The feature's name, e.g. `ChunkAttitudeW`.
+    pub name: &'static str,
+    /// Its type and value.
+    pub field: ChunkField,
+    /// Its unit, if it has one.
+    pub unit: Option<&'static str>,
+    /// What it is, without the unit.
+    pub what: &'static str,
+}
+
+impl ChunkFeature {
+    /// The feature's tooltip in the GenICam XML: what it is, then its unit.
+    pub fn tip(&self) -> String {
+        match self.unit {
+            Some(u) => format!("{}, {u}.", self.what),
+            None => format!("{}.", self.what),
+        }
+    }
+}
+
+/// The descriptor of a chunk: its features (its ChunkSelector name is [`ChunkKind::name`]).
+#[derive(Clone, Copy, Debug)]
+pub struct Chunk {
+    /// Whether the features are SFNC's (GenICam namespace Standard) or psns's own (Custom).
+    pub sfnc: bool,
+    /// The features, one per field of the data, in the data's order.
+    pub features: &'static [ChunkFeature],
+}
+
+impl Chunk {
+    /// Data bytes of the chunk: the sum of its fields.
+    pub fn data_len(&self) -> usize {
+        self.features.iter().map(|f| f.field.bytes()).sum()
+    }
+
+    /// Each feature with its byte offset in the chunk's data.
+    pub fn layout(&self) -> impl Iterator<Item = (usize, &'static ChunkFeature)> {
+        let features: &'static [ChunkFeature] = self.features;
+        features.iter().scan(0, |at, f| {
+            let here = *at;
+            *at += f.field.bytes();
+            Some((here, f))
+        })
+    }
+}
+
+/// A [`ChunkFeature`] literal, `feature!(name, field, unit, what)` (a literal, not a call, so
+/// that the table is a constant).
+macro_rules! feature {
+    ($name:literal, $field:expr, $unit:expr, $what:expr $(,)?) => {
+        ChunkFeature {
+            name: $name,
+            field: $field,
+            unit: $unit,
+            what: $what,
+        }
+    };
+}
+
+const ATTITUDE: &str = "Attitude quaternion of the camera, camera to ENU (w, x, y, z)";
+const REGION: &str = "Region of the frame";
+
+// the ChunkSelector entries, in selector (and block) order: `ALL` and `name()`
+crate::names::name_table!(ChunkKind {
+    ExposureTime => "ExposureTime",
+    Gain => "Gain",
+    Timestamp => "Timestamp",
+    FrameIndex => "FrameIndex",
+    Attitude => "Attitude",
+    SunPosition => "SunPosition",
+    OffsetX => "OffsetX",
+    OffsetY => "OffsetY",
+    Width => "Width",
+    Height => "Height",
+    PixelFormat => "PixelFormat",
+});
+
+impl ChunkKind {
+    /// The chunk's descriptor: the one table of the chunks.
+    pub const fn chunk(self) -> &'static Chunk {
+        use ChunkField as F;
+        match self {
+            ChunkKind::ExposureTime => &Chunk {
+                sfnc: true,
+                features: &[feature!(
+                    "ChunkExposureTime",
+                    F::F64(|v| v.exposure_us),
+                    Some("us"),
+                    "Exposure time of the frame",
+                )],
+            },
+            ChunkKind::Gain => &Chunk {
+                sfnc: true,
+                features: &[feature!(
+                    "ChunkGain",
+                    F::F64(|v| v.gain_db),
+                    Some("dB"),
+                    "Gain of the frame",
+                )],
+            },
+            ChunkKind::Timestamp => &Chunk {
+                sfnc: true,
+                features: &[feature!(
+                    "ChunkTimestamp",
+                    F::U64(|v| v.timestamp),
+                    Some("ticks"),
+                    "Timestamp of the frame (the leader's)"
+                )],
+            },
+            ChunkKind::FrameIndex => &Chunk {
+                sfnc: false,
+                features: &[feature!(
+                    "ChunkFrameIndex",
+                    F::U64(|v| v.frame_index),
+                    None,
+                    "psns's frame index (block id k carries frame k - 1)",
+                )],
+            },
+            ChunkKind::Attitude => &Chunk {
+                sfnc: false,
+                features: &[
+                    feature!(
+                        "ChunkAttitudeW",
+                        F::F64(|v| v.attitude_wxyz[0]),
+                        None,
+                        ATTITUDE
+                    ),
+                    feature!(
+                        "ChunkAttitudeX",
+                        F::F64(|v| v.attitude_wxyz[1]),
+                        None,
+                        ATTITUDE
+                    ),
+                    feature!(
+                        "ChunkAttitudeY",
+                        F::F64(|v| v.attitude_wxyz[2]),
+                        None,
+                        ATTITUDE
+                    ),
+                    feature!(
+                        "ChunkAttitudeZ",
+                        F::F64(|v| v.attitude_wxyz[3]),
+                        None,
+                        ATTITUDE
+                    ),
+                ],
+            },
+            ChunkKind::SunPosition => &Chunk {
+                sfnc: false,
+                features: &[
+                    feature!(
+                        "ChunkSunAzimuth",
+                        F::F64(|v| v.sun_azimuth_deg),
+                        Some("degrees from north"),
+                        "Sun azimuth at mid-exposure",
+                    ),
+                    feature!(
+                        "ChunkSunElevation",
+                        F::F64(|v| v.sun_elevation_deg),
+                        Some("degrees"),
+                        "Sun elevation at mid-exposure",
+                    ),
+                ],
+            },
+            ChunkKind::OffsetX => &Chunk {
+                sfnc: true,
+                features: &[feature!(
+                    "ChunkOffsetX",
+                    F::U32(|v| v.region[0]),
+                    None,
+                    REGION
+                )],
+            },
+            ChunkKind::OffsetY => &Chunk {
+                sfnc: true,
+                features: &[feature!(
+                    "ChunkOffsetY",
+                    F::U32(|v| v.region[1]),
+                    None,
+                    REGION
+                )],
+            },
+            ChunkKind::Width => &Chunk {
+                sfnc: true,
+                features: &[feature!(
+                    "ChunkWidth",
+                    F::U32(|v| v.region[2]),
+                    None,
+                    REGION
+                )],
+            },
+            ChunkKind::Height => &Chunk {
+                sfnc: true,
+                features: &[feature!(
+                    "ChunkHeight",
+                    F::U32(|v| v.region[3]),
+                    None,
+                    REGION
+                )],
+            },
+            ChunkKind::PixelFormat => &Chunk {
+                sfnc: true,
+                features: &[feature!(
+                    "ChunkPixelFormat",
+                    F::PixelFormat(|v| v.pixel_format),
+                    None,
+                    "Pixel format of the frame",
+                )],
+            },
         }
     }
 
@@ -105,18 +320,18 @@ impl ChunkKind {
 
     /// Data bytes of the chunk.
     pub fn data_len(self) -> usize {
-        match self {
-            ChunkKind::Attitude => 32,
-            ChunkKind::SunPosition => 16,
-            ChunkKind::OffsetX
-            | ChunkKind::OffsetY
-            | ChunkKind::Width
-            | ChunkKind::Height
-            | ChunkKind::PixelFormat => 4,
-            _ => 8,
-        }
+        self.chunk().data_len()
     }
 }
+
+// `ALL` lists the chunks in the order of their selector values (and mask bits), each once
+const _: () = {
+    let mut i = 0;
+    while i < ChunkKind::ALL.len() {
+        assert!(ChunkKind::ALL[i] as usize == i);
+        i += 1;
+    }
+};
 
 /// Mask of every chunk kind.
 pub const ALL_MASK: u32 = (1 << ChunkKind::ALL.len()) - 1;
@@ -168,24 +383,8 @@ pub fn append(out: &mut Vec<u8>, image_len: usize, mask: u32, v: &ChunkValues) {
         if mask & (1 << k as u32) == 0 {
             continue;
         }
-        match k {
-            ChunkKind::ExposureTime => out.extend(v.exposure_us.to_be_bytes()),
-            ChunkKind::Gain => out.extend(v.gain_db.to_be_bytes()),
-            ChunkKind::Timestamp => out.extend(v.timestamp.to_be_bytes()),
-            ChunkKind::FrameIndex => out.extend(v.frame_index.to_be_bytes()),
-            ChunkKind::Attitude => v
-                .attitude_wxyz
-                .iter()
-                .for_each(|q| out.extend(q.to_be_bytes())),
-            ChunkKind::SunPosition => {
-                out.extend(v.sun_azimuth_deg.to_be_bytes());
-                out.extend(v.sun_elevation_deg.to_be_bytes());
-            }
-            ChunkKind::OffsetX => out.extend(v.region[0].to_be_bytes()),
-            ChunkKind::OffsetY => out.extend(v.region[1].to_be_bytes()),
-            ChunkKind::Width => out.extend(v.region[2].to_be_bytes()),
-            ChunkKind::Height => out.extend(v.region[3].to_be_bytes()),
-            ChunkKind::PixelFormat => out.extend(v.pixel_format.to_be_bytes()),
+        for f in k.chunk().features {
+            f.field.write(v, out);
         }
         trailer(out, k.id(), k.data_len());
     }
@@ -256,7 +455,7 @@ mod tests {
         assert_eq!(tail.len(), tail_len(ALL_MASK));
         let block = [&image[..], &tail].concat();
         let c = chunks(&block).unwrap();
-        assert_eq!(c.len(), 12);
+        assert_eq!(c.len(), ChunkKind::ALL.len() + 1);
         assert_eq!(c[11], (IMAGE_CHUNK_ID, &image[..]));
         assert_eq!(
             c[0],

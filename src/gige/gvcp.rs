@@ -29,8 +29,6 @@ pub const KEY: u8 = 0x42;
 pub const HEADER_LEN: usize = 8;
 /// Command flag: the sender wants an acknowledge.
 pub const FLAG_ACK_REQUIRED: u8 = 0x01;
-/// DISCOVERY flag: the device may answer by broadcast.
-pub const FLAG_ALLOW_BROADCAST_ACK: u8 = 0x10;
 /// PACKETRESEND flag: 64-bit block ids and 32-bit packet ids.
 pub const FLAG_EXTENDED_IDS: u8 = 0x10;
 /// Largest READMEM count and WRITEMEM data length.

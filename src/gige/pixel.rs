@@ -22,6 +22,9 @@
 
 use crate::sensor::packing::PixelFormat;
 
+/// Bits of the real camera's ADC (the IMX250MZR's 12).
+const ADC_BITS: u8 = 12;
+
 /// A pixel format of the device.
 #[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
 pub enum GevPixelFormat {
@@ -56,33 +59,37 @@ crate::names::name_table!(GevPixelFormat {
 });
 
 impl GevPixelFormat {
-    /// The packing of the bytes (the Mono twin).
-    pub fn packing(self) -> PixelFormat {
+    /// The format's row of the table: the packing of its bytes (the Mono twin), and whether it
+    /// is one of LUCID's polarized (vendor) names.
+    const fn twin(self) -> (PixelFormat, bool) {
         use GevPixelFormat::*;
         match self {
-            Mono8 | PolarizeMono8 => PixelFormat::Mono8,
-            Mono12p | PolarizeMono12p => PixelFormat::Mono12p,
-            Mono12Packed | PolarizeMono12Packed => PixelFormat::Mono12Packed,
-            Mono16 | PolarizeMono16 => PixelFormat::Mono16,
+            Mono8 => (PixelFormat::Mono8, false),
+            Mono12p => (PixelFormat::Mono12p, false),
+            Mono12Packed => (PixelFormat::Mono12Packed, false),
+            Mono16 => (PixelFormat::Mono16, false),
+            PolarizeMono8 => (PixelFormat::Mono8, true),
+            PolarizeMono12p => (PixelFormat::Mono12p, true),
+            PolarizeMono12Packed => (PixelFormat::Mono12Packed, true),
+            PolarizeMono16 => (PixelFormat::Mono16, true),
         }
+    }
+
+    /// The packing of the bytes (the Mono twin).
+    pub fn packing(self) -> PixelFormat {
+        self.twin().0
     }
 
     /// Whether this is one of the polarized (vendor) names.
     pub fn polarized(self) -> bool {
-        self.code() & 0x8000_0000 != 0
+        self.twin().1
     }
 
     /// The code in the PixelFormat register and the stream leader: PFNC for the Mono names,
     /// LUCID's vendor code (PFNC's with the top bit set) for the polarized ones.
     pub fn code(self) -> u32 {
-        let pfnc = self.packing().pfnc_code();
-        use GevPixelFormat::*;
-        match self {
-            Mono8 | Mono12p | Mono12Packed | Mono16 => pfnc,
-            PolarizeMono8 | PolarizeMono12p | PolarizeMono12Packed | PolarizeMono16 => {
-                pfnc | 0x8000_0000
-            }
-        }
+        let vendor = if self.polarized() { 0x8000_0000 } else { 0 };
+        self.packing().pfnc_code() | vendor
     }
 
     /// The format with this register code.
@@ -90,12 +97,10 @@ impl GevPixelFormat {
         Self::ALL.into_iter().find(|f| f.code() == code)
     }
 
-    /// ADC depth in bits on the real camera: 8 for the 8-bit formats, 12 otherwise.
+    /// ADC depth in bits on the real camera: its ADC's 12 bits, or fewer when the format holds
+    /// fewer (8 for the 8-bit formats).
     pub fn adc_bits(self) -> u8 {
-        match self.packing() {
-            PixelFormat::Mono8 => 8,
-            PixelFormat::Mono12p | PixelFormat::Mono12Packed | PixelFormat::Mono16 => 12,
-        }
+        self.packing().container_bits().min(ADC_BITS)
     }
 
     /// Payload bytes of a `width` x `height` image (`None` on overflow).

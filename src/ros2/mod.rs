@@ -16,7 +16,7 @@ pub mod msg;
 
 use crate::camera::{Intrinsics, Projection};
 use crate::error::{Error, Result};
-use crate::sensor::packing::PixelFormat;
+use crate::sensor::packing::{CodeWord, PixelFormat};
 use crate::stream::FrameMeta;
 use msg::{
     CameraInfo, DistortionModel, Float64MultiArray, Header, PoseStamped, RegionOfInterest,
@@ -111,11 +111,9 @@ impl ImageEncoding {
     /// The raw image's encoding for a stream pixel format: `mono8` for Mono8, `mono16` (the
     /// codes, as in a Mono16 stream) for the 12- and 16-bit formats.
     pub fn of_pixel_format(f: PixelFormat) -> Self {
-        match f {
-            PixelFormat::Mono8 => ImageEncoding::Mono8,
-            PixelFormat::Mono12p | PixelFormat::Mono12Packed | PixelFormat::Mono16 => {
-                ImageEncoding::Mono16
-            }
+        match f.info().word {
+            CodeWord::U8 => ImageEncoding::Mono8,
+            CodeWord::U16 => ImageEncoding::Mono16,
         }
     }
 

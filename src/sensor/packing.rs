@@ -9,6 +9,11 @@
 //! | Mono12Packed | 0x010C0006 | 1.5 | GigE Vision legacy: b0 = P0\[11:4\]; b1 = P0\[3:0\] \| P1\[3:0\]<<4; b2 = P1\[11:4\] |
 //! | Mono16 | 0x01100007 | 2 | u16 LE, LSB-aligned; MSB-aligned (<< (16 − bits)) on request |
 //!
+//! Each format's properties (PFNC name and code, bits per pixel, packing, Mono8's shift of
+//! deeper codes, Mono16's MSB alignment, the unpacked word) are one row of
+//! [`PixelFormat::info`]; payload sizes, the valid-bits checks, stream recovery, the ROS 2
+//! encoding and the GigE ADC depth derive from it.
+//!
 //! Codes of a 10- or 8-bit sensor sit LSB-aligned in the 12-bit containers. The number of valid
 //! bits in a payload ([`bits_valid`]) is 8 for Mono8 and the sensor bit depth otherwise.
 //! An odd pixel count in a 12-bit format ends with a half group of two bytes (the first two bytes
@@ -53,25 +58,87 @@ crate::names::name_table!(PixelFormat {
     Mono16 => "mono16",
 });
 
+/// The word one unpacked code takes: a ROS 2 image's pixel and a numpy array's dtype.
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub enum CodeWord {
+    /// One byte (`uint8`, ROS 2 `mono8`).
+    U8,
+    /// Two bytes, little-endian (`uint16`, ROS 2 `mono16`).
+    U16,
+}
+
+/// The properties of a pixel format ([`PixelFormat::info`], the one table of the formats).
+#[derive(Clone, Copy, Debug, PartialEq, Eq, Hash)]
+pub struct FormatInfo {
+    /// PFNC name, e.g. `Mono12p`.
+    pub pfnc_name: &'static str,
+    /// Standard PFNC code.
+    pub pfnc_code: u32,
+    /// Bits per pixel in the payload (8, 12 or 16); a payload of n pixels is
+    /// ⌈n × bits / 8⌉ bytes.
+    pub bits: u8,
+    /// Whether two pixels share a byte (the 12-bit formats).
+    pub packed: bool,
+    /// Whether deeper codes are shifted down to the format's bits (Mono8, whose payload always
+    /// has 8 valid bits); otherwise codes are stored as they are, at most `bits` deep.
+    pub shifts_down: bool,
+    /// Whether codes may be stored MSB-aligned (Mono16).
+    pub msb_alignable: bool,
+    /// The word of an unpacked code.
+    pub word: CodeWord,
+}
+
 impl PixelFormat {
+    /// The format's properties: the one table of the formats.
+    pub const fn info(self) -> FormatInfo {
+        match self {
+            PixelFormat::Mono8 => FormatInfo {
+                pfnc_name: "Mono8",
+                pfnc_code: 0x0108_0001,
+                bits: 8,
+                packed: false,
+                shifts_down: true,
+                msb_alignable: false,
+                word: CodeWord::U8,
+            },
+            PixelFormat::Mono12p => FormatInfo {
+                pfnc_name: "Mono12p",
+                pfnc_code: 0x010C_0047,
+                bits: 12,
+                packed: true,
+                shifts_down: false,
+                msb_alignable: false,
+                word: CodeWord::U16,
+            },
+            PixelFormat::Mono12Packed => FormatInfo {
+                pfnc_name: "Mono12Packed",
+                pfnc_code: 0x010C_0006,
+                bits: 12,
+                packed: true,
+                shifts_down: false,
+                msb_alignable: false,
+                word: CodeWord::U16,
+            },
+            PixelFormat::Mono16 => FormatInfo {
+                pfnc_name: "Mono16",
+                pfnc_code: 0x0110_0007,
+                bits: 16,
+                packed: false,
+                shifts_down: false,
+                msb_alignable: true,
+                word: CodeWord::U16,
+            },
+        }
+    }
+
     /// Standard PFNC code.
     pub fn pfnc_code(self) -> u32 {
-        match self {
-            PixelFormat::Mono8 => 0x0108_0001,
-            PixelFormat::Mono12p => 0x010C_0047,
-            PixelFormat::Mono12Packed => 0x010C_0006,
-            PixelFormat::Mono16 => 0x0110_0007,
-        }
+        self.info().pfnc_code
     }
 
     /// PFNC name, e.g. `Mono12p`.
     pub fn pfnc_name(self) -> &'static str {
-        match self {
-            PixelFormat::Mono8 => "Mono8",
-            PixelFormat::Mono12p => "Mono12p",
-            PixelFormat::Mono12Packed => "Mono12Packed",
-            PixelFormat::Mono16 => "Mono16",
-        }
+        self.info().pfnc_name
     }
 
     /// Format of a standard PFNC code; vendor codes (high bit set) are rejected.
@@ -86,10 +153,17 @@ impl PixelFormat {
 
     /// Bits of the container: 8, 12 or 16.
     pub fn container_bits(self) -> u8 {
-        match self {
-            PixelFormat::Mono8 => 8,
-            PixelFormat::Mono12p | PixelFormat::Mono12Packed => 12,
-            PixelFormat::Mono16 => 16,
+        self.info().bits
+    }
+
+    /// Whether a payload may say it has `bits` valid bits: exactly the format's bits when it
+    /// shifts deeper codes down (Mono8), else 1 to the format's bits.
+    pub fn bits_valid_ok(self, bits: u16) -> bool {
+        let i = self.info();
+        if i.shifts_down {
+            bits == i.bits as u16
+        } else {
+            (1..=i.bits as u16).contains(&bits)
         }
     }
 }
@@ -116,11 +190,22 @@ impl FromStr for PixelFormat {
 /// Payload bytes of a `width` x `height` frame; `None` on overflow.
 pub fn payload_size_checked(fmt: PixelFormat, width: usize, height: usize) -> Option<usize> {
     let n = width.checked_mul(height)?;
-    match fmt {
-        PixelFormat::Mono8 => Some(n),
-        PixelFormat::Mono12p | PixelFormat::Mono12Packed => Some(n.checked_mul(3)?.div_ceil(2)),
-        PixelFormat::Mono16 => n.checked_mul(2),
-    }
+    let bits = fmt.info().bits as usize;
+    // whole groups of 8 pixels, then the rest: no overflow short of the payload's own
+    (n / 8)
+        .checked_mul(bits)?
+        .checked_add((n % 8 * bits).div_ceil(8))
+}
+
+/// The pixel counts whose `fmt` payload is `bytes` bytes (none, one, or two for a packed
+/// format's odd and even counts).
+pub fn pixel_counts(fmt: PixelFormat, bytes: u64) -> Vec<u64> {
+    let bits = fmt.info().bits as u64;
+    let n = (bytes as u128 * 8 / bits as u128) as u64;
+    [n, n.saturating_add(1)]
+        .into_iter()
+        .filter(|&k| k.checked_mul(bits).map(|b| b.div_ceil(8)) == Some(bytes))
+        .collect()
 }
 
 /// Payload bytes of a `width` x `height` frame (2448 x 2048: Mono8 5 013 504, 12-bit 7 520 256,
@@ -132,14 +217,16 @@ pub fn payload_size(fmt: PixelFormat, width: usize, height: usize) -> usize {
 /// Whether a `fmt` payload (LSB-aligned) is the codes' own bytes, so that a writer can send the
 /// code buffer without packing it: Mono16 on a little-endian machine.
 pub fn codes_are_payload(fmt: PixelFormat) -> bool {
-    fmt == PixelFormat::Mono16 && cfg!(target_endian = "little")
+    fmt.info().bits == 16 && cfg!(target_endian = "little")
 }
 
 /// Valid bits of a payload produced from codes of `bit_depth` bits: 8 for Mono8, else `bit_depth`.
 pub fn bits_valid(fmt: PixelFormat, bit_depth: u8) -> u8 {
-    match fmt {
-        PixelFormat::Mono8 => 8,
-        PixelFormat::Mono12p | PixelFormat::Mono12Packed | PixelFormat::Mono16 => bit_depth,
+    let i = fmt.info();
+    if i.shifts_down {
+        i.bits
+    } else {
+        bit_depth
     }
 }
 
@@ -152,7 +239,7 @@ fn check_depth(fmt: PixelFormat, bit_depth: u8, msb_aligned: bool) -> Result<()>
             allowed: format!("1..{max}"),
         });
     }
-    if msb_aligned && fmt != PixelFormat::Mono16 {
+    if msb_aligned && !fmt.info().msb_alignable {
         return Err(Error::Invalid(format!(
             "MSB alignment exists only for Mono16, not {fmt}"
         )));
@@ -197,18 +284,19 @@ fn pack_impl(
     crc32: bool,
 ) -> Result<u32> {
     // Mono8 accepts deeper codes (shifted down); the others store codes as they are.
-    if fmt == PixelFormat::Mono8 {
-        if !(8..=16).contains(&bit_depth) {
+    let bits = fmt.info().bits;
+    if fmt.info().shifts_down {
+        if !(bits..=16).contains(&bit_depth) {
             return Err(Error::OutOfRange {
-                name: "bit depth for Mono8".into(),
+                name: format!("bit depth for {fmt}"),
                 value: bit_depth.to_string(),
-                allowed: "8..16".into(),
+                allowed: format!("{bits}..16"),
             });
         }
     } else {
         check_depth(fmt, bit_depth, msb_aligned)?;
     }
-    if msb_aligned && fmt != PixelFormat::Mono16 {
+    if msb_aligned && !fmt.info().msb_alignable {
         return Err(Error::Invalid(format!(
             "MSB alignment exists only for Mono16, not {fmt}"
         )));
@@ -417,9 +505,10 @@ pub fn unpack_into(
 ) -> Result<()> {
     v.clear();
     check_depth(fmt, bits_valid, msb_aligned)?;
-    if fmt == PixelFormat::Mono8 && bits_valid != 8 {
+    if !fmt.bits_valid_ok(bits_valid as u16) {
         return Err(Error::Format(format!(
-            "Mono8 payload with {bits_valid} valid bits (must be 8)"
+            "{fmt} payload with {bits_valid} valid bits (must be {})",
+            fmt.container_bits()
         )));
     }
     let n = width
@@ -643,6 +732,51 @@ mod tests {
                 }
             }
         }
+    }
+
+    /// Each row of the format table agrees with the packing: payload sizes (and their inverse,
+    /// every count from 0 to 40 pixels) are the packed lengths, the valid bits are what the
+    /// unpacker accepts, MSB alignment is refused where the table says so, the unpacked word
+    /// holds the codes, and a code names its format.
+    #[test]
+    fn the_format_table_agrees_with_the_packing() {
+        for f in PixelFormat::ALL {
+            let i = f.info();
+            assert_eq!(PixelFormat::from_pfnc(i.pfnc_code).unwrap(), f);
+            assert_eq!(f.to_string(), i.pfnc_name);
+            assert_eq!(f.name(), i.pfnc_name.to_lowercase());
+            assert_eq!(i.packed, i.bits % 8 != 0, "{f}");
+            let depth = if i.shifts_down { 16 } else { i.bits };
+            for n in 0..40usize {
+                let codes: Vec<u16> = (0..n)
+                    .map(|k| (k as u16 * 977) % (1 << (depth - 1)))
+                    .collect();
+                let mut out = Vec::new();
+                pack(&codes, depth, f, false, &mut out).unwrap();
+                assert_eq!(out.len(), payload_size(f, n, 1), "{f} n {n}");
+                assert!(
+                    pixel_counts(f, out.len() as u64).contains(&(n as u64)),
+                    "{f} n {n}"
+                );
+                let bv = bits_valid(f, depth);
+                assert!(f.bits_valid_ok(bv as u16));
+                let back = unpack(&out, f, bv, false, n, 1).unwrap();
+                let word_bits = match i.word {
+                    CodeWord::U8 => 8,
+                    CodeWord::U16 => 16,
+                };
+                assert!(back.iter().all(|&c| (c as u32) < 1 << word_bits), "{f}");
+                assert_eq!(
+                    pack(&codes, depth, f, true, &mut out).is_ok(),
+                    i.msb_alignable,
+                    "{f}"
+                );
+            }
+            assert_eq!(f.bits_valid_ok(i.bits as u16 - 1), !i.shifts_down, "{f}");
+        }
+        assert_eq!(pixel_counts(PixelFormat::Mono16, 7), Vec::<u64>::new());
+        assert_eq!(pixel_counts(PixelFormat::Mono12p, 8), [5]);
+        assert_eq!(pixel_counts(PixelFormat::Mono12p, 9), [6]);
     }
 
     #[test]

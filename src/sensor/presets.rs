@@ -133,13 +133,6 @@ pub fn config(p: Preset) -> SensorConfig {
     }
 }
 
-/// Per-frame κ: full / max RI_k · ½(S0 + |S_lin|) over finite pixels (1 if the frame is dark),
-/// with `ri` the relative-illumination map (`None` = 1): the brightest sample the sensor can
-/// read after the falloff is full scale.
-pub fn auto_kappa(stokes: &StokesImage, ri: Option<&[f32]>, full: f64) -> f64 {
-    kappa_of(PsnsSource::Planes(stokes), ri, full)
-}
-
 /// Where a PSNS frame reads its Stokes rows: the three planes as they are, or a row source (a
 /// sky grid) interpolated row by row into a per-thread buffer, so no full-size planes are made.
 /// Both read a pixel as the same number: [`StokesRows::fill_row`] of a grid gives the values
@@ -187,7 +180,9 @@ impl PsnsSource<'_> {
     }
 }
 
-/// [`auto_kappa`] of any [`PsnsSource`].
+/// Per-frame κ of any [`PsnsSource`]: full / max RI_k · ½(S0 + |S_lin|) over finite pixels (1
+/// if the frame is dark), with `ri` the relative-illumination map (`None` = 1): the brightest
+/// sample the sensor can read after the falloff is full scale.
 fn kappa_of(src: PsnsSource, ri: Option<&[f32]>, full: f64) -> f64 {
     let w = src.width().max(1);
     let m = (0..src.height())
@@ -225,7 +220,7 @@ crate::simd::simd_dispatch!(fn kappa_row_dispatch = kappa_row(
 ) -> f64);
 
 /// max over a row of RI·½(S0 + |S_lin|) in f64 (0 for none finite and positive), for
-/// [`auto_kappa`]. The f64 value (its square root is the cost) is needed only where it can be the
+/// [`kappa_of`]. The f64 value (its square root is the cost) is needed only where it can be the
 /// maximum: an f32 estimate of every pixel, within `tol` of the f64 value, picks the candidates
 /// block by block, and the f64 maximum over them is the f64 maximum over the row, bit for bit.
 #[inline(always)]

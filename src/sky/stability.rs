@@ -101,11 +101,6 @@ impl Stability {
         self.pinned_high as f64 / self.directions.max(1) as f64
     }
 
-    /// Fraction of neighbour pairs that jump by more than [`MAX_JUMP`].
-    pub fn jump_fraction(&self) -> f64 {
-        self.jumps as f64 / self.pairs.max(1) as f64
-    }
-
     /// True when nothing is pinned and no jump exceeds [`MAX_JUMP`].
     pub fn is_stable(&self) -> bool {
         self.pinned_low == 0 && self.pinned_high == 0 && self.jumps == 0

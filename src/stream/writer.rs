@@ -51,7 +51,7 @@ impl<W: Write> StreamWriter<W> {
             last_index: None,
             frames: 0,
             broken: false,
-            sensor_bits: if header.pixel_format == crate::sensor::packing::PixelFormat::Mono8 {
+            sensor_bits: if header.pixel_format.info().shifts_down {
                 12
             } else {
                 header.bits_valid
@@ -62,7 +62,7 @@ impl<W: Write> StreamWriter<W> {
     /// Mono8 only: bit depth of the codes given to [`write_frame`](Self::write_frame)
     /// (8..16; 8 stores them unchanged, 12 keeps code >> 4).
     pub fn with_sensor_bits(mut self, bits: u8) -> Self {
-        if self.header.pixel_format == crate::sensor::packing::PixelFormat::Mono8 {
+        if self.header.pixel_format.info().shifts_down {
             self.sensor_bits = bits;
         }
         self

@@ -6,6 +6,7 @@
 #[path = "../common/mod.rs"]
 mod common;
 
+mod callers;
 mod commands;
 mod completeness;
 mod full_disk;

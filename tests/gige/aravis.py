@@ -22,25 +22,8 @@ import gi
 gi.require_version("Aravis", "0.8")
 from gi.repository import Aravis  # noqa: E402
 
-CHUNK_FLOATS = [
-    "ChunkExposureTime",
-    "ChunkGain",
-    "ChunkAttitudeW",
-    "ChunkAttitudeX",
-    "ChunkAttitudeY",
-    "ChunkAttitudeZ",
-    "ChunkSunAzimuth",
-    "ChunkSunElevation",
-]
-CHUNK_INTS = [
-    "ChunkTimestamp",
-    "ChunkFrameIndex",
-    "ChunkOffsetX",
-    "ChunkOffsetY",
-    "ChunkWidth",
-    "ChunkHeight",
-    "ChunkPixelFormat",
-]
+# the chunk category's controls; its other features are the chunk data, read from the device
+CHUNK_CONTROLS = ("ChunkModeActive", "ChunkSelector", "ChunkEnable")
 STATS = [
     "n_completed_buffers",
     "n_failures",
@@ -66,7 +49,14 @@ def image_bytes(buf):
     return data[:n]
 
 
-def describe(buf, parser=None):
+def chunk_features(cam):
+    """The chunk data features the device's GenICam describes: (name, is a float)."""
+    gc = cam.get_device().get_genicam()
+    names = gc.get_node("ChunkDataControl").get_features()
+    return [(n, isinstance(gc.get_node(n), Aravis.GcFloat)) for n in names if n not in CHUNK_CONTROLS]
+
+
+def describe(buf, parser=None, features=()):
     d = {
         "block": buf.get_frame_id(),
         "status": buf.get_status().value_nick,
@@ -84,8 +74,10 @@ def describe(buf, parser=None):
             pixel_format=buf.get_image_pixel_format(),
         )
         if parser is not None and buf.has_chunks():
-            c = {n: parser.get_float_value(buf, n) for n in CHUNK_FLOATS}
-            c.update({n: parser.get_integer_value(buf, n) for n in CHUNK_INTS})
+            c = {
+                n: parser.get_float_value(buf, n) if is_float else parser.get_integer_value(buf, n)
+                for n, is_float in features
+            }
             # floats as their exact bits, so the test compares them without rounding
             d["chunks"] = {k: (v.hex() if isinstance(v, float) else v) for k, v in c.items()}
     return d
@@ -116,13 +108,12 @@ def make_stream(cam, n):
 
 def grab(args):
     cam = open_camera(args)
-    parser = None
+    parser, features = None, []
     if args.chunks:
-        cam.set_chunks(
-            "ExposureTime,Gain,Timestamp,FrameIndex,Attitude,SunPosition,"
-            "OffsetX,OffsetY,Width,Height,PixelFormat"
-        )
+        # every chunk the device offers, and every feature it describes
+        cam.set_chunks(",".join(cam.dup_available_enumerations_as_strings("ChunkSelector")))
         parser = cam.create_chunk_parser()
+        features = chunk_features(cam)
     # exactly --frames blocks, with a buffer for each: none is lost to a slow reader
     cam.set_acquisition_mode(Aravis.AcquisitionMode.MULTI_FRAME)
     cam.set_integer("AcquisitionFrameCount", args.frames)
@@ -134,7 +125,7 @@ def grab(args):
         buf = stream.timeout_pop_buffer(1_000_000)
         if buf is None:
             continue
-        emit(describe(buf, parser))
+        emit(describe(buf, parser, features))
         seen += 1
         stream.push_buffer(buf)
     cam.stop_acquisition()

@@ -7,6 +7,7 @@
 //! control port is always 3956), every external command runs under `timeout`, and every server
 //! is stopped at the end of its test (SIGTERM, then SIGKILL).
 
+use psns::gige::chunk::ChunkKind;
 use psns::sensor::packing::{self, PixelFormat};
 use serde_json::Value;
 use sha2::{Digest, Sha256};
@@ -620,6 +621,15 @@ fn chunks_decoded_by_aravis_equal_the_truth_file() {
         let block = f["block"].as_u64().unwrap();
         let row = &rows[&block];
         let c = &f["chunks"];
+        // Aravis reads every feature of the chunk table, found in the device's XML
+        let mut read: Vec<&str> = c.as_object().unwrap().keys().map(|k| k.as_str()).collect();
+        read.sort();
+        let mut table: Vec<&str> = ChunkKind::ALL
+            .iter()
+            .flat_map(|k| k.chunk().features.iter().map(|f| f.name))
+            .collect();
+        table.sort();
+        assert_eq!(read, table, "block {block}");
         let num = |k: &str| row[k].parse::<f64>().unwrap();
         assert_eq!(f64_of(&c["ChunkExposureTime"]), num("exposure_us"));
         assert_eq!(f64_of(&c["ChunkGain"]), num("gain_db"));

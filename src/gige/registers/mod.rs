@@ -127,11 +127,6 @@ impl Device {
         &self.info
     }
 
-    /// The GenICam XML URL in register 0x200.
-    pub fn xml_url(&self) -> &str {
-        &self.url
-    }
-
     /// The GenICam XML text.
     pub fn xml(&self) -> &[u8] {
         &self.xml[..self.xml_len]
@@ -177,12 +172,6 @@ impl Device {
             }
             _ => false,
         }
-    }
-
-    /// When the heartbeat of the current controller expires (device time, ns).
-    pub fn heartbeat_deadline(&self) -> Option<u64> {
-        self.controller
-            .map(|c| c.last_ns + self.heartbeat_ms as u64 * 1_000_000)
     }
 
     fn release(&mut self) {

@@ -115,11 +115,7 @@ pub(super) fn image_format(x: &mut X) {
     let entries: Vec<(&str, u32, String)> = GevPixelFormat::ALL
         .iter()
         .map(|f| {
-            let bits = if f.adc_bits() == 8 {
-                "8-bit ADC"
-            } else {
-                "12-bit ADC"
-            };
+            let bits = format!("{}-bit ADC", f.adc_bits());
             let t = if f.polarized() {
                 format!(
                     "LUCID's name for {}'s bytes ({bits}).",

@@ -11,7 +11,7 @@
 //! }
 //! ```
 
-use super::chunk::ChunkKind;
+use super::chunk::{ChunkFeature, ChunkField, ChunkKind};
 use super::pixel::GevPixelFormat;
 use super::registers::{self, addr};
 use std::fmt::Write;
@@ -383,8 +383,7 @@ fn categories(x: &mut X) {
         &["Gain", "GainAuto", "BlackLevel"],
     );
     let mut chunk_features = vec!["ChunkModeActive", "ChunkSelector", "ChunkEnable"];
-    chunk_features.extend(CHUNK_FEATURES.iter().map(|c| c.0));
-    chunk_features.push("ChunkPixelFormat");
+    chunk_features.extend(transport::chunk_features());
     x.category(
         "ChunkDataControl",
         "Per-frame data appended to the image.",

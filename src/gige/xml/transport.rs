@@ -2,23 +2,12 @@
 
 use super::*;
 
-/// Chunk features: (feature, chunk, byte offset in the chunk, float or integer).
-pub(super) const CHUNK_FEATURES: [(&str, ChunkKind, u32, bool); 14] = [
-    ("ChunkExposureTime", ChunkKind::ExposureTime, 0, true),
-    ("ChunkGain", ChunkKind::Gain, 0, true),
-    ("ChunkTimestamp", ChunkKind::Timestamp, 0, false),
-    ("ChunkFrameIndex", ChunkKind::FrameIndex, 0, false),
-    ("ChunkAttitudeW", ChunkKind::Attitude, 0, true),
-    ("ChunkAttitudeX", ChunkKind::Attitude, 8, true),
-    ("ChunkAttitudeY", ChunkKind::Attitude, 16, true),
-    ("ChunkAttitudeZ", ChunkKind::Attitude, 24, true),
-    ("ChunkSunAzimuth", ChunkKind::SunPosition, 0, true),
-    ("ChunkSunElevation", ChunkKind::SunPosition, 8, true),
-    ("ChunkOffsetX", ChunkKind::OffsetX, 0, false),
-    ("ChunkOffsetY", ChunkKind::OffsetY, 0, false),
-    ("ChunkWidth", ChunkKind::Width, 0, false),
-    ("ChunkHeight", ChunkKind::Height, 0, false),
-];
+/// The chunk features, in the chunks' order ([`ChunkKind::chunk`]).
+pub(super) fn chunk_features() -> impl Iterator<Item = &'static str> {
+    ChunkKind::ALL
+        .into_iter()
+        .flat_map(|k| k.chunk().features.iter().map(|f| f.name))
+}
 
 pub(super) fn chunks(x: &mut X) {
     x.boolean(
@@ -61,70 +50,53 @@ pub(super) fn chunks(x: &mut X) {
     for k in ChunkKind::ALL {
         x.port(&format!("Chunk{}Port", k.name()), Some(k.id()));
     }
-    for (name, k, offset, float) in CHUNK_FEATURES {
+    for k in ChunkKind::ALL {
+        let c = k.chunk();
         let port = format!("Chunk{}Port", k.name());
-        let tail: &[(&str, &str)] = if float {
-            &[("Endianess", "BigEndian")]
-        } else {
-            &[("Sign", "Unsigned"), ("Endianess", "BigEndian")]
-        };
-        let kind = if float { "FloatReg" } else { "IntReg" };
-        x.open(
-            kind,
-            name,
-            !matches!(
-                k,
-                ChunkKind::FrameIndex | ChunkKind::Attitude | ChunkKind::SunPosition
-            ),
-        );
-        x.head(chunk_tip(name), false);
-        x.el(2, "Address", &format!("0x{offset:X}"));
-        x.el(2, "Length", if k.data_len() == 4 { "4" } else { "8" });
-        x.el(2, "AccessMode", "RO");
-        x.el(2, "pPort", &port);
-        x.el(2, "Cachable", "NoCache");
-        for (a, b) in tail {
-            x.el(2, a, b);
+        for (offset, f) in c.layout() {
+            chunk_feature(x, c.sfnc, &port, offset, f);
         }
-        x.close(kind);
     }
-    // the pixel format chunk, as an enumeration of the formats
-    let entries: Vec<(&str, u32, &str)> = GevPixelFormat::ALL
-        .iter()
-        .map(|f| (f.name(), f.code(), "A pixel format."))
-        .collect();
-    x.enumeration(
-        "ChunkPixelFormat",
-        "Pixel format of the frame.",
-        false,
-        "ChunkPixelFormatReg",
-        &entries,
-    );
-    x.register(
-        "IntReg",
-        "ChunkPixelFormatReg",
-        0,
-        4,
-        Access::Ro,
-        "ChunkPixelFormatPort",
-        None,
-        &[("Sign", "Unsigned"), ("Endianess", "BigEndian")],
-    );
 }
 
-pub(super) fn chunk_tip(name: &str) -> &'static str {
-    match name {
-        "ChunkExposureTime" => "Exposure time of the frame, us.",
-        "ChunkGain" => "Gain of the frame, dB.",
-        "ChunkTimestamp" => "Timestamp of the frame (the leader's), ticks.",
-        "ChunkFrameIndex" => "psns's frame index (block id k carries frame k - 1).",
-        "ChunkAttitudeW" | "ChunkAttitudeX" | "ChunkAttitudeY" | "ChunkAttitudeZ" => {
-            "Attitude quaternion of the camera, camera to ENU (w, x, y, z)."
+/// The node of a chunk feature at byte `offset` of the chunk's data (behind `port`).
+fn chunk_feature(x: &mut X, sfnc: bool, port: &str, offset: usize, f: &ChunkFeature) {
+    let int_tail: &[(&str, &str)] = &[("Sign", "Unsigned"), ("Endianess", "BigEndian")];
+    let (kind, tail): (&str, &[(&str, &str)]) = match f.field {
+        ChunkField::F64(_) => ("FloatReg", &[("Endianess", "BigEndian")]),
+        ChunkField::U64(_) | ChunkField::U32(_) => ("IntReg", int_tail),
+        ChunkField::PixelFormat(_) => {
+            // an enumeration of the formats, on a register of the chunk
+            let entries: Vec<(&str, u32, &str)> = GevPixelFormat::ALL
+                .iter()
+                .map(|g| (g.name(), g.code(), "A pixel format."))
+                .collect();
+            let reg = format!("{}Reg", f.name);
+            x.enumeration(f.name, &f.tip(), false, &reg, &entries);
+            x.register(
+                "IntReg",
+                &reg,
+                offset as u32,
+                f.field.bytes() as u32,
+                Access::Ro,
+                port,
+                None,
+                int_tail,
+            );
+            return;
         }
-        "ChunkSunAzimuth" => "Sun azimuth at mid-exposure, degrees from north.",
-        "ChunkOffsetX" | "ChunkOffsetY" | "ChunkWidth" | "ChunkHeight" => "Region of the frame.",
-        _ => "Sun elevation at mid-exposure, degrees.",
+    };
+    x.open(kind, f.name, sfnc);
+    x.head(&f.tip(), false);
+    x.el(2, "Address", &format!("0x{offset:X}"));
+    x.el(2, "Length", &f.field.bytes().to_string());
+    x.el(2, "AccessMode", "RO");
+    x.el(2, "pPort", port);
+    x.el(2, "Cachable", "NoCache");
+    for (a, b) in tail {
+        x.el(2, a, b);
     }
+    x.close(kind);
 }
 
 pub(super) fn transport(x: &mut X) {

@@ -2,6 +2,7 @@
 //! frames that follow (the stride between frame magics, the CRCs of candidate payload sizes).
 
 use super::*;
+use crate::sensor::packing::pixel_counts;
 
 /// Geometry given by the user for degraded mode ([`StreamReader::new_recovering`]); `None`
 /// fields are inferred.
@@ -277,24 +278,6 @@ fn payload_by_crc(
     None
 }
 
-/// Pixel counts whose payload in format `f` is `p` bytes.
-fn pixel_counts(f: PixelFormat, p: u64) -> Vec<u64> {
-    match f {
-        PixelFormat::Mono8 => vec![p],
-        PixelFormat::Mono16 => {
-            if p.is_multiple_of(2) {
-                vec![p / 2]
-            } else {
-                vec![]
-            }
-        }
-        PixelFormat::Mono12p | PixelFormat::Mono12Packed => vec![(2 * p) / 3, (2 * p) / 3 + 1]
-            .into_iter()
-            .filter(|&n| n.checked_mul(3).map(|x| x.div_ceil(2)) == Some(p))
-            .collect(),
-    }
-}
-
 /// The geometries (score, format, width, height) whose payload is `target` bytes, each scored
 /// by the stored and given fields it keeps, best first; without a target, the user's geometry.
 fn candidates(
@@ -382,11 +365,7 @@ fn other_fields(
 ) -> FileHeader {
     // the other fields: as stored when valid, else defaults
     let bits = u16::from_le_bytes([hb[32], hb[33]]);
-    let bits_ok = if fmt == PixelFormat::Mono8 {
-        bits == 8
-    } else {
-        (1..=fmt.container_bits() as u16).contains(&bits)
-    };
+    let bits_ok = fmt.bits_valid_ok(bits);
     let bits_valid = if bits_ok {
         bits as u8
     } else {
@@ -394,10 +373,11 @@ fn other_fields(
         fmt.container_bits()
     };
     let align = u16::from_le_bytes([hb[34], hb[35]]);
-    if align > 1 || (align == 1 && fmt != PixelFormat::Mono16) {
+    let msb_ok = fmt.info().msb_alignable;
+    if align > 1 || (align == 1 && !msb_ok) {
         defaults.push(format!("alignment ({align} -> LSB)"));
     }
-    let msb_aligned = align == 1 && fmt == PixelFormat::Mono16;
+    let msb_aligned = align == 1 && msb_ok;
     let mut ch = [0u8; 4];
     let mut angles_ok = true;
     for (k, c) in ch.iter_mut().enumerate() {
