@@ -32,22 +32,45 @@ pub fn pixel_class(sky: &Sky, cam: &Camera, col: usize, row: usize) -> Class {
 /// The class of every pixel ([`Class`] codes), with the sun's disc where it is drawn
 /// (`sun_disc`) and seen.
 pub fn class_image(sky: &Sky, cam: &Camera, sun_disc: bool) -> Image<u8> {
+    class_image_every(sky, cam, sun_disc, 1)
+}
+
+/// The class of every `stride`-th pixel in each direction (columns and rows 0, stride,
+/// 2 stride, …): an image of ⌈width / stride⌉ x ⌈height / stride⌉ pixels, [`class_image`] for
+/// stride 1.
+pub fn class_image_every(sky: &Sky, cam: &Camera, sun_disc: bool, stride: usize) -> Image<u8> {
+    let s = stride.max(1);
     let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
-    let mut out: Image<u8> = Image::new(w, h);
+    let (ws, hs) = (w.div_ceil(s), h.div_ceil(s));
+    let mut out: Image<u8> = Image::new(ws, hs);
     out.data
-        .par_chunks_mut(w.max(1))
+        .par_chunks_mut(ws.max(1))
         .enumerate()
         .for_each(|(r, row)| {
             for (c, v) in row.iter_mut().enumerate() {
-                *v = pixel_class(sky, cam, c, r) as u8;
+                *v = pixel_class(sky, cam, c * s, r * s) as u8;
             }
         });
     if sun_disc {
         for (k, _) in sun_disc_pixels(sky, cam) {
-            out.data[k] = Class::Sun as u8;
+            let (r, c) = (k / w, k % w);
+            if r % s == 0 && c % s == 0 {
+                out.data[(r / s) * ws + c / s] = Class::Sun as u8;
+            }
         }
     }
     out
+}
+
+/// The fraction of the pixels of a class image in each class ([`Class::ALL`] order): what
+/// `psns render` writes as `derived.class_fractions`.
+pub fn fractions(class: &Image<u8>) -> [f64; 6] {
+    let mut counts = [0usize; 6];
+    for &c in &class.data {
+        counts[c as usize] += 1;
+    }
+    let n = class.data.len().max(1) as f64;
+    counts.map(|k| k as f64 / n)
 }
 
 /// The fraction of the image in each class ([`Class::ALL`] order), counted over every
