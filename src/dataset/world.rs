@@ -335,10 +335,10 @@ pub(super) use world_label_header;
 pub const WORLD_LABEL_HEADER: &str = world_label_header!();
 
 /// Most pixels classified for a sample's class fractions.
-pub const FRACTION_PIXELS: usize = 65_536;
+pub const FRACTION_PIXELS: usize = 16_384;
 
 /// The stride of the class fractions of a `width` x `height` frame: the smallest `s` with at
-/// most [`FRACTION_PIXELS`] pixels on every `s`-th column and row (1 up to 256 x 256).
+/// most [`FRACTION_PIXELS`] pixels on every `s`-th column and row (1 up to 128 x 128).
 pub fn fraction_stride(width: usize, height: usize) -> usize {
     (1..)
         .find(|s| width.div_ceil(*s) * height.div_ceil(*s) <= FRACTION_PIXELS)
@@ -351,10 +351,18 @@ impl Sample {
     /// [`fraction_stride`]-th pixel; at stride 1 `psns render`'s `derived.class_fractions`.
     pub fn class_fractions(&self) -> Result<[f64; 6]> {
         let scene = self.scene(self.split.preset());
-        let (sky, cam) = scene.build()?;
-        let i = cam.intrinsics;
+        let i = scene.intrinsics();
         let stride = fraction_stride(i.width, i.height);
-        let class = crate::render::class_image_every(&sky, &cam, scene.raw.sun_disc_on(), stride);
+        let class = if scene.raw.sun_disc_on() {
+            let (sky, cam) = scene.build()?;
+            crate::render::class_image_every(&sky, &cam, true, stride)
+        } else {
+            // the PSNS presets draw no sun disc: the world and the camera are all it takes
+            let sun = scene.sun.resolve()?;
+            let cam = crate::camera::Camera::new(i, &scene.camera.attitude, sun.azimuth_deg)?;
+            let world = scene.world_at(0.0)?;
+            crate::render::class_image_in(Some(&world), &cam, stride)
+        };
         Ok(crate::render::fractions(&class))
     }
 
