@@ -104,8 +104,8 @@ fn canyon_fraction(width: f64, height: f64, f_px: f64, pixels: f64) -> f64 {
     f_px * f_px * area / pixels
 }
 
-/// Every sample with a canyon (and one with seeded clouds and a camera above the ground) is
-/// `psns render --raw --canyon W,H,AZ` with its label values, byte for byte, and its class
+/// Every sample with a canyon (and one with seeded clouds, a wind and a camera above the ground)
+/// is `psns render --raw --canyon W,H,AZ` with its label values, byte for byte, and its class
 /// fractions are `psns render`'s; on the ground the walls hide the share of the fisheye's frame
 /// their geometry predicts.
 #[test]
@@ -115,7 +115,7 @@ fn a_canyon_sample_is_psns_render_with_its_canyon() {
         "{FISHEYE}seed = 9\n[splits]\nNFPI = 3\nGNIIPI = 2\n[canyon]\nwidth_m = {{ values = [20, 12] }}\nheight_m = {{ values = [6, 10] }}\nazimuth_deg = {{ min = 0, max = 179.9 }}\n"
     );
     let clouded = format!(
-        "{FISHEYE}seed = 9\ncamera_height_m = 1.5\ncloud_cover = 0.3\n[splits]\nGNIIPI = 1\n[canyon]\nwidth_m = 20\nheight_m = 6\nazimuth_deg = 30\n"
+        "{FISHEYE}seed = 9\ncamera_height_m = 1.5\ncloud_cover = 0.3\nwind = {{ speed_deg_s = 0.5, azimuth_deg = 90 }}\n[splits]\nGNIIPI = 1\n[canyon]\nwidth_m = 20\nheight_m = 6\nazimuth_deg = 30\n"
     );
     let mut checked = 0;
     for (name, text) in [("ground", text), ("clouded", clouded)] {
@@ -176,6 +176,10 @@ fn a_canyon_sample_is_psns_render_with_its_canyon() {
             if !r["cloud_cover"].is_empty() {
                 args.extend(["--cloud-cover", r["cloud_cover"]]);
             }
+            let wind = format!("{},{}", r["wind_speed_deg_s"], r["wind_azimuth_deg"]);
+            if wind != "," {
+                args.extend(["--wind", &wind]);
+            }
             let o = out.to_str().unwrap().to_string();
             args.extend(["--out", &o]);
             ok(&psns(&args));
@@ -214,6 +218,7 @@ fn a_canyon_sample_is_psns_render_with_its_canyon() {
             } else {
                 assert!(num(r["cloud_fraction"]) > 0.0, "{r:?}");
                 assert_eq!(r["cloud_cover"], "0.3");
+                assert_eq!(wind, "0.5,90");
             }
             checked += 1;
         }
