@@ -242,7 +242,8 @@ pub struct DatasetConfig {
     /// from the dataset seed and its frame index, so that the clouds (seeded by the camera seed)
     /// differ from sample to sample.
     pub soft_clouds: f64,
-    /// A world preset: defaults of the world keys below ([`WorldPreset::fill`]).
+    /// A world preset: defaults of the world keys below, filled in by [`Self::from_toml`]
+    /// ([`WorldPreset::fill`]).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub world: Option<WorldPreset>,
     /// A street canyon around every sample (`psns render --canyon`).

@@ -433,7 +433,7 @@ fn world_presets_fill_missing_keys_and_world_draws_are_independent() {
     assert_eq!(c.world, Some(WorldPreset::Urban));
     assert_eq!(c.cloud_cover, Some(Dist::Fixed(0.0)));
     assert_eq!(c.camera_height_m, Some(Dist::Fixed(1.5)));
-    assert_eq!(c.canyon.as_ref().unwrap().width_m, uniform(8.0, 40.0, 0.5));
+    assert_eq!(c.canyon.as_ref().unwrap().width_m, uniform(10.0, 50.0, 0.5));
     assert!(c.trees.is_none());
     assert_eq!(DatasetConfig::from_toml(&c.to_toml(), "again").unwrap(), c);
     let mut other = c.clone();
@@ -448,7 +448,7 @@ fn world_presets_fill_missing_keys_and_world_draws_are_independent() {
         assert_eq!(wa.canyon, wb.canyon);
         assert_eq!((wa.camera_height_m, wb.camera_height_m), (1.5, 3.0));
         let cy = wa.canyon.unwrap();
-        assert!((8.0..=40.0).contains(&cy.width_m) && (6.0..=40.0).contains(&cy.height_m));
+        assert!((10.0..=50.0).contains(&cy.width_m) && (4.0..=30.0).contains(&cy.height_m));
         assert!((0.0..=179.9).contains(&cy.azimuth_deg));
         widths.insert(cy.width_m.to_string());
     }

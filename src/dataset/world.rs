@@ -34,8 +34,8 @@ impl WorldPreset {
         match self {
             WorldPreset::Urban => {
                 cfg.canyon.get_or_insert(CanyonDist {
-                    width_m: grid(8.0, 40.0, 0.5),
-                    height_m: grid(6.0, 40.0, 0.5),
+                    width_m: grid(10.0, 50.0, 0.5),
+                    height_m: grid(4.0, 30.0, 0.5),
                     azimuth_deg: grid(0.0, 179.9, 0.1),
                 });
                 cfg.cloud_cover.get_or_insert(grid(0.0, 0.4, 0.01));

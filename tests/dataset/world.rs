@@ -275,8 +275,8 @@ fn urban_and_canopy_presets_build_the_same_whatever_the_jobs_or_shards() {
             seeds.insert(r["seed"]);
             if preset == "urban" {
                 assert!((0.0..=0.4).contains(&cover), "{r:?}");
-                assert!((8.0..=40.0).contains(&num(r["canyon_width_m"])), "{r:?}");
-                assert!((6.0..=40.0).contains(&num(r["canyon_height_m"])), "{r:?}");
+                assert!((10.0..=50.0).contains(&num(r["canyon_width_m"])), "{r:?}");
+                assert!((4.0..=30.0).contains(&num(r["canyon_height_m"])), "{r:?}");
                 assert_eq!(r["trees"], "0");
             } else {
                 assert!((0.0..=0.3).contains(&cover), "{r:?}");
