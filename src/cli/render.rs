@@ -157,16 +157,10 @@ fn render_ideal(sky: &psns::sky::Sky, cam: &psns::camera::Camera, sun_disc: bool
         "ground_pixels".into(),
         (ideal.valid.data.len() - valid).into(),
     );
-    let mut counts = [0usize; 6];
-    for &c in &class.data {
-        counts[c as usize] += 1;
-    }
+    let f = render::fractions(&class);
     let fractions: serde_json::Map<String, serde_json::Value> = psns::world::Class::ALL
         .iter()
-        .map(|c| {
-            let f = counts[*c as usize] as f64 / class.data.len().max(1) as f64;
-            (c.name().to_string(), f.into())
-        })
+        .map(|c| (c.name().to_string(), f[*c as usize].into()))
         .collect();
     extra.insert("class_fractions".into(), fractions.into());
     Ideal {

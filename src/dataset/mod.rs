@@ -33,9 +33,11 @@ mod plan;
 mod sample;
 #[cfg(test)]
 mod tests;
+mod world;
 pub use dist::*;
 pub use plan::*;
 pub use sample::*;
+pub use world::*;
 
 /// Frame-index stride between splits: sample `n` of split id `s` is frame `s · STRIDE + n`.
 pub const SPLIT_STRIDE: u64 = 1_000_000_000;
@@ -240,6 +242,25 @@ pub struct DatasetConfig {
     /// from the dataset seed and its frame index, so that the clouds (seeded by the camera seed)
     /// differ from sample to sample.
     pub soft_clouds: f64,
+    /// A world preset: defaults of the world keys below, filled in by [`Self::from_toml`]
+    /// ([`WorldPreset::fill`]).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub world: Option<WorldPreset>,
+    /// A street canyon around every sample (`psns render --canyon`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub canyon: Option<CanyonDist>,
+    /// Height of the camera above the ground, metres (`psns render --camera-height`).
+    #[serde(skip_serializing_if = "Option::is_none", alias = "camera_height")]
+    pub camera_height_m: Option<Dist>,
+    /// Fraction of the sky covered by seeded clouds (`psns render --cloud-cover`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub cloud_cover: Option<Dist>,
+    /// The clouds' drift (`psns render --wind`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub wind: Option<WindDist>,
+    /// Trees standing around the observer.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub trees: Option<TreesDist>,
     /// Optional outputs.
     pub outputs: Outputs,
 }
@@ -285,6 +306,12 @@ impl Default for DatasetConfig {
             babinet: None,
             brewster: None,
             soft_clouds: 0.0,
+            world: None,
+            canyon: None,
+            camera_height_m: None,
+            cloud_cover: None,
+            wind: None,
+            trees: None,
             outputs: Outputs::default(),
         }
     }
@@ -393,12 +420,15 @@ impl DatasetConfig {
                 }
             }
         }
-        let cfg: DatasetConfig = toml::from_str(text).map_err(|e| {
+        let mut cfg: DatasetConfig = toml::from_str(text).map_err(|e| {
             Error::Invalid(format!(
                 "{what} is not a valid dataset description: {}",
                 e.to_string().trim_end()
             ))
         })?;
+        if let Some(p) = cfg.world {
+            p.fill(&mut cfg);
+        }
         cfg.validate()?;
         Ok(cfg)
     }
@@ -442,6 +472,7 @@ impl DatasetConfig {
         }
         self.validate_neutral_points()?;
         check_range("soft_clouds", self.soft_clouds, 0.0, 1.0)?;
+        self.validate_world()?;
         if let Some(d) = &self.outputs.raw12_exposure_us {
             if !self.outputs.raw12 {
                 return Err(Error::Invalid(
@@ -568,6 +599,7 @@ impl DatasetConfig {
             when: None,
             raw12_exposure_us: None,
             soft_clouds: false,
+            world: self.draw_world(frame_index)?,
         };
         let points = [
             (&self.neutral_distance, &mut sample.neutral_distance, 19),
@@ -583,7 +615,10 @@ impl DatasetConfig {
         if self.soft_clouds > 0.0 {
             let mut rng = crate::rng::dataset_rng(self.seed, frame_index, 14);
             sample.soft_clouds = rng.random::<f64>() < self.soft_clouds;
-            // a camera of its own (the clouds are seeded by the camera seed), below 2^63
+        }
+        if self.soft_clouds > 0.0 || self.world_seeded() {
+            // a camera of its own (soft clouds, the world's clouds and the trees' gaps are
+            // seeded by the camera seed), below 2^63
             sample.seed = crate::rng::dataset_rng(self.seed, frame_index, 15).random::<u64>() >> 1;
         }
         if let Some(d) = &self.outputs.raw12_exposure_us {

@@ -125,7 +125,7 @@ impl<'a> Plan<'a> {
         writeln!(w, "{LABEL_HEADER}").map_err(io)?;
         self.walk(
             |s| s.label_row_with(raw12),
-            |row| writeln!(w, "{row}").map_err(io),
+            |row| writeln!(w, "{}", row?).map_err(io),
         )
     }
 }

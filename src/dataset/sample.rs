@@ -110,10 +110,12 @@ pub struct Sample {
     pub raw12_exposure_us: Option<f64>,
     /// Soft clouds in the sky (`psns render --clouds`).
     pub soft_clouds: bool,
+    /// The world around the camera (`None`: the description sets no world key).
+    pub world: Option<crate::world::WorldConfig>,
 }
 
 /// Header of `labels.csv`.
-pub const LABEL_HEADER: &str = "split,file,yaw_deg,pitch_deg,roll_deg,frame,focal_length_mm,pixel_pitch_um,sun_altitude_deg,sun_azimuth_deg,turbidity,wavelength_nm,albedo,seed,frame_index,sun_cam_x,sun_cam_y,sun_cam_z,preset,width,height,sky_grid,number,time_utc,lat_deg,lon_deg,raw12_exposure_us,soft_clouds,model,radiance,dop_model,babinet,brewster";
+pub const LABEL_HEADER: &str = concat!("split,file,yaw_deg,pitch_deg,roll_deg,frame,focal_length_mm,pixel_pitch_um,sun_altitude_deg,sun_azimuth_deg,turbidity,wavelength_nm,albedo,seed,frame_index,sun_cam_x,sun_cam_y,sun_cam_z,preset,width,height,sky_grid,number,time_utc,lat_deg,lon_deg,raw12_exposure_us,soft_clouds,model,radiance,dop_model,babinet,brewster,", super::world::world_label_header!());
 
 impl Sample {
     /// `<prefix><Number>_<Yaw>_<Pitch>_<Roll>_<FocalLength>_<SolarAltitude>_<Turbidity>_<Wavelength>_<GroundAlbedo>`.
@@ -206,27 +208,32 @@ impl Sample {
         if self.soft_clouds {
             c.raw.soft_clouds = Some(crate::sky::clouds::SoftClouds::default());
         }
+        if let Some(w) = &self.world {
+            c.world = w.clone();
+        }
         c
     }
 
     /// The row of `labels.csv` (columns of [`LABEL_HEADER`]); `raw12` says whether the 12-bit
-    /// frame is written (its exposure column is empty otherwise).
-    pub fn label_row_with(&self, raw12: bool) -> String {
+    /// frame is written (its exposure column is empty otherwise). Fails only when the sample's
+    /// world cannot be built for its class fractions.
+    pub fn label_row_with(&self, raw12: bool) -> Result<String> {
         let exposure = match (raw12, self.raw12_exposure_us) {
             (false, _) => String::new(),
             (true, None) => "auto".into(),
             (true, Some(us)) => us.to_string(),
         };
-        format!(
-            "{},{exposure},{},{}",
+        Ok(format!(
+            "{},{exposure},{},{},{}",
             self.label_row_base(),
             u8::from(self.soft_clouds),
-            self.sky_labels()
-        )
+            self.sky_labels(),
+            self.world_labels()?
+        ))
     }
 
     /// The row of `labels.csv` of a dataset without the 12-bit frame.
-    pub fn label_row(&self) -> String {
+    pub fn label_row(&self) -> Result<String> {
         self.label_row_with(false)
     }
 

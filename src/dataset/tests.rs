@@ -179,7 +179,7 @@ fn shard_parsing_and_partition() {
 fn label_row_has_every_column_and_the_scene_matches() {
     let c = tiny();
     let s = c.sample(Split::Nfpi, 1).unwrap();
-    let row = s.label_row();
+    let row = s.label_row().unwrap();
     assert_eq!(row.split(',').count(), LABEL_HEADER.split(',').count());
     assert!(row.starts_with(&format!("NFPI,NFPI/{}.png,", s.stem())));
     let v = s.sun_camera();
@@ -212,7 +212,7 @@ fn sun_from_times_and_places() {
         assert!((sun.azimuth_deg - s.sun_azimuth_deg).abs() <= 0.0005);
         assert_eq!(w.lat_deg, 45.0);
         assert!(w.time_utc.starts_with("2024-06-"), "{}", w.time_utc);
-        let row = s.label_row();
+        let row = s.label_row().unwrap();
         assert!(
             row.contains(&format!(",{},45,{},,0,", w.time_utc, w.lon_deg)),
             "{row}"
@@ -269,7 +269,7 @@ fn eager_labels(c: &DatasetConfig, plan: &[Sample]) -> String {
     labels.push_str(LABEL_HEADER);
     labels.push('\n');
     for s in plan {
-        labels.push_str(&s.label_row_with(c.outputs.raw12));
+        labels.push_str(&s.label_row_with(c.outputs.raw12).unwrap());
         labels.push('\n');
     }
     labels
@@ -420,4 +420,58 @@ fn a_plan_holds_nothing_per_sample() {
         )
         .unwrap();
     assert_eq!(next, 20_001);
+}
+
+/// A world preset sets only the world keys the description leaves out, and the description
+/// with them written out reads back the same; each world number has its own stream, so fixing
+/// one never changes another's draws; without world keys the world's columns are empty.
+#[test]
+fn world_presets_fill_missing_keys_and_world_draws_are_independent() {
+    let base = "seed = 3\nwidth = 64\nheight = 48\n[splits]\nNFPI = 20\n";
+    let c = DatasetConfig::from_toml(&format!("world = \"urban\"\ncloud_cover = 0\n{base}"), "t")
+        .unwrap();
+    assert_eq!(c.world, Some(WorldPreset::Urban));
+    assert_eq!(c.cloud_cover, Some(Dist::Fixed(0.0)));
+    assert_eq!(c.camera_height_m, Some(Dist::Fixed(1.5)));
+    assert_eq!(c.canyon.as_ref().unwrap().width_m, uniform(10.0, 50.0, 0.5));
+    assert!(c.trees.is_none());
+    assert_eq!(DatasetConfig::from_toml(&c.to_toml(), "again").unwrap(), c);
+    let mut other = c.clone();
+    other.camera_height_m = Some(Dist::Fixed(3.0));
+    let mut widths = std::collections::BTreeSet::new();
+    for n in 1..=20 {
+        let (a, b) = (
+            c.sample(Split::Nfpi, n).unwrap(),
+            other.sample(Split::Nfpi, n).unwrap(),
+        );
+        let (wa, wb) = (a.world.unwrap(), b.world.unwrap());
+        assert_eq!(wa.canyon, wb.canyon);
+        assert_eq!((wa.camera_height_m, wb.camera_height_m), (1.5, 3.0));
+        let cy = wa.canyon.unwrap();
+        assert!((10.0..=50.0).contains(&cy.width_m) && (4.0..=30.0).contains(&cy.height_m));
+        assert!((0.0..=179.9).contains(&cy.azimuth_deg));
+        widths.insert(cy.width_m.to_string());
+    }
+    assert!(widths.len() > 5, "{widths:?}");
+    let canopy = DatasetConfig::from_toml(&format!("world = \"canopy\"\n{base}"), "t").unwrap();
+    for n in 1..=20 {
+        let w = canopy.sample(Split::Nfpi, n).unwrap().world.unwrap();
+        assert!((2..=6).contains(&w.trees.len()), "{}", w.trees.len());
+        for t in &w.trees {
+            let d = t.east_m.hypot(t.north_m);
+            assert!((1.0 - 1e-9..=10.0 + 1e-9).contains(&d), "{d}");
+        }
+    }
+    let plain = DatasetConfig::from_toml(base, "t").unwrap();
+    let s = plain.sample(Split::Nfpi, 1).unwrap();
+    assert!(s.world.is_none());
+    let empty = ",".repeat(WORLD_LABEL_HEADER.matches(',').count() + 1);
+    assert!(s
+        .label_row()
+        .unwrap()
+        .ends_with(&format!("wang-bounded,25,25{empty}")));
+    assert!(LABEL_HEADER.ends_with(&format!(",{WORLD_LABEL_HEADER}")));
+    let strides =
+        [(64, 48), (128, 128), (129, 128), (2448, 2048)].map(|(w, h)| fraction_stride(w, h));
+    assert_eq!(strides, [1, 1, 2, 18]);
 }

@@ -3,22 +3,28 @@
 
 use super::*;
 use crate::image::Image;
-use crate::world::{Class, Hit};
+use crate::world::{Class, Hit, World};
 
 /// The class of the pixel (col, row) centre, without the sun's disc.
 pub fn pixel_class(sky: &Sky, cam: &Camera, col: usize, row: usize) -> Class {
+    pixel_class_in(sky.surroundings().map(|w| w.world()), cam, col, row)
+}
+
+/// [`pixel_class`] in `world` (`None`: the open sky), which is all a pixel's class depends on
+/// besides the camera.
+pub fn pixel_class_in(world: Option<&World>, cam: &Camera, col: usize, row: usize) -> Class {
     let Some(d) = cam.pixel_direction(col as f64, row as f64) else {
         return Class::Outside;
     };
-    let Some(w) = sky.surroundings() else {
+    let Some(w) = world else {
         return if d.z > 0.0 { Class::Sky } else { Class::Ground };
     };
-    if !w.world().open(col, row) {
+    if !w.open(col, row) {
         return Class::Obstruction;
     }
-    match w.world().trace(d) {
+    match w.trace(d) {
         Hit::Sky if d.z > 0.0 => {
-            if w.world().clouds().opacity(d) >= 0.5 {
+            if w.clouds().opacity(d) >= 0.5 {
                 Class::Cloud
             } else {
                 Class::Sky
@@ -32,22 +38,55 @@ pub fn pixel_class(sky: &Sky, cam: &Camera, col: usize, row: usize) -> Class {
 /// The class of every pixel ([`Class`] codes), with the sun's disc where it is drawn
 /// (`sun_disc`) and seen.
 pub fn class_image(sky: &Sky, cam: &Camera, sun_disc: bool) -> Image<u8> {
-    let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
-    let mut out: Image<u8> = Image::new(w, h);
-    out.data
-        .par_chunks_mut(w.max(1))
-        .enumerate()
-        .for_each(|(r, row)| {
-            for (c, v) in row.iter_mut().enumerate() {
-                *v = pixel_class(sky, cam, c, r) as u8;
-            }
-        });
+    class_image_every(sky, cam, sun_disc, 1)
+}
+
+/// The class of every `stride`-th pixel in each direction (columns and rows 0, stride,
+/// 2 stride, …): an image of ⌈width / stride⌉ x ⌈height / stride⌉ pixels, [`class_image`] for
+/// stride 1.
+pub fn class_image_every(sky: &Sky, cam: &Camera, sun_disc: bool, stride: usize) -> Image<u8> {
+    let world = sky.surroundings().map(|w| w.world());
+    let mut out = class_image_in(world, cam, stride);
     if sun_disc {
+        let s = stride.max(1);
+        let w = cam.intrinsics.width;
         for (k, _) in sun_disc_pixels(sky, cam) {
-            out.data[k] = Class::Sun as u8;
+            let (r, c) = (k / w, k % w);
+            if r % s == 0 && c % s == 0 {
+                out.data[(r / s) * out.width + c / s] = Class::Sun as u8;
+            }
         }
     }
     out
+}
+
+/// [`class_image_every`] without the sun's disc, in `world` (`None`: the open sky): no sky
+/// needed.
+pub fn class_image_in(world: Option<&World>, cam: &Camera, stride: usize) -> Image<u8> {
+    let s = stride.max(1);
+    let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
+    let ws = w.div_ceil(s);
+    let mut out: Image<u8> = Image::new(ws, h.div_ceil(s));
+    out.data
+        .par_chunks_mut(ws.max(1))
+        .enumerate()
+        .for_each(|(r, row)| {
+            for (c, v) in row.iter_mut().enumerate() {
+                *v = pixel_class_in(world, cam, c * s, r * s) as u8;
+            }
+        });
+    out
+}
+
+/// The fraction of the pixels of a class image in each class ([`Class::ALL`] order): what
+/// `psns render` writes as `derived.class_fractions`.
+pub fn fractions(class: &Image<u8>) -> [f64; 6] {
+    let mut counts = [0usize; 6];
+    for &c in &class.data {
+        counts[c as usize] += 1;
+    }
+    let n = class.data.len().max(1) as f64;
+    counts.map(|k| k as f64 / n)
 }
 
 /// The fraction of the image in each class ([`Class::ALL`] order), counted over every

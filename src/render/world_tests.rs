@@ -250,3 +250,45 @@ fn a_world_fixed_cloud_stays_in_the_sky_as_the_camera_turns() {
     assert!(!sun_disc_pixels(&open, &fish).is_empty());
     assert!(sun_disc_pixels(&hidden, &fish).is_empty());
 }
+
+/// The class image on every `s`-th pixel is the full class image's pixels at those columns
+/// and rows (the sun's disc too), and its fractions are the counts of its classes.
+#[test]
+fn the_strided_class_image_is_the_full_one_subsampled() {
+    let intr = Intrinsics {
+        projection: Projection::Equidistant,
+        focal_length_mm: 0.25,
+        pixel_pitch_um: 3.45,
+        ..Intrinsics::with_size(120, 120)
+    };
+    let cam = Camera::new(intr, &Attitude::enu(0.0, 0.0, 0.0), 200.0).unwrap();
+    let cfg = WorldConfig {
+        canyon: Some(Canyon::new(20.0, 20.0, 30.0)),
+        cloud_cover: Some(0.3),
+        ..Default::default()
+    };
+    let sky = sky_with(&cfg, SunPosition::new(10.0, 100.0));
+    let full = class_image(&sky, &cam, true);
+    assert!(full.data.contains(&(Class::Sun as u8)));
+    for s in [1, 3, 7] {
+        let part = class_image_every(&sky, &cam, true, s);
+        assert_eq!(
+            (part.width, part.height),
+            (120usize.div_ceil(s), 120usize.div_ceil(s))
+        );
+        for r in 0..part.height {
+            for c in 0..part.width {
+                assert_eq!(
+                    part.data[r * part.width + c],
+                    full.data[r * s * 120 + c * s]
+                );
+            }
+        }
+    }
+    let f = fractions(&full);
+    for k in Class::ALL {
+        let n = full.data.iter().filter(|&&v| v == k as u8).count();
+        assert_eq!(f[k as usize], n as f64 / (120.0 * 120.0));
+    }
+    assert!(f[Class::Obstruction as usize] > 0.2 && f[Class::Cloud as usize] > 0.0);
+}

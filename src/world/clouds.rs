@@ -65,8 +65,15 @@ pub struct Wind {
 
 impl Wind {
     pub(super) fn validate(&self) -> Result<()> {
-        check_range("wind speed (deg/s)", self.speed_deg_s, -10.0, 10.0)?;
-        check_range("wind azimuth", self.azimuth_deg, -360.0, 720.0)?;
+        use super::limits::{AZIMUTH_DEG, WIND_SPEED_DEG_S};
+        let (lo, hi) = WIND_SPEED_DEG_S;
+        check_range("wind speed (deg/s)", self.speed_deg_s, lo, hi)?;
+        check_range(
+            "wind azimuth",
+            self.azimuth_deg,
+            AZIMUTH_DEG.0,
+            AZIMUTH_DEG.1,
+        )?;
         Ok(())
     }
 }

@@ -35,23 +35,14 @@ fn from_octahedral(u: f64, v: f64) -> DVec3 {
     DVec3::new(x, y, z).normalize()
 }
 
-/// Caps on the sphere, indexed by cell.
-#[derive(Clone, Debug, Default)]
-pub(super) struct SphereIndex {
-    cells: Vec<Vec<u32>>,
-}
-
-impl SphereIndex {
-    /// Indexes `caps` (unit centre, angular radius): each is listed in every cell it reaches
-    /// within [`MARGIN_RAD`]. A cell is bounded by the cap around its centre through the
-    /// farthest of a 5 × 5 lattice of its points, grown by a tenth for the curvature between
-    /// them.
-    pub(super) fn new(caps: &[(DVec3, f64)]) -> Self {
-        if caps.is_empty() {
-            return SphereIndex::default();
-        }
-        let mut cells = vec![Vec::new(); N * N];
+/// The bounding cap (centre, angular radius) of every cell, row by row: the cap around the
+/// cell's centre through the farthest of a 5 × 5 lattice of its points, grown by a tenth for the
+/// curvature between them. The same for every index, so computed once.
+fn cell_caps() -> &'static [(DVec3, f64)] {
+    static CAPS: std::sync::OnceLock<Vec<(DVec3, f64)>> = std::sync::OnceLock::new();
+    CAPS.get_or_init(|| {
         let n = N as f64;
+        let mut out = Vec::with_capacity(N * N);
         for j in 0..N {
             for i in 0..N {
                 let (u0, v0) = (i as f64 / n, j as f64 / n);
@@ -64,15 +55,38 @@ impl SphereIndex {
                         reach = reach.max(centre.dot(p).clamp(-1.0, 1.0).acos());
                     }
                 }
-                let reach = reach * 1.1 + 1e-3;
-                let list = &mut cells[j * N + i];
+                out.push((centre, reach * 1.1 + 1e-3));
+            }
+        }
+        out
+    })
+}
+
+/// Caps on the sphere, indexed by cell.
+#[derive(Clone, Debug, Default)]
+pub(super) struct SphereIndex {
+    cells: Vec<Vec<u32>>,
+}
+
+impl SphereIndex {
+    /// Indexes `caps` (unit centre, angular radius): each is listed in every cell it reaches
+    /// within [`MARGIN_RAD`], a cell bounded by its cap ([`cell_caps`]).
+    pub(super) fn new(caps: &[(DVec3, f64)]) -> Self {
+        if caps.is_empty() {
+            return SphereIndex::default();
+        }
+        let cells = cell_caps()
+            .iter()
+            .map(|&(centre, reach)| {
+                let mut list = Vec::new();
                 for (k, &(c, r)) in caps.iter().enumerate() {
                     if centre.dot(c).clamp(-1.0, 1.0).acos() <= r + MARGIN_RAD + reach {
                         list.push(k as u32);
                     }
                 }
-            }
-        }
+                list
+            })
+            .collect();
         SphereIndex { cells }
     }
 

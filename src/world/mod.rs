@@ -25,6 +25,29 @@ pub use clouds::{Cloud, CloudField, Wind};
 pub use shapes::{Building, Canyon, Surface, Tree, FOLIAGE_ALBEDO, GAP_CELL_M};
 pub use skyline::Skyline;
 
+/// Allowed ranges (inclusive) of the world's numbers, as the options, scene files and dataset
+/// descriptions take them.
+pub mod limits {
+    /// Camera height above the ground, metres.
+    pub const CAMERA_HEIGHT_M: (f64, f64) = (0.0, 10_000.0);
+    /// Fraction of the sky covered by seeded clouds.
+    pub const CLOUD_COVER: (f64, f64) = (0.0, 1.0);
+    /// Street width of a canyon, metres.
+    pub const CANYON_WIDTH_M: (f64, f64) = (0.01, 1e5);
+    /// Wall height of a canyon, metres.
+    pub const CANYON_HEIGHT_M: (f64, f64) = (0.0, 1e4);
+    /// Compass azimuths (a canyon's axis, the wind's direction), degrees.
+    pub const AZIMUTH_DEG: (f64, f64) = (-360.0, 720.0);
+    /// The clouds' angular speed, degrees per second.
+    pub const WIND_SPEED_DEG_S: (f64, f64) = (-10.0, 10.0);
+    /// Height of a tree's canopy centre above the ground, metres.
+    pub const CANOPY_HEIGHT_M: (f64, f64) = (0.0, 1e3);
+    /// Semi-axes of a tree's canopy, metres.
+    pub const CANOPY_RADIUS_M: (f64, f64) = (0.01, 1e3);
+    /// Fraction of a canopy that lets the sky through.
+    pub const GAP_FRACTION: (f64, f64) = (0.0, 1.0);
+}
+
 /// Albedo of a diffuse surface that sets none (weathered concrete and brick, 0.2-0.4).
 pub const DEFAULT_ALBEDO: f64 = 0.3;
 /// Refractive index of facade glass that sets none (soda-lime glass).
@@ -82,7 +105,8 @@ impl WorldConfig {
 
     /// Checks every value (finite, in range, nothing around the observer).
     pub fn validate(&self) -> Result<()> {
-        check_range("camera-height", self.camera_height_m, 0.0, 10_000.0)?;
+        let (lo, hi) = limits::CAMERA_HEIGHT_M;
+        check_range("camera-height", self.camera_height_m, lo, hi)?;
         if !self.skyline.is_empty() {
             Skyline::new(&self.skyline)?;
         }
@@ -99,7 +123,8 @@ impl WorldConfig {
             c.validate(k)?;
         }
         if let Some(f) = self.cloud_cover {
-            check_range("cloud-cover", f, 0.0, 1.0)?;
+            let (lo, hi) = limits::CLOUD_COVER;
+            check_range("cloud-cover", f, lo, hi)?;
         }
         if let Some(w) = &self.wind {
             w.validate()?;

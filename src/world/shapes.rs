@@ -79,9 +79,25 @@ impl Canyon {
     }
 
     pub(super) fn validate(&self, camera_height_m: f64) -> Result<()> {
-        check_range("canyon width", self.width_m, 0.01, 1e5)?;
-        check_range("canyon height", self.height_m, 0.0, 1e4)?;
-        check_range("canyon azimuth", self.azimuth_deg, -360.0, 720.0)?;
+        use super::limits::{AZIMUTH_DEG, CANYON_HEIGHT_M, CANYON_WIDTH_M};
+        check_range(
+            "canyon width",
+            self.width_m,
+            CANYON_WIDTH_M.0,
+            CANYON_WIDTH_M.1,
+        )?;
+        check_range(
+            "canyon height",
+            self.height_m,
+            CANYON_HEIGHT_M.0,
+            CANYON_HEIGHT_M.1,
+        )?;
+        check_range(
+            "canyon azimuth",
+            self.azimuth_deg,
+            AZIMUTH_DEG.0,
+            AZIMUTH_DEG.1,
+        )?;
         check_material("canyon", self.albedo, self.refractive_index)?;
         let _ = camera_height_m;
         Ok(())
@@ -313,12 +329,15 @@ impl Tree {
         let n = |s: &str| format!("tree {} {s}", k + 1);
         check_range(&n("east_m"), self.east_m, -1e5, 1e5)?;
         check_range(&n("north_m"), self.north_m, -1e5, 1e5)?;
-        check_range(&n("canopy_height_m"), self.canopy_height_m, 0.0, 1e3)?;
+        use super::limits::{CANOPY_HEIGHT_M, CANOPY_RADIUS_M, GAP_FRACTION};
+        let (lo, hi) = CANOPY_HEIGHT_M;
+        check_range(&n("canopy_height_m"), self.canopy_height_m, lo, hi)?;
         for r in self.radii_m {
-            check_range(&n("radii_m"), r, 0.01, 1e3)?;
+            check_range(&n("radii_m"), r, CANOPY_RADIUS_M.0, CANOPY_RADIUS_M.1)?;
         }
         check_range(&n("trunk_radius_m"), self.trunk_radius_m, 0.0, 100.0)?;
-        check_range(&n("gap_fraction"), self.gap_fraction, 0.0, 1.0)?;
+        let (lo, hi) = GAP_FRACTION;
+        check_range(&n("gap_fraction"), self.gap_fraction, lo, hi)?;
         let eye = DVec3::new(0.0, 0.0, camera_height_m);
         let q = (eye - self.centre()) / DVec3::from(self.radii_m);
         let h = DVec2::new(self.east_m, self.north_m).length();

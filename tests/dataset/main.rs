@@ -10,3 +10,4 @@ mod build;
 mod plan;
 mod recipes;
 mod scene;
+mod world;
