@@ -471,7 +471,7 @@ fn world_presets_fill_missing_keys_and_world_draws_are_independent() {
         .unwrap()
         .ends_with(&format!("wang-bounded,25,25{empty}")));
     assert!(LABEL_HEADER.ends_with(&format!(",{WORLD_LABEL_HEADER}")));
-    let strides =
-        [(64, 48), (128, 128), (129, 128), (2448, 2048)].map(|(w, h)| fraction_stride(w, h));
+    let strides = [(64, 48), (128, 128), (129, 128), (2448, 2048)]
+        .map(|(w, h)| crate::render::class_stride(w, h));
     assert_eq!(strides, [1, 1, 2, 18]);
 }

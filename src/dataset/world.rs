@@ -334,25 +334,15 @@ pub(super) use world_label_header;
 /// Header of the world's columns of `labels.csv`, the last of [`LABEL_HEADER`].
 pub const WORLD_LABEL_HEADER: &str = world_label_header!();
 
-/// Most pixels classified for a sample's class fractions.
-pub const FRACTION_PIXELS: usize = 16_384;
-
-/// The stride of the class fractions of a `width` x `height` frame: the smallest `s` with at
-/// most [`FRACTION_PIXELS`] pixels on every `s`-th column and row (1 up to 128 x 128).
-pub fn fraction_stride(width: usize, height: usize) -> usize {
-    (1..)
-        .find(|s| width.div_ceil(*s) * height.div_ceil(*s) <= FRACTION_PIXELS)
-        .expect("a stride as large as the frame counts one pixel")
-}
-
 impl Sample {
     /// The fraction of the sample's frame (its split's preset) in each class
     /// ([`crate::world::Class::ALL`] order), from the class image of `psns render` on every
-    /// [`fraction_stride`]-th pixel; at stride 1 `psns render`'s `derived.class_fractions`.
+    /// [`crate::render::class_stride`]-th pixel, as the frame's record counts them; at stride 1
+    /// `psns render`'s `derived.class_fractions`.
     pub fn class_fractions(&self) -> Result<[f64; 6]> {
         let scene = self.scene(self.split.preset());
         let i = scene.intrinsics();
-        let stride = fraction_stride(i.width, i.height);
+        let stride = crate::render::class_stride(i.width, i.height);
         let class = if scene.raw.sun_disc_on() {
             let (sky, cam) = scene.build()?;
             crate::render::class_image_every(&sky, &cam, true, stride)

@@ -18,7 +18,7 @@ use crate::world::World;
 mod clock;
 mod request;
 pub use clock::{seconds_to_ns, SceneClock, DEFAULT_START_TIME};
-pub use request::{class_stride, FrameRequest, FrameResult, Scene, CLASS_SAMPLES};
+pub use request::{FrameRequest, FrameResult, Scene};
 
 /// What one frame's scene looked like.
 #[derive(Clone, Copy, Debug, Default, PartialEq)]

@@ -14,22 +14,6 @@ use crate::sky::SkyParams;
 use crate::sun::{Place, SunPosition};
 use glam::{DMat3, DVec3};
 
-/// Pixels classified at most (about) for a frame's [`FrameRecord::class_fractions`]: every
-/// [`class_stride`]-th pixel in each direction.
-pub const CLASS_SAMPLES: usize = 1 << 16;
-
-/// The stride of the class count in a `width` x `height` frame: every pixel up to
-/// [`CLASS_SAMPLES`] pixels, then every k-th in each direction (8 on the full sensor).
-///
-/// ```
-/// use psns::pipeline::class_stride;
-/// assert_eq!(class_stride(320, 256), 1);
-/// assert_eq!(class_stride(2448, 2048), 8);
-/// ```
-pub fn class_stride(width: usize, height: usize) -> usize {
-    (((width * height) as f64 / CLASS_SAMPLES as f64).sqrt() as usize).max(1)
-}
-
 /// What a frame shows.
 #[derive(Clone, Copy, Debug)]
 pub enum Scene<'a> {
@@ -374,7 +358,7 @@ impl RawPipeline {
     }
 
     /// The fraction of the image in each class when a world is around the camera and the sun
-    /// is up.
+    /// is up: `psns render`'s class image on every [`render::class_stride`]-th pixel.
     fn class_fractions(
         &self,
         sun: SunPosition,
@@ -389,13 +373,10 @@ impl RawPipeline {
         let cam = Camera::new(self.cfg.camera.intrinsics, attitude, sun.azimuth_deg)?;
         let sky = self.sky_for(sun, params, t_s)?;
         let i = &self.cfg.camera.intrinsics;
-        let stride = class_stride(i.width, i.height);
-        Ok(Some(render::class_fractions(
-            &sky,
-            &cam,
-            stride,
-            info.sun_pixels,
-        )))
+        let stride = render::class_stride(i.width, i.height);
+        let sun_disc = self.cfg.raw.sun_disc_on();
+        let class = render::class_image_every(&sky, &cam, sun_disc, stride);
+        Ok(Some(render::fractions(&class)))
     }
 }
 

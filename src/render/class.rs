@@ -78,6 +78,23 @@ pub fn class_image_in(world: Option<&World>, cam: &Camera, stride: usize) -> Ima
     out
 }
 
+/// Most pixels a frame's class fractions count ([`class_stride`]).
+pub const CLASS_SAMPLES: usize = 16_384;
+
+/// The stride of a `width` x `height` frame's class fractions: the smallest `s` with at most
+/// [`CLASS_SAMPLES`] pixels on every `s`-th column and row (1 up to 128 x 128, 18 on the full
+/// sensor).
+///
+/// ```
+/// use psns::render::class_stride;
+/// assert_eq!((class_stride(128, 128), class_stride(129, 128), class_stride(2448, 2048)), (1, 2, 18));
+/// ```
+pub fn class_stride(width: usize, height: usize) -> usize {
+    (1..)
+        .find(|s| width.div_ceil(*s) * height.div_ceil(*s) <= CLASS_SAMPLES)
+        .expect("a stride as large as the frame counts one pixel")
+}
+
 /// The fraction of the pixels of a class image in each class ([`Class::ALL`] order): what
 /// `psns render` writes as `derived.class_fractions`.
 pub fn fractions(class: &Image<u8>) -> [f64; 6] {
@@ -87,32 +104,4 @@ pub fn fractions(class: &Image<u8>) -> [f64; 6] {
     }
     let n = class.data.len().max(1) as f64;
     counts.map(|k| k as f64 / n)
-}
-
-/// The fraction of the image in each class ([`Class::ALL`] order), counted over every
-/// `stride`-th pixel in each direction (1: every pixel); the sun's disc from its `sun_pixels`
-/// exactly.
-pub fn class_fractions(sky: &Sky, cam: &Camera, stride: usize, sun_pixels: usize) -> [f64; 6] {
-    let (w, h) = (cam.intrinsics.width, cam.intrinsics.height);
-    let stride = stride.max(1);
-    let rows: Vec<usize> = (0..h).step_by(stride).collect();
-    let counts = rows
-        .par_iter()
-        .map(|&r| {
-            let mut n = [0usize; 6];
-            for c in (0..w).step_by(stride) {
-                n[pixel_class(sky, cam, c, r) as usize] += 1;
-            }
-            n
-        })
-        .reduce(|| [0; 6], |a, b| std::array::from_fn(|k| a[k] + b[k]));
-    let total: usize = counts.iter().sum();
-    let sun = sun_pixels as f64 / (w * h).max(1) as f64;
-    let mut f: [f64; 6] = std::array::from_fn(|k| counts[k] as f64 / total.max(1) as f64);
-    // the disc is drawn over the sky and the clouds
-    let from_sky = sun.min(f[Class::Sky as usize]);
-    f[Class::Sky as usize] -= from_sky;
-    f[Class::Cloud as usize] -= (sun - from_sky).min(f[Class::Cloud as usize]);
-    f[Class::Sun as usize] = sun;
-    f
 }

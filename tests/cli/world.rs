@@ -153,16 +153,26 @@ fn stream_frame_0_is_render_raw_with_a_world() {
     assert_eq!(raw, got, "render --raw and stream frame 0 differ");
     let open = std::fs::read(open_sky.join("raw.tiff")).unwrap();
     assert_ne!(raw, open, "the world is not in the frame");
-    // the frame header carries the class fractions of the render's class image (every pixel
-    // counted at this size)
-    let text = std::fs::read_to_string(out.join("scene.json")).unwrap();
-    let v: serde_json::Value = serde_json::from_str(&text).unwrap();
+    // the frame header carries the class fractions of the render's class image on every
+    // k-th column and row
+    let npy = std::fs::read(out.join("class.npy")).unwrap();
+    let class = &npy[10 + u16::from_le_bytes([npy[8], npy[9]]) as usize..];
+    let (w, h) = (320, 256);
+    assert_eq!(class.len(), w * h);
+    let k = psns::render::class_stride(w, h);
+    assert_eq!(k, 3);
+    let mut counts = [0usize; 6];
+    for r in (0..h).step_by(k) {
+        for c in (0..w).step_by(k) {
+            counts[class[r * w + c] as usize] += 1;
+        }
+    }
+    let n: usize = counts.iter().sum();
     let meta = first_frame(&stream);
     assert!(meta.flags & psns::stream::FLAG_CLASSES != 0);
-    for (k, c) in psns::world::Class::ALL.iter().enumerate() {
-        let want = v["derived"]["class_fractions"][c.name()].as_f64().unwrap();
-        let got = meta.class_fractions[k] as f64;
-        assert!((got - want).abs() < 1e-3, "{}: {got} vs {want}", c.name());
+    for (j, c) in psns::world::Class::ALL.iter().enumerate() {
+        let want = counts[j] as f64 / n as f64;
+        assert_eq!(meta.class_fractions[j], want as f32, "{}", c.name());
     }
     assert!(meta.class_fractions[psns::world::Class::Obstruction as usize] > 0.05);
     // the open sky's frames have none
