@@ -42,11 +42,13 @@ def test_camera_frames_are_the_stream_frames(psns_bin, tmp_path):
 
 def test_camera_meta_is_the_stream_frame_header(psns_bin, tmp_path):
     """meta is the frame record the stream's header derives from, class fractions included."""
-    world = ("--canyon", "20,6,30", "--projection", "equidistant", "--focal-length", "0.4")
+    # a fisheye wide enough to see the walls from the zenith
+    world = ("--canyon", "20,6,30", "--projection", "equidistant", "--focal-length", "0.4",
+             "--pixel-pitch", "13.8")
     path = tmp_path / "w.psns"
     stream_file(psns_bin, path, world)
     cam = psns.Camera(width=W, height=H, seed=9, frame="enu", canyon="20,6,30",
-                      projection="equidistant", focal_length=0.4, **SUN)
+                      projection="equidistant", focal_length=0.4, pixel_pitch=13.8, **SUN)
     for (i, head, frame), (_, y, p, r) in zip(psns.open_stream(path), POSES):
         mine, m = cam.frame(yaw=y, pitch=p, roll=r, frame_index=i, meta=True)
         assert np.array_equal(mine, frame), i

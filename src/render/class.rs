@@ -5,13 +5,8 @@ use super::*;
 use crate::image::Image;
 use crate::world::{Class, Hit, World};
 
-/// The class of the pixel (col, row) centre, without the sun's disc.
-pub fn pixel_class(sky: &Sky, cam: &Camera, col: usize, row: usize) -> Class {
-    pixel_class_in(sky.surroundings().map(|w| w.world()), cam, col, row)
-}
-
-/// [`pixel_class`] in `world` (`None`: the open sky), which is all a pixel's class depends on
-/// besides the camera.
+/// The class of the pixel (col, row) centre, without the sun's disc, in `world` (`None`: the
+/// open sky), which is all a pixel's class depends on besides the camera.
 pub fn pixel_class_in(world: Option<&World>, cam: &Camera, col: usize, row: usize) -> Class {
     let Some(d) = cam.pixel_direction(col as f64, row as f64) else {
         return Class::Outside;
