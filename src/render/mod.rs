@@ -197,20 +197,21 @@ fn sky_cols_body(sky: &Sky, cam: &Camera, row: usize, cols: &[usize], out: &mut 
         static LANES_BUF: std::cell::RefCell<Option<Box<ChunkLanes>>> =
             const { std::cell::RefCell::new(None) };
     }
+    // taken out of the thread-local and put back: the loop stays in this function, built for
+    // the caller's instruction set (a closure passed to `with` would be built for the baseline)
+    let held = LANES_BUF.with(|cell| cell.try_borrow_mut().ok().and_then(|mut c| c.take()));
+    let mut l = held.unwrap_or_else(|| Box::new(ChunkLanes::new()));
+    // the fisheyes set this per lane; a pinhole's lanes are all lit
+    l.lit = [true; LANES];
+    for (cs, o) in cols.chunks(LANES).zip(out.chunks_mut(LANES)) {
+        for (x, &c) in l.col.iter_mut().zip(cs) {
+            *x = c as f64;
+        }
+        sky_chunk(sky, cam, row as f64, &mut l, o);
+    }
     LANES_BUF.with(|cell| {
-        let mut held = cell.try_borrow_mut().ok();
-        let mut own: Option<Box<ChunkLanes>> = None;
-        let l: &mut ChunkLanes = match held.as_deref_mut() {
-            Some(slot) => slot.get_or_insert_with(|| Box::new(ChunkLanes::new())),
-            None => own.insert(Box::new(ChunkLanes::new())),
-        };
-        // the fisheyes set this per lane; a pinhole's lanes are all lit
-        l.lit = [true; LANES];
-        for (cs, o) in cols.chunks(LANES).zip(out.chunks_mut(LANES)) {
-            for (x, &c) in l.col.iter_mut().zip(cs) {
-                *x = c as f64;
-            }
-            sky_chunk(sky, cam, row as f64, l, o);
+        if let Ok(mut c) = cell.try_borrow_mut() {
+            *c = Some(l);
         }
     });
 }
