@@ -84,6 +84,26 @@ pub(crate) fn ok(o: &std::process::Output) {
 }
 
 /// The rows of a `labels.csv`, each a map from column name to value.
+/// The options of `psns render` that give a label row's scene: its pose, sun, sky, camera seed
+/// and frame index.
+pub(crate) fn label_scene_args<'a>(r: &BTreeMap<&str, &'a str>) -> Vec<&'a str> {
+    let mut v = Vec::new();
+    for (opt, key) in [
+        ("--yaw", "yaw_deg"),
+        ("--frame", "frame"),
+        ("--sun-altitude", "sun_altitude_deg"),
+        ("--sun-azimuth", "sun_azimuth_deg"),
+        ("--turbidity", "turbidity"),
+        ("--wavelength", "wavelength_nm"),
+        ("--albedo", "albedo"),
+        ("--seed", "seed"),
+        ("--frame-index", "frame_index"),
+    ] {
+        v.extend([opt, r[key]]);
+    }
+    v
+}
+
 pub(crate) fn label_rows(labels: &str) -> Vec<BTreeMap<&str, &str>> {
     let mut lines = labels.lines();
     let header: Vec<&str> = lines.next().unwrap().split(',').collect();
@@ -858,34 +878,10 @@ fn soft_clouds_differ_per_sample_and_render_again() {
     for r in &rows {
         let out = t.path().join(format!("again{}", r["number"]));
         let mut args = vec![
-            "render",
-            "--raw",
-            "--preset",
-            "gniipi",
-            "--width",
-            "64",
-            "--height",
-            "48",
-            "--yaw",
-            r["yaw_deg"],
-            "--frame",
-            r["frame"],
-            "--sun-altitude",
-            r["sun_altitude_deg"],
-            "--sun-azimuth",
-            r["sun_azimuth_deg"],
-            "--turbidity",
-            r["turbidity"],
-            "--wavelength",
-            r["wavelength_nm"],
-            "--albedo",
-            r["albedo"],
-            "--seed",
-            r["seed"],
-            "--frame-index",
-            r["frame_index"],
-            "--out",
+            "render", "--raw", "--preset", "gniipi", "--width", "64", "--height", "48",
         ];
+        args.extend(label_scene_args(r));
+        args.push("--out");
         let o = out.to_str().unwrap().to_string();
         args.push(&o);
         if r["soft_clouds"] == "1" {

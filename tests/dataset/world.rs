@@ -2,7 +2,7 @@
 //! sample equal to `psns render --canyon` byte for byte and hiding what its geometry hides, and
 //! the `urban` and `canopy` presets built the same whatever the jobs or shards.
 
-use crate::build::{assert_same_tree, build, label_rows, ok, write_config};
+use crate::build::{assert_same_tree, build, label_rows, label_scene_args, ok, write_config};
 use crate::common::{psns, stderr};
 use std::path::Path;
 
@@ -148,24 +148,6 @@ fn a_canyon_sample_is_psns_render_with_its_canyon() {
                 "equidistant",
                 "--focal-length",
                 r["focal_length_mm"],
-                "--yaw",
-                r["yaw_deg"],
-                "--frame",
-                r["frame"],
-                "--sun-altitude",
-                r["sun_altitude_deg"],
-                "--sun-azimuth",
-                r["sun_azimuth_deg"],
-                "--turbidity",
-                r["turbidity"],
-                "--wavelength",
-                r["wavelength_nm"],
-                "--albedo",
-                r["albedo"],
-                "--seed",
-                r["seed"],
-                "--frame-index",
-                r["frame_index"],
                 "--sky-grid",
                 r["sky_grid"],
                 "--canyon",
@@ -173,6 +155,7 @@ fn a_canyon_sample_is_psns_render_with_its_canyon() {
                 "--camera-height",
                 r["camera_height_m"],
             ];
+            args.extend(label_scene_args(&r));
             if !r["cloud_cover"].is_empty() {
                 args.extend(["--cloud-cover", r["cloud_cover"]]);
             }
