@@ -77,8 +77,6 @@ pub struct FormatInfo {
     /// Bits per pixel in the payload (8, 12 or 16); a payload of n pixels is
     /// ⌈n × bits / 8⌉ bytes.
     pub bits: u8,
-    /// Whether two pixels share a byte (the 12-bit formats).
-    pub packed: bool,
     /// Whether deeper codes are shifted down to the format's bits (Mono8, whose payload always
     /// has 8 valid bits); otherwise codes are stored as they are, at most `bits` deep.
     pub shifts_down: bool,
@@ -96,7 +94,6 @@ impl PixelFormat {
                 pfnc_name: "Mono8",
                 pfnc_code: 0x0108_0001,
                 bits: 8,
-                packed: false,
                 shifts_down: true,
                 msb_alignable: false,
                 word: CodeWord::U8,
@@ -105,7 +102,6 @@ impl PixelFormat {
                 pfnc_name: "Mono12p",
                 pfnc_code: 0x010C_0047,
                 bits: 12,
-                packed: true,
                 shifts_down: false,
                 msb_alignable: false,
                 word: CodeWord::U16,
@@ -114,7 +110,6 @@ impl PixelFormat {
                 pfnc_name: "Mono12Packed",
                 pfnc_code: 0x010C_0006,
                 bits: 12,
-                packed: true,
                 shifts_down: false,
                 msb_alignable: false,
                 word: CodeWord::U16,
@@ -123,7 +118,6 @@ impl PixelFormat {
                 pfnc_name: "Mono16",
                 pfnc_code: 0x0110_0007,
                 bits: 16,
-                packed: false,
                 shifts_down: false,
                 msb_alignable: true,
                 word: CodeWord::U16,
@@ -745,7 +739,6 @@ mod tests {
             assert_eq!(PixelFormat::from_pfnc(i.pfnc_code).unwrap(), f);
             assert_eq!(f.to_string(), i.pfnc_name);
             assert_eq!(f.name(), i.pfnc_name.to_lowercase());
-            assert_eq!(i.packed, i.bits % 8 != 0, "{f}");
             let depth = if i.shifts_down { 16 } else { i.bits };
             for n in 0..40usize {
                 let codes: Vec<u16> = (0..n)

@@ -296,19 +296,13 @@ impl FileHeader {
                 self.payload_size()
             )));
         }
-        let max = self.pixel_format.container_bits();
-        let ok_bits = if self.pixel_format == PixelFormat::Mono8 {
-            self.bits_valid == 8
-        } else {
-            (1..=max).contains(&self.bits_valid)
-        };
-        if !ok_bits {
+        if !self.pixel_format.bits_valid_ok(self.bits_valid as u16) {
             return Err(Error::Invalid(format!(
                 "{} with {} valid bits",
                 self.pixel_format, self.bits_valid
             )));
         }
-        if self.msb_aligned && self.pixel_format != PixelFormat::Mono16 {
+        if self.msb_aligned && !self.pixel_format.info().msb_alignable {
             return Err(Error::Invalid(
                 "MSB alignment exists only for Mono16".into(),
             ));
