@@ -40,6 +40,39 @@ pub(super) struct SubGrid {
     alpha: Vec<f32>,
 }
 
+impl SubGrid {
+    /// Row `r` of this refined cell in a band whose first row is `r0`, `sky_cols` the coarse
+    /// node columns: the sub-row `jj` holding it, the weight `fy` between sub-rows `jj` and
+    /// `jj + 1`, and each sub-cell as (`ii`, first column, next node's column, end), the last
+    /// reaching the cell's end (past the image's last node in the last coarse cell).
+    fn row(
+        &self,
+        r: usize,
+        r0: usize,
+        sky_cols: &[usize],
+    ) -> (
+        usize,
+        f32,
+        impl Iterator<Item = (usize, usize, usize, usize)> + '_,
+    ) {
+        let (gw, i) = (sky_cols.len(), self.cell);
+        let c_end = if i + 2 == gw {
+            sky_cols[i + 1] + 1
+        } else {
+            sky_cols[i + 1]
+        };
+        let (sw, sh) = (self.cols.len(), self.rows.len());
+        let jj = ((r - r0) / self.step).min(sh - 2);
+        let (sr0, sr1) = (self.rows[jj], self.rows[jj + 1]);
+        let fy = (r - sr0) as f32 / (sr1 - sr0) as f32;
+        let cells = (0..sw - 1).map(move |ii| {
+            let (a0, a1) = (self.cols[ii], self.cols[ii + 1]);
+            (ii, a0, a1, if ii + 2 == sw { c_end } else { a1 })
+        });
+        (jj, fy, cells)
+    }
+}
+
 /// The sky on a coarse grid of pixel nodes, refined where bilinear interpolation would be off by
 /// more than `tol` · S0 and evaluated exactly where a cell straddles the horizon.
 ///
@@ -695,20 +728,10 @@ impl SkyGrid<'_> {
         let refined = self.subs[self.band_subs[j]..self.band_subs[j + 1]].iter();
         let alpha_only = self.alpha_subs[self.band_alpha[j]..self.band_alpha[j + 1]].iter();
         for sg in refined.chain(alpha_only) {
-            let i = sg.cell;
-            let c_end = if i + 2 == gw {
-                self.cols[i + 1] + 1
-            } else {
-                self.cols[i + 1]
-            };
-            let (sw, sh) = (sg.cols.len(), sg.rows.len());
-            let jj = ((r - r0) / sg.step).min(sh - 2);
-            let (sr0, sr1) = (sg.rows[jj], sg.rows[jj + 1]);
-            let fy = (r - sr0) as f32 / (sr1 - sr0) as f32;
+            let sw = sg.cols.len();
+            let (jj, fy, cells) = sg.row(r, r0, &self.cols);
             let n = |x: usize, y: usize| sg.alpha[y * sw + x];
-            for ii in 0..sw - 1 {
-                let (a0, a1) = (sg.cols[ii], sg.cols[ii + 1]);
-                let a_end = if ii + 2 == sw { c_end } else { a1 };
+            for (ii, a0, a1, a_end) in cells {
                 let l = n(ii, jj) + (n(ii, jj + 1) - n(ii, jj)) * fy;
                 let rr = n(ii + 1, jj) + (n(ii + 1, jj + 1) - n(ii + 1, jj)) * fy;
                 let inv = 1.0 / (a1 - a0) as f32;
@@ -778,19 +801,9 @@ impl StokesRows for SkyGrid<'_> {
                 w,
             );
             for sg in &self.subs[self.band_subs[j]..self.band_subs[j + 1]] {
-                let i = sg.cell;
-                let c_end = if i + 2 == gw {
-                    self.cols[i + 1] + 1
-                } else {
-                    self.cols[i + 1]
-                };
-                let (sw, sh) = (sg.cols.len(), sg.rows.len());
-                let jj = ((r - r0) / sg.step).min(sh - 2);
-                let (sr0, sr1) = (sg.rows[jj], sg.rows[jj + 1]);
-                let fy = (r - sr0) as f32 / (sr1 - sr0) as f32;
-                for ii in 0..sw - 1 {
-                    let (a0, a1) = (sg.cols[ii], sg.cols[ii + 1]);
-                    let a_end = if ii + 2 == sw { c_end } else { a1 };
+                let sw = sg.cols.len();
+                let (jj, fy, cells) = sg.row(r, r0, &self.cols);
+                for (ii, a0, a1, a_end) in cells {
                     if sg.exact[jj * (sw - 1) + ii] {
                         exact.extend(a0..a_end);
                     } else {
