@@ -84,13 +84,21 @@ pub(crate) fn ok(o: &std::process::Output) {
 }
 
 /// The rows of a `labels.csv`, each a map from column name to value.
-/// The options of `psns render` that give a label row's scene: its pose, sun, sky, camera seed
-/// and frame index.
-pub(crate) fn label_scene_args<'a>(r: &BTreeMap<&str, &'a str>) -> Vec<&'a str> {
+/// The options of `psns render` that make a label row's frame again: its preset, size, camera,
+/// pose, sun, sky, seed and frame. An empty value (a neutral point of a model without them) or
+/// `pan` (a neutral point on Pan's law, the default) is left to the default.
+pub(crate) fn label_render_args<'a>(r: &BTreeMap<&str, &'a str>) -> Vec<&'a str> {
     let mut v = Vec::new();
-    for (opt, key) in [
+    for (opt, col) in [
+        ("--preset", "preset"),
+        ("--width", "width"),
+        ("--height", "height"),
         ("--yaw", "yaw_deg"),
+        ("--pitch", "pitch_deg"),
+        ("--roll", "roll_deg"),
         ("--frame", "frame"),
+        ("--focal-length", "focal_length_mm"),
+        ("--pixel-pitch", "pixel_pitch_um"),
         ("--sun-altitude", "sun_altitude_deg"),
         ("--sun-azimuth", "sun_azimuth_deg"),
         ("--turbidity", "turbidity"),
@@ -98,8 +106,17 @@ pub(crate) fn label_scene_args<'a>(r: &BTreeMap<&str, &'a str>) -> Vec<&'a str> 
         ("--albedo", "albedo"),
         ("--seed", "seed"),
         ("--frame-index", "frame_index"),
+        ("--sky-grid", "sky_grid"),
+        ("--model", "model"),
+        ("--radiance", "radiance"),
+        ("--dop-model", "dop_model"),
+        ("--babinet", "babinet"),
+        ("--brewster", "brewster"),
     ] {
-        v.extend([opt, r[key]]);
+        let law = ["babinet", "brewster"].contains(&col) && r[col] == "pan";
+        if !r[col].is_empty() && !law {
+            v.extend([opt, r[col]]);
+        }
     }
     v
 }
@@ -436,31 +453,10 @@ fn labels_match_file_names_and_rerendering_from_them_gives_the_image() {
             .path()
             .join(format!("again_{}", r["number"].to_string() + r["split"]));
         let mut args: Vec<String> = ["render", "--raw", "--bit-depth", "8"]
-            .iter()
-            .map(|s| s.to_string())
+            .into_iter()
+            .chain(label_render_args(r))
+            .map(String::from)
             .collect();
-        for (opt, col) in [
-            ("--preset", "preset"),
-            ("--width", "width"),
-            ("--height", "height"),
-            ("--yaw", "yaw_deg"),
-            ("--pitch", "pitch_deg"),
-            ("--roll", "roll_deg"),
-            ("--frame", "frame"),
-            ("--focal-length", "focal_length_mm"),
-            ("--pixel-pitch", "pixel_pitch_um"),
-            ("--sun-altitude", "sun_altitude_deg"),
-            ("--sun-azimuth", "sun_azimuth_deg"),
-            ("--turbidity", "turbidity"),
-            ("--wavelength", "wavelength_nm"),
-            ("--albedo", "albedo"),
-            ("--seed", "seed"),
-            ("--frame-index", "frame_index"),
-            ("--sky-grid", "sky_grid"),
-        ] {
-            args.push(opt.into());
-            args.push(r[col].into());
-        }
         args.push("--out".into());
         args.push(out.to_str().unwrap().into());
         let a: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
@@ -877,10 +873,8 @@ fn soft_clouds_differ_per_sample_and_render_again() {
     assert_eq!(seeds.len(), 8);
     for r in &rows {
         let out = t.path().join(format!("again{}", r["number"]));
-        let mut args = vec![
-            "render", "--raw", "--preset", "gniipi", "--width", "64", "--height", "48",
-        ];
-        args.extend(label_scene_args(r));
+        let mut args = vec!["render", "--raw"];
+        args.extend(label_render_args(r));
         args.push("--out");
         let o = out.to_str().unwrap().to_string();
         args.push(&o);

@@ -3,7 +3,7 @@
 //! distributions; `labels.csv` records what each sample used, and those values re-render each
 //! image through `psns render` byte for byte. Every sky model goes through a build.
 
-use crate::build::{build, label_rows, ok, write_config};
+use crate::build::{build, label_render_args, label_rows, ok, write_config};
 use crate::common::{psns, stderr};
 use psns::sky::PolarizationModel;
 use std::collections::BTreeSet;
@@ -23,38 +23,11 @@ fn built(dir: &Path, name: &str, description: &str) -> String {
 fn renders_again(dir: &Path, name: &str, labels: &str) {
     for (i, r) in label_rows(labels).iter().enumerate() {
         let out = dir.join(format!("again-{name}-{i}"));
-        let mut args: Vec<String> = vec!["render".into(), "--raw".into()];
-        args.extend(["--bit-depth", "8"].map(String::from));
-        for (opt, col) in [
-            ("--preset", "preset"),
-            ("--width", "width"),
-            ("--height", "height"),
-            ("--yaw", "yaw_deg"),
-            ("--pitch", "pitch_deg"),
-            ("--roll", "roll_deg"),
-            ("--frame", "frame"),
-            ("--focal-length", "focal_length_mm"),
-            ("--pixel-pitch", "pixel_pitch_um"),
-            ("--sun-altitude", "sun_altitude_deg"),
-            ("--sun-azimuth", "sun_azimuth_deg"),
-            ("--turbidity", "turbidity"),
-            ("--wavelength", "wavelength_nm"),
-            ("--albedo", "albedo"),
-            ("--seed", "seed"),
-            ("--frame-index", "frame_index"),
-            ("--sky-grid", "sky_grid"),
-            ("--model", "model"),
-            ("--radiance", "radiance"),
-            ("--dop-model", "dop_model"),
-            ("--babinet", "babinet"),
-            ("--brewster", "brewster"),
-        ] {
-            // the neutral points are empty for a model without them and `pan` on Pan's law
-            let law = ["babinet", "brewster"].contains(&col) && r[col] == "pan";
-            if !r[col].is_empty() && !law {
-                args.extend([opt.to_string(), r[col].to_string()]);
-            }
-        }
+        let mut args: Vec<String> = ["render", "--raw", "--bit-depth", "8"]
+            .into_iter()
+            .chain(label_render_args(r))
+            .map(String::from)
+            .collect();
         args.extend(["--out".into(), out.to_str().unwrap().into()]);
         let a: Vec<&str> = args.iter().map(|s| s.as_str()).collect();
         let o = psns(&a);

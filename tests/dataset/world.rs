@@ -2,7 +2,7 @@
 //! sample equal to `psns render --canyon` byte for byte and hiding what its geometry hides, and
 //! the `urban` and `canopy` presets built the same whatever the jobs or shards.
 
-use crate::build::{assert_same_tree, build, label_rows, label_scene_args, ok, write_config};
+use crate::build::{assert_same_tree, build, label_render_args, label_rows, ok, write_config};
 use crate::common::{psns, stderr};
 use std::path::Path;
 
@@ -136,26 +136,14 @@ fn a_canyon_sample_is_psns_render_with_its_canyon() {
                 "--raw",
                 "--bit-depth",
                 "8",
-                "--preset",
-                r["preset"],
-                "--width",
-                "64",
-                "--height",
-                "64",
-                "--pixel-pitch",
-                "40",
                 "--projection",
                 "equidistant",
-                "--focal-length",
-                r["focal_length_mm"],
-                "--sky-grid",
-                r["sky_grid"],
                 "--canyon",
                 &canyon,
                 "--camera-height",
                 r["camera_height_m"],
             ];
-            args.extend(label_scene_args(&r));
+            args.extend(label_render_args(&r));
             if !r["cloud_cover"].is_empty() {
                 args.extend(["--cloud-cover", r["cloud_cover"]]);
             }
