@@ -37,7 +37,6 @@ pub enum Group {
     World,
 }
 
-/// Runs `psns figures`.
 /// The scene of the docs' pictures: the default scene with the camera's image +y axis toward the
 /// sun's azimuth (yaw 0 in the solar frame, ENU yaw 200°), the view the pictures and their numbers
 /// in docs/ describe.
@@ -47,6 +46,20 @@ pub(crate) fn figure_scene() -> SceneConfig {
     c
 }
 
+/// [`figure_scene`] through a 1.8 mm equidistant fisheye looking at the zenith, at 8 x 8
+/// binning of the full sensor (306 x 256).
+pub(crate) fn fisheye_scene() -> SceneConfig {
+    let mut c = figure_scene();
+    let i = &mut c.camera.intrinsics;
+    i.projection = psns::camera::Projection::Equidistant;
+    i.focal_length_mm = 1.8;
+    i.width = 306;
+    i.height = 256;
+    i.pixel_pitch_um = 3.45 * 8.0;
+    c
+}
+
+/// Runs `psns figures`.
 pub fn run(a: FiguresArgs) -> anyhow::Result<()> {
     let want = |g: Group| a.only.is_none_or(|o| o == g);
     let steps = [
@@ -87,17 +100,11 @@ pub const LENS_FIGURE_STEPS: u64 = 2;
 /// at 8x8 binning), and the default frame's AOP through the pinhole and the ideal lens with their
 /// difference (8x smaller), whose statistics at full size go to `lens_numbers.json`.
 pub fn lens_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>> {
-    use psns::camera::{Lens, Projection};
+    use psns::camera::Lens;
     create_dir(dir)?;
     let mut files = Vec::new();
     progress.set_message("lens: fisheye");
-    let mut cfg = figure_scene();
-    let i = &mut cfg.camera.intrinsics;
-    i.projection = Projection::Equidistant;
-    i.focal_length_mm = 1.8;
-    i.width = 306;
-    i.height = 256;
-    i.pixel_pitch_um = 3.45 * 8.0;
+    let cfg = fisheye_scene();
     let (sky, cam) = cfg.build()?;
     let ideal = render::render_ideal(&sky, &cam);
     let white = vis::quantile(&ideal.li, 0.999);

@@ -4,7 +4,6 @@
 
 use super::super::progress::Progress;
 use super::super::vis;
-use psns::camera::Projection;
 use psns::config::SceneConfig;
 use psns::image::Image;
 use psns::io::create_dir;
@@ -24,19 +23,6 @@ const PALETTE: [[u8; 3]; 6] = [
     [70, 120, 45],
     [255, 220, 0],
 ];
-
-/// The default scene through a 1.8 mm equidistant fisheye looking at the zenith, at 8 x 8
-/// binning of the full sensor (306 x 256).
-fn fisheye_scene() -> SceneConfig {
-    let mut c = super::figure_scene();
-    let i = &mut c.camera.intrinsics;
-    i.projection = Projection::Equidistant;
-    i.focal_length_mm = 1.8;
-    i.width = 306;
-    i.height = 256;
-    i.pixel_pitch_um = 3.45 * 8.0;
-    c
-}
 
 /// One row of panels: LI, DoLP, AoLP, class.
 fn panels(cfg: &SceneConfig, t_s: f64) -> Result<Image<[u8; 3]>> {
@@ -68,12 +54,12 @@ pub fn world_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>>
         Ok(())
     };
     progress.set_message("world: canyon");
-    let mut cfg = fisheye_scene();
+    let mut cfg = super::fisheye_scene();
     cfg.world.canyon = Some(psns::world::Canyon::new(20.0, 6.0, 0.0));
     write("world_canyon.png", &panels(&cfg, 0.0)?, progress)?;
 
     progress.set_message("world: tree");
-    let mut cfg = fisheye_scene();
+    let mut cfg = super::fisheye_scene();
     cfg.world.camera_height_m = 1.5;
     cfg.world.trees = vec![Tree {
         east_m: 4.0,
@@ -86,7 +72,7 @@ pub fn world_figures(dir: &Path, progress: &mut Progress) -> Result<Vec<String>>
     write("world_tree.png", &panels(&cfg, 0.0)?, progress)?;
 
     progress.set_message("world: clouds");
-    let mut cfg = fisheye_scene();
+    let mut cfg = super::fisheye_scene();
     cfg.world.clouds = vec![
         Cloud {
             azimuth_deg: 300.0,
