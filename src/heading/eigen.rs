@@ -75,14 +75,7 @@ pub fn eigenvector_heading(
     setup: &HeadingSetup,
 ) -> Result<HeadingEstimate> {
     let i = &setup.intrinsics;
-    if (aolp_deg.width, aolp_deg.height) != (i.width, i.height)
-        || (dolp.width, dolp.height) != (i.width, i.height)
-    {
-        return Err(Error::Invalid(format!(
-            "heading: images of {} x {} and {} x {} pixels for intrinsics of {} x {}",
-            aolp_deg.width, aolp_deg.height, dolp.width, dolp.height, i.width, i.height
-        )));
-    }
+    check_image_sizes(aolp_deg, dolp, i)?;
     check_range("pitch", setup.pitch_deg, -90.0, 90.0)?;
     check_range("roll", setup.roll_deg, -90.0, 90.0)?;
     check_range("min-dolp", setup.min_dolp, 0.0, 1.0)?;

@@ -22,14 +22,7 @@ pub fn hough_heading(view: &PolarView, setup: &HeadingSetup) -> Result<HeadingEs
     let mut buf = None;
     let view = &apply_view_mask(view, &mut buf)?;
     let i = &setup.intrinsics;
-    if (view.aolp_deg.width, view.aolp_deg.height) != (i.width, i.height)
-        || (view.dolp.width, view.dolp.height) != (i.width, i.height)
-    {
-        return Err(Error::Invalid(format!(
-            "heading: images of {} x {} pixels for intrinsics of {} x {}",
-            view.aolp_deg.width, view.aolp_deg.height, i.width, i.height
-        )));
-    }
+    check_image_sizes(view.aolp_deg, view.dolp, i)?;
     setup.sun.check_up()?;
     check_sun_defines_yaw(&setup.sun)?;
     let tilt = rot_y(setup.roll_deg.to_radians()) * rot_x(setup.pitch_deg.to_radians());

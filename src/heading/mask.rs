@@ -188,14 +188,7 @@ pub fn find_sky_mask(view: &PolarView, setup: &HeadingSetup) -> Result<FoundMask
     let mut buf = None;
     let view = apply_view_mask(view, &mut buf)?;
     let i = &setup.intrinsics;
-    if (view.dolp.width, view.dolp.height) != (i.width, i.height)
-        || (view.aolp_deg.width, view.aolp_deg.height) != (i.width, i.height)
-    {
-        return Err(Error::Invalid(format!(
-            "heading: images of {} x {} pixels for intrinsics of {} x {}",
-            view.dolp.width, view.dolp.height, i.width, i.height
-        )));
-    }
+    check_image_sizes(view.aolp_deg, view.dolp, i)?;
     let g = step_for_samples(setup, MASK_GRID_SAMPLES);
     let (ni, nj) = (i.height.div_ceil(g), i.width.div_ceil(g));
     let tilt = rot_y(setup.roll_deg.to_radians()) * rot_x(setup.pitch_deg.to_radians());

@@ -255,6 +255,19 @@ pub(super) fn model_fit_view(
 /// it the confidence falls with sin(zenith angle) (each estimator's sun-height factor).
 pub const ZENITH_SUN_DEG: f64 = 0.27;
 
+/// Refuses AoLP and DoLP images whose size is not the intrinsics' (both sizes named).
+fn check_image_sizes(aolp_deg: &Image<f32>, dolp: &Image<f32>, i: &Intrinsics) -> Result<()> {
+    if (aolp_deg.width, aolp_deg.height) != (i.width, i.height)
+        || (dolp.width, dolp.height) != (i.width, i.height)
+    {
+        return Err(Error::Invalid(format!(
+            "heading: images of {} x {} and {} x {} pixels for intrinsics of {} x {}",
+            aolp_deg.width, aolp_deg.height, dolp.width, dolp.height, i.width, i.height
+        )));
+    }
+    Ok(())
+}
+
 /// `Err(`[`Error::Undetermined`]`)` when the known sun is within [`ZENITH_SUN_DEG`] of the
 /// zenith: the estimators then give no yaw (NaN in the front-ends, as for too few pixels).
 ///
