@@ -3,6 +3,7 @@
 use super::FrameRequest;
 use crate::config::SceneConfig;
 use crate::error::Result;
+use crate::sensor::Exposure;
 use crate::sun::{self, Place, Refraction, SunPosition};
 use crate::trajectory::Pose;
 use chrono::{DateTime, Utc};
@@ -114,16 +115,21 @@ impl SceneClock {
             })
     }
 
-    /// The request of frame `index` at `pose`: its exposure start on this clock, the sun
-    /// `half_exposure_ns` later (mid-exposure), the pose's place.
+    /// The request of frame `index` at `pose` taken with `exposure`: its exposure start on this
+    /// clock, the sun at mid-exposure (at the start for auto-exposure, whose length the frame
+    /// decides), the pose's place.
     pub fn request(
         &self,
         index: u64,
         pose: &Pose,
-        half_exposure_ns: i64,
+        exposure: &Exposure,
     ) -> Result<FrameRequest<'static>> {
+        let half_ns = match exposure {
+            Exposure::Fixed { us } => seconds_to_ns(us * 0.5e-6)?,
+            Exposure::Auto { .. } => 0,
+        };
         let t_ns = self.exposure_start_ns(pose)?;
-        let sun = self.sun_at(pose, t_ns.saturating_add(half_exposure_ns))?;
+        let sun = self.sun_at(pose, t_ns.saturating_add(half_ns))?;
         Ok(FrameRequest::sky(index, sun, pose.attitude).at(pose.t_s, t_ns, self.place(pose)))
     }
 

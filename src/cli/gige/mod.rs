@@ -23,7 +23,7 @@ use psns::gige::gvcp::{self, Command};
 use psns::gige::gvsp::{self, Block, BlockRing, Leader};
 use psns::gige::registers::{Action, Device, DeviceInfo, FrameOrder, Poll, Settings};
 use psns::options::{finite, RawArgs, SceneArgs, WorldArgs};
-use psns::pipeline::{seconds_to_ns, FrameResult, RawPipeline, SceneClock};
+use psns::pipeline::{FrameResult, RawPipeline, SceneClock};
 use psns::record::FrameRecord;
 use psns::sensor::{packing, Exposure};
 use psns::trajectory::Pose;

@@ -80,10 +80,6 @@ impl Renderer {
         let key = PipeKey::of(self.pipes[0].1.sensor_config(), s);
         let i = self.pipeline(&key)?;
         let pipe = &self.pipes[i].1;
-        let half_ns = match key.exposure {
-            Exposure::Fixed { us } => seconds_to_ns(us * 0.5e-6)?,
-            Exposure::Auto { .. } => 0,
-        };
         let mut codes = std::mem::take(&mut self.codes);
         let mut bytes = Vec::new();
         if let Ok(img) = self.spare.try_recv() {
@@ -93,7 +89,7 @@ impl Renderer {
                 Image::Codes(_) => {}
             }
         }
-        let req = self.clock.request(order.frame_index, pose, half_ns)?;
+        let req = self.clock.request(order.frame_index, pose, &key.exposure)?;
         let FrameResult { frame, record, .. } = pipe.render(req.into_codes(codes, 0))?;
         let fmt = s.pixel_format.packing();
         let (sw, sh) = self.sensor_size;

@@ -26,7 +26,7 @@ use super::signals::{self, die_by, signal_name};
 use psns::config::SceneConfig;
 use psns::error::{Error, Result};
 use psns::options::{finite, whole, RawArgs, SceneArgs, WorldArgs};
-use psns::pipeline::{seconds_to_ns, FrameResult, RawPipeline, SceneClock};
+use psns::pipeline::{FrameResult, RawPipeline, SceneClock};
 use psns::sensor::packing;
 use psns::sensor::Exposure;
 use psns::stream::{CameraConstants, FileHeader, FrameMeta, FLAG_LAST, JSON_MAX};
@@ -240,8 +240,8 @@ struct FrameMaker {
     pipe: RawPipeline,
     /// Pose time to stream time, and the sun of each frame.
     clock: SceneClock,
-    /// Half the fixed exposure, ns (0 for auto-exposure).
-    half_exposure_ns: i64,
+    /// The sensor's exposure (the sun is taken at mid-exposure).
+    exposure: Exposure,
     /// What the output takes.
     kind: FrameKind,
     bits_valid: u8,
@@ -291,7 +291,7 @@ impl FrameMaker {
         let (lead, fmt) = (self.kind.lead, self.kind.format);
         let mut req = self
             .clock
-            .request(index, pose, self.half_exposure_ns)?
+            .request(index, pose, &self.exposure)?
             .into_codes(codes, lead)
             .with_payload(fmt, bytes);
         req.truth = self.kind.truth;
@@ -536,10 +536,7 @@ pub fn run_stream(
     let retains = out.retains();
     let maker = FrameMaker {
         clock,
-        half_exposure_ns: match sc.exposure {
-            Exposure::Fixed { us } => seconds_to_ns(us * 0.5e-6)?,
-            Exposure::Auto { .. } => 0,
-        },
+        exposure: sc.exposure,
         kind,
         bits_valid: packing::bits_valid(kind.format, sc.bit_depth),
         codes: Vec::new(),
